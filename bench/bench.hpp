@@ -1,0 +1,17 @@
+// Benchmarks, run through `stylerf bench <name>`. Each prints a table and optionally writes JSON.
+#pragma once
+#include <string>
+
+namespace stylerf::bench {
+
+struct BenchOptions {
+  std::string json_path;  // empty: no JSON
+  int repeats = 3;        // timed repetitions after one warm-up
+  bool quick = false;     // smaller shapes, for smoke runs in the test suite / README demo
+};
+
+int bench_gemm(const BenchOptions& opt);  // bench/bench_gemm.cpp
+int bench_conv(const BenchOptions& opt);  // bench/bench_conv.cpp
+int bench_ops(const BenchOptions& opt);   // bench/bench_ops.cpp: every NN op's perf mode (GB/s or GFLOP/s)
+
+}  // namespace stylerf::bench

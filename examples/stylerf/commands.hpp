@@ -1,0 +1,27 @@
+// The `stylerf` command line: each subcommand lives in its own cmd_*.cpp and registers itself here.
+#pragma once
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace stylerf::cli {
+
+// A subcommand gets the arguments after its name (args[0] is "stylerf <name>") and returns the exit code.
+using CommandFn = std::function<int(int argc, char** argv)>;
+
+struct Command {
+  std::string name, summary;
+  CommandFn run;
+};
+
+std::vector<Command>& commands();
+
+struct Register {
+  Register(std::string name, std::string summary, CommandFn fn);
+};
+
+// Common options every subcommand accepts: --device SPEC (also STYLERF_DEVICE), --profile.
+// Initialises the OpenCL runtime on the chosen device.
+void init_runtime(const std::string& device_spec, bool profile);
+
+}  // namespace stylerf::cli

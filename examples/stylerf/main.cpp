@@ -1,0 +1,52 @@
+// stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the subcommands.
+#include <cstring>
+#include <exception>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "host/runtime.hpp"
+
+namespace stylerf::cli {
+
+std::vector<Command>& commands() {
+  static std::vector<Command> list;
+  return list;
+}
+
+Register::Register(std::string name, std::string summary, CommandFn fn) {
+  commands().push_back({std::move(name), std::move(summary), std::move(fn)});
+}
+
+void init_runtime(const std::string& device_spec, bool profile) {
+  auto& rt = host::Runtime::init(device_spec);
+  if (profile) rt.set_profiling(true);
+}
+
+}  // namespace stylerf::cli
+
+namespace {
+void usage() {
+  std::cout << "usage: stylerf <command> [options]   (stylerf <command> --help for its options)\n\ncommands:\n";
+  for (const auto& c : stylerf::cli::commands()) std::cout << "  " << c.name << std::string(16 - std::min<size_t>(15, c.name.size()), ' ') << c.summary << "\n";
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "help") || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+    usage();
+    return argc < 2 ? 2 : 0;
+  }
+  for (const auto& c : stylerf::cli::commands()) {
+    if (c.name == argv[1]) {
+      try {
+        return c.run(argc - 1, argv + 1);
+      } catch (const std::exception& e) {
+        std::cerr << "stylerf " << c.name << ": error: " << e.what() << std::endl;
+        return 1;
+      }
+    }
+  }
+  std::cerr << "stylerf: unknown command '" << argv[1] << "'\n";
+  usage();
+  return 2;
+}

@@ -1,0 +1,252 @@
+#include "host/runtime.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "host/embedded.hpp"
+#include "host/error.hpp"
+#include "host/files.hpp"
+
+namespace stylerf::host {
+namespace {
+
+std::unique_ptr<Runtime>& runtime_slot() {
+  static std::unique_ptr<Runtime> slot;
+  return slot;
+}
+
+uint64_t fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) {
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+std::string hex64(uint64_t v) {
+  std::ostringstream o;
+  o << std::hex << std::setw(16) << std::setfill('0') << v;
+  return o.str();
+}
+
+}  // namespace
+
+std::string cache_dir() {
+  if (const char* d = std::getenv("STYLERF_CACHE_DIR"); d && *d) return d;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/stylerf";
+  if (const char* h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/stylerf";
+  return "/tmp/stylerf-cache";
+}
+
+void configure_driver_caches() {
+  const char* pocl = std::getenv("POCL_CACHE_DIR");
+  if (pocl && *pocl) return;
+  std::string dir = cache_dir() + "/pocl";
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!ec) setenv("POCL_CACHE_DIR", dir.c_str(), 0);
+}
+
+Runtime& Runtime::init(const std::string& device_spec) {
+  auto& slot = runtime_slot();
+  if (slot) {
+    if (!device_spec.empty()) {
+      DeviceInfo want = choose_device(device_spec);
+      if (want.id != slot->device_.id)
+        throw Error("the OpenCL runtime is already running on '" + slot->device_.name +
+                    "'; it cannot switch to '" + want.name + "' within one process");
+    }
+    return *slot;
+  }
+  configure_driver_caches();
+  slot.reset(new Runtime(choose_device(device_spec)));
+  return *slot;
+}
+
+Runtime& Runtime::instance() { return runtime_slot() ? *runtime_slot() : init(""); }
+
+bool Runtime::initialised() { return static_cast<bool>(runtime_slot()); }
+
+Runtime::Runtime(const DeviceInfo& device) : device_(device) {
+  cl_int err = CL_SUCCESS;
+  cl_context_properties props[] = {CL_CONTEXT_PLATFORM, reinterpret_cast<cl_context_properties>(device_.platform),
+                                   0};
+  context_ = clCreateContext(props, 1, &device_.id, nullptr, nullptr, &err);
+  check(err, "clCreateContext", device_.name);
+  // OpenCL 1.2 API: in-order queue with profiling (deprecated in 2.0 but universally available).
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+#endif
+  queue_ = clCreateCommandQueue(context_, device_.id, CL_QUEUE_PROFILING_ENABLE, &err);
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
+  check(err, "clCreateCommandQueue", device_.name);
+  if (const char* p = std::getenv("STYLERF_PROFILE"); p && std::string(p) == "1") profiling_ = true;
+}
+
+Runtime::~Runtime() {
+  for (auto& e : pending_events_) clReleaseEvent(e.second);
+  for (auto& k : kernels_) clReleaseKernel(k.second);
+  for (auto& p : programs_) clReleaseProgram(p.second);
+  if (queue_) clReleaseCommandQueue(queue_);
+  if (context_) clReleaseContext(context_);
+}
+
+std::string Runtime::program_source(const std::string& program) const {
+  if (const char* dir = std::getenv("STYLERF_KERNEL_DIR"); dir && *dir) {
+    std::string path = std::string(dir) + "/" + program + ".cl";
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error("STYLERF_KERNEL_DIR is set but " + path + " cannot be read");
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+  for (const auto& f : embedded_kernels())
+    if (program == f.name) return f.text;
+  throw Error("no OpenCL program named '" + program + "' (kernels/" + program + ".cl) was built into stylerf");
+}
+
+cl_program Runtime::build_program(const std::string& program, const std::string& options) {
+  const std::string source = program_source(program);
+  const std::string full_options = "-cl-std=CL1.2 -cl-mad-enable " + options;
+  cl_int err = CL_SUCCESS;
+  cl_program prog = nullptr;
+
+  // Drivers other than PoCL get a binary cache of ours; PoCL caches by itself in POCL_CACHE_DIR.
+  std::string cache_path;
+  if (!device_.is_pocl()) {
+    uint64_t h = fnv1a(source);
+    h = fnv1a(full_options, h);
+    h = fnv1a(device_.name + '\n' + device_.driver + '\n' + device_.platform_name, h);
+    cache_path = cache_dir() + "/programs/" + program + "-" + hex64(h) + ".bin";
+    std::ifstream in(cache_path, std::ios::binary);
+    if (in) {
+      std::string bin((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      const unsigned char* ptr = reinterpret_cast<const unsigned char*>(bin.data());
+      size_t len = bin.size();
+      cl_int status = CL_SUCCESS;
+      prog = clCreateProgramWithBinary(context_, 1, &device_.id, &len, &ptr, &status, &err);
+      if (err != CL_SUCCESS || status != CL_SUCCESS) prog = nullptr;
+      if (prog && clBuildProgram(prog, 1, &device_.id, full_options.c_str(), nullptr, nullptr) != CL_SUCCESS) {
+        clReleaseProgram(prog);
+        prog = nullptr;
+      }
+      if (prog) return prog;
+    }
+  }
+
+  const char* src = source.c_str();
+  size_t len = source.size();
+  prog = clCreateProgramWithSource(context_, 1, &src, &len, &err);
+  check(err, "clCreateProgramWithSource", "kernels/" + program + ".cl");
+  err = clBuildProgram(prog, 1, &device_.id, full_options.c_str(), nullptr, nullptr);
+  if (err != CL_SUCCESS) {
+    size_t n = 0;
+    clGetProgramBuildInfo(prog, device_.id, CL_PROGRAM_BUILD_LOG, 0, nullptr, &n);
+    std::string log(n, '\0');
+    clGetProgramBuildInfo(prog, device_.id, CL_PROGRAM_BUILD_LOG, n, log.data(), nullptr);
+    clReleaseProgram(prog);
+    throw Error("clBuildProgram failed for kernels/" + program + ".cl with options '" + options +
+                "': " + cl_error_name(err) + "\n" + log);
+  }
+  if (!cache_path.empty()) {
+    size_t bin_size = 0;
+    if (clGetProgramInfo(prog, CL_PROGRAM_BINARY_SIZES, sizeof(bin_size), &bin_size, nullptr) == CL_SUCCESS &&
+        bin_size > 0) {
+      std::string bin(bin_size, '\0');
+      unsigned char* ptr = reinterpret_cast<unsigned char*>(bin.data());
+      if (clGetProgramInfo(prog, CL_PROGRAM_BINARIES, sizeof(ptr), &ptr, nullptr) == CL_SUCCESS) {
+        try {
+          write_file_atomic(cache_path, bin);
+        } catch (const std::exception&) {
+          // A cache we cannot write only costs compile time next run.
+        }
+      }
+    }
+  }
+  return prog;
+}
+
+cl_kernel Runtime::kernel(const std::string& program, const std::string& name, const std::string& options) {
+  const std::string pkey = program + '\n' + options;
+  const std::string kkey = pkey + '\n' + name;
+  if (auto it = kernels_.find(kkey); it != kernels_.end()) return it->second;
+  auto pit = programs_.find(pkey);
+  if (pit == programs_.end()) pit = programs_.emplace(pkey, build_program(program, options)).first;
+  cl_int err = CL_SUCCESS;
+  cl_kernel k = clCreateKernel(pit->second, name.c_str(), &err);
+  check(err, "clCreateKernel", "kernel '" + name + "' in kernels/" + program + ".cl");
+  kernels_.emplace(kkey, k);
+  return k;
+}
+
+cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
+  auto limits = [&] {
+    std::ostringstream o;
+    o << "allocating " << bytes << " bytes (" << std::fixed << std::setprecision(1) << bytes / 1048576.0
+      << " MiB) for " << what << " on '" << device_.name << "' failed: the device allows at most "
+      << (device_.max_alloc_bytes >> 20) << " MiB per buffer and has " << (device_.global_mem_bytes >> 20)
+      << " MiB in all";
+    return o.str();
+  };
+  if (bytes > device_.max_alloc_bytes) throw Error(limits() + " (request exceeds the per-buffer limit)");
+  cl_int err = CL_SUCCESS;
+  cl_mem m = clCreateBuffer(context_, CL_MEM_READ_WRITE, std::max<size_t>(bytes, 4), nullptr, &err);
+  if (err != CL_SUCCESS) throw Error(limits() + ": clCreateBuffer returned " + cl_error_name(err));
+  return m;
+}
+
+void Runtime::finish() { check(clFinish(queue_), "clFinish"); }
+
+void Runtime::record(const std::string& kernel_name, cl_event event) {
+  pending_events_.emplace_back(kernel_name, event);
+  if (pending_events_.size() > 4096) timings();  // bound the number of live events
+}
+
+std::vector<KernelTiming> Runtime::timings() {
+  if (!pending_events_.empty()) {
+    finish();
+    for (auto& [name, ev] : pending_events_) {
+      cl_ulong t0 = 0, t1 = 0;
+      check(clGetEventProfilingInfo(ev, CL_PROFILING_COMMAND_START, sizeof(t0), &t0, nullptr),
+            "clGetEventProfilingInfo", name);
+      check(clGetEventProfilingInfo(ev, CL_PROFILING_COMMAND_END, sizeof(t1), &t1, nullptr),
+            "clGetEventProfilingInfo", name);
+      auto& t = totals_[name];
+      t.kernel = name;
+      t.launches += 1;
+      t.total_ms += (t1 - t0) * 1e-6;
+      clReleaseEvent(ev);
+    }
+    pending_events_.clear();
+  }
+  std::vector<KernelTiming> out;
+  for (auto& kv : totals_) out.push_back(kv.second);
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.total_ms > b.total_ms; });
+  return out;
+}
+
+void Runtime::reset_timings() {
+  timings();
+  totals_.clear();
+}
+
+std::string Runtime::timing_report() {
+  std::ostringstream o;
+  o << std::left << std::setw(36) << "kernel" << std::right << std::setw(10) << "launches" << std::setw(14)
+    << "total ms" << std::setw(12) << "ms/launch" << "\n";
+  for (const auto& t : timings())
+    o << std::left << std::setw(36) << t.kernel << std::right << std::setw(10) << t.launches << std::setw(14)
+      << std::fixed << std::setprecision(3) << t.total_ms << std::setw(12) << t.total_ms / t.launches << "\n";
+  return o.str();
+}
+
+}  // namespace stylerf::host

@@ -1,0 +1,87 @@
+// The process-wide OpenCL runtime: one device, one context, one in-order queue with profiling.
+//
+// Kernels come from kernels/<program>.cl, embedded at build time; with STYLERF_KERNEL_DIR set they are
+// read from that directory instead (edit a kernel, rerun, no rebuild). Programs are built once per
+// (program, options) pair and kept; compiled binaries persist across processes:
+//   - PoCL keeps its own cache in POCL_CACHE_DIR, which we point at ~/.cache/stylerf/pocl when unset;
+//   - other drivers: binaries in ~/.cache/stylerf/programs, keyed by a hash of source, options,
+//     device name and driver version.
+#pragma once
+#include <CL/cl.h>
+
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "host/device.hpp"
+
+namespace stylerf::host {
+
+// Per-kernel time totals gathered while profiling is on.
+struct KernelTiming {
+  std::string kernel;
+  int launches = 0;
+  double total_ms = 0.0;
+};
+
+class Runtime {
+ public:
+  // Initialises the process-wide runtime on the device named by spec (see choose_device). Calling it
+  // again with a different device throws; the first call of instance() initialises with spec "".
+  static Runtime& init(const std::string& device_spec = "");
+  static Runtime& instance();
+  static bool initialised();
+
+  const DeviceInfo& device() const { return device_; }
+  cl_context context() const { return context_; }
+  cl_command_queue queue() const { return queue_; }
+  cl_command_queue* queue_ptr() { return &queue_; }
+
+  // A kernel of kernels/<program>.cl built with the given options (e.g. "-DTILE=8"). Cached.
+  cl_kernel kernel(const std::string& program, const std::string& name, const std::string& options = "");
+  // The source of kernels/<program>.cl (embedded, or from STYLERF_KERNEL_DIR).
+  std::string program_source(const std::string& program) const;
+
+  // Allocates a device buffer. Throws an Error naming `what`, the bytes asked for and the device's
+  // limits when the request exceeds them or the driver refuses it.
+  cl_mem allocate(size_t bytes, const std::string& what);
+
+  void finish();
+
+  // Profiling: while on, every launch() records an event; timings() waits for them and sums per kernel.
+  // STYLERF_PROFILE=1 switches it on at start.
+  void set_profiling(bool on) { profiling_ = on; }
+  bool profiling() const { return profiling_; }
+  void record(const std::string& kernel_name, cl_event event);
+  std::vector<KernelTiming> timings();
+  void reset_timings();
+  std::string timing_report();
+
+  ~Runtime();
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+ private:
+  explicit Runtime(const DeviceInfo& device);
+  cl_program build_program(const std::string& program, const std::string& options);
+
+  DeviceInfo device_;
+  cl_context context_ = nullptr;
+  cl_command_queue queue_ = nullptr;
+  std::map<std::string, cl_program> programs_;  // key: program + '\n' + options
+  std::map<std::string, cl_kernel> kernels_;    // key: program + '\n' + options + '\n' + name
+  bool profiling_ = false;
+  std::vector<std::pair<std::string, cl_event>> pending_events_;
+  std::map<std::string, KernelTiming> totals_;
+};
+
+// Where stylerf keeps caches: $STYLERF_CACHE_DIR, else $XDG_CACHE_HOME/stylerf, else ~/.cache/stylerf.
+std::string cache_dir();
+
+// Makes sure POCL_CACHE_DIR points at our cache (unless the user set it). Safe to call repeatedly;
+// must run before the first OpenCL call of the process to take effect, which Runtime does.
+void configure_driver_caches();
+
+}  // namespace stylerf::host

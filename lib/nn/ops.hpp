@@ -1,0 +1,82 @@
+// Neural-network ops on device tensors (NCHW, float32). Each op has a forward and a backward, side by
+// side; backward functions return fresh gradient tensors (they overwrite, never accumulate).
+//
+// Kernels: kernels/nn.cl (im2col/col2im, padding, bias, relu, pooling, upsampling),
+//          kernels/norm.cl (channel statistics, instance norm, AdaIN), kernels/loss.cl, kernels/optim.cl,
+//          kernels/reduce.cl, kernels/elementwise.cl.
+#pragma once
+#include "host/tensor.hpp"
+
+namespace stylerf::nn {
+
+using host::Shape;
+using host::Tensor;
+
+// ---- conv2d (stride 1, "same" size; kernel 1 or 3) ---------------------------------------------
+enum class Padding { Zero, Reflect };
+
+// x [N,Cin,H,W], w [Cout,Cin,k,k] (k = 1 or 3), b [Cout] or undefined -> y [N,Cout,H,W]
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad);
+struct Conv2dGrads {
+  Tensor dx;  // undefined unless asked for
+  Tensor dw;  // undefined unless asked for
+  Tensor db;  // undefined unless asked for
+};
+// need_dx false skips the col2im work (frozen early layers); need_params false skips dW/db (frozen VGG).
+Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
+                            bool need_params);
+
+// ---- pointwise / spatial ---------------------------------------------------------------------
+Tensor relu_forward(const Tensor& x);
+Tensor relu_backward(const Tensor& y, const Tensor& dy);  // uses the output: dx = dy * (y > 0)
+
+// 2x2 max pooling, stride 2 (H, W even). Backward routes dy to the first maximum of each window.
+Tensor maxpool2x2_forward(const Tensor& x);
+Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy);
+
+// Nearest-neighbour x2 upsampling; backward sums each 2x2 block.
+Tensor upsample2x_forward(const Tensor& x);
+Tensor upsample2x_backward(const Tensor& dy);
+
+// ---- channel statistics, instance norm, AdaIN --------------------------------------------------
+// Per (n, c) over H*W: mean and std = sqrt(var + eps), var the biased (population) variance.
+// eps keeps std > 0 so constant channels (var = 0) give finite values and gradients.
+struct ChannelStats {
+  Tensor mean;  // [N,C]
+  Tensor std;   // [N,C]
+};
+constexpr float kStatsEps = 1e-5f;
+ChannelStats channel_stats_forward(const Tensor& x, float eps = kStatsEps);
+Tensor channel_stats_backward(const Tensor& x, const ChannelStats& stats, const Tensor& dmean, const Tensor& dstd);
+
+// y = (x - mean) / std per (n, c).
+Tensor instance_norm_forward(const Tensor& x, ChannelStats* stats_out = nullptr, float eps = kStatsEps);
+Tensor instance_norm_backward(const Tensor& x, const ChannelStats& stats, const Tensor& dy);
+
+// AdaIN(c, s) = (c - mean_c) / std_c * std_s + mean_s, per (n, c); style may have another H, W.
+Tensor adain_forward(const Tensor& content, const Tensor& style, float eps = kStatsEps);
+struct AdainGrads {
+  Tensor dcontent, dstyle;
+};
+AdainGrads adain_backward(const Tensor& content, const Tensor& style, const Tensor& dy, float eps = kStatsEps);
+
+// ---- losses (return a [1] tensor; backward takes the upstream scalar gradient) ---------------
+Tensor mse_forward(const Tensor& a, const Tensor& b);             // mean((a-b)^2)
+Tensor mse_backward(const Tensor& a, const Tensor& b, float dloss);  // d/da
+// AdaIN style loss: MSE(mean_a, mean_b) + MSE(std_a, std_b) over [N,C].
+Tensor style_loss_forward(const Tensor& a, const Tensor& b, float eps = kStatsEps);
+Tensor style_loss_backward(const Tensor& a, const Tensor& b, float dloss, float eps = kStatsEps);  // d/da
+
+// ---- reductions & elementwise ------------------------------------------------------------------
+Tensor sum(const Tensor& x);                       // [1]
+float sum_value(const Tensor& x);                  // sum, read back to host
+void axpby(float a, const Tensor& x, float b, Tensor& y);  // y = a*x + b*y
+
+// ---- Adam ------------------------------------------------------------------------------------
+struct AdamConfig {
+  float lr = 1e-3f, beta1 = 0.9f, beta2 = 0.999f, eps = 1e-8f;
+};
+// One step on param in place; m and v are the moment buffers (same shape, start at zero); step >= 1.
+void adam_step(Tensor& param, const Tensor& grad, Tensor& m, Tensor& v, int step, const AdamConfig& cfg);
+
+}  // namespace stylerf::nn

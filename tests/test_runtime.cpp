@@ -1,0 +1,85 @@
+// The host runtime: device choice, buffers, kernel launch, errors.
+#include <doctest/doctest.h>
+
+#include "host/device.hpp"
+#include "host/error.hpp"
+#include "host/launch.hpp"
+#include "host/runtime.hpp"
+#include "host/tensor.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf::host;
+
+TEST_CASE("devices are listed and chosen by index, type and name") {
+  auto devs = list_devices();
+  REQUIRE(!devs.empty());
+  CHECK(choose_device("0").id == devs[0].id);
+  CHECK(choose_device(devs[0].type_name()).type == devs[0].type);
+  CHECK(choose_device(devs[0].name.substr(0, 6)).id != nullptr);
+}
+
+TEST_CASE("an unknown device spec names the spec and lists devices") {
+  try {
+    choose_device("no-such-device-xyz");
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    std::string msg = e.what();
+    CHECK(msg.find("no-such-device-xyz") != std::string::npos);
+    CHECK(msg.find("[0]") != std::string::npos);
+  }
+}
+
+TEST_CASE("tensor round trip, fill and copy") {
+  auto data = stylerf::testing::random_normal(1000, 1);
+  Tensor t = Tensor::from_host(data, {10, 100});
+  CHECK(t.to_host() == data);
+  Tensor c = t.clone();
+  t.fill(2.5f);
+  CHECK(c.to_host() == data);
+  for (float v : t.to_host()) CHECK(v == 2.5f);
+  CHECK_THROWS_AS(t.reshape({7, 7}), Error);
+  CHECK(t.reshape({1000}).same_buffer(t));
+}
+
+TEST_CASE("an allocation beyond the device limit says how many bytes and what the device allows") {
+  const auto& d = Runtime::instance().device();
+  try {
+    Runtime::instance().allocate(d.max_alloc_bytes + 4096, "test buffer");
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    std::string msg = e.what();
+    CHECK(msg.find(std::to_string(d.max_alloc_bytes + 4096)) != std::string::npos);
+    CHECK(msg.find("test buffer") != std::string::npos);
+    CHECK(msg.find("at most") != std::string::npos);
+  }
+}
+
+TEST_CASE("kernel launch runs, and errors name the kernel") {
+  std::vector<float> x = {1, 2, 3}, y = {10, 20, 30};
+  Tensor tx = Tensor::from_host(x, {3}), ty = Tensor::from_host(y, {3});
+  launch("elementwise", "axpby", {3}, tx, ty, 2.0f, 0.5f, 3);
+  auto out = ty.to_host();
+  CHECK(out[0] == doctest::Approx(7));
+  CHECK(out[2] == doctest::Approx(21));
+  try {
+    Runtime::instance().kernel("elementwise", "no_such_kernel");
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    CHECK(std::string(e.what()).find("no_such_kernel") != std::string::npos);
+  }
+  CHECK_THROWS_AS(Runtime::instance().kernel("no_such_program", "k"), Error);
+}
+
+TEST_CASE("profiling sums time per kernel") {
+  auto& rt = Runtime::instance();
+  rt.reset_timings();
+  rt.set_profiling(true);
+  Tensor a = Tensor::full({1024}, 1.0f), b = Tensor::full({1024}, 1.0f);
+  for (int i = 0; i < 3; ++i) launch("elementwise", "axpby", {1024}, a, b, 1.0f, 1.0f, 1024);
+  auto t = rt.timings();
+  rt.set_profiling(false);
+  REQUIRE(t.size() == 1);
+  CHECK(t[0].kernel == "axpby");
+  CHECK(t[0].launches == 3);
+  CHECK(b.to_host()[5] == doctest::Approx(4.0f));
+}

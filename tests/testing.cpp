@@ -1,0 +1,92 @@
+#include "tests/testing.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+namespace stylerf::testing {
+
+std::vector<float> random_normal(size_t n, uint64_t seed, float stddev, float mean) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> d(mean, stddev);
+  std::vector<float> v(n);
+  for (auto& x : v) x = d(rng);
+  return v;
+}
+
+std::vector<float> random_uniform(size_t n, uint64_t seed, float lo, float hi) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> d(lo, hi);
+  std::vector<float> v(n);
+  for (auto& x : v) x = d(rng);
+  return v;
+}
+
+std::vector<double> to_double(const std::vector<float>& v) { return std::vector<double>(v.begin(), v.end()); }
+
+void check_close(const std::vector<float>& got, const std::vector<double>& want, double rtol, double atol,
+                 const std::string& what) {
+  REQUIRE_MESSAGE(got.size() == want.size(), what << ": size " << got.size() << " vs reference " << want.size());
+  double worst = 0.0;
+  size_t worst_i = 0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    if (!std::isfinite(got[i])) {
+      FAIL(what << ": non-finite value " << got[i] << " at index " << i << " (reference " << want[i] << ")");
+    }
+    double r = std::fabs(got[i] - want[i]) / (atol + rtol * std::fabs(want[i]));
+    if (r > worst) {
+      worst = r;
+      worst_i = i;
+    }
+  }
+  CHECK_MESSAGE(worst <= 1.0, what << ": worst at index " << worst_i << ": got " << got[worst_i] << ", reference "
+                                   << want[worst_i] << " (rtol " << rtol << ", atol " << atol << ", ratio " << worst
+                                   << ")");
+}
+
+std::vector<double> finite_difference_at(const std::function<double(const std::vector<double>&)>& f,
+                                         const std::vector<double>& x, const std::vector<size_t>& indices, double h) {
+  std::vector<double> g;
+  g.reserve(indices.size());
+  std::vector<double> xp = x;
+  for (size_t i : indices) {
+    double orig = xp[i];
+    xp[i] = orig + h;
+    double fp = f(xp);
+    xp[i] = orig - h;
+    double fm = f(xp);
+    xp[i] = orig;
+    g.push_back((fp - fm) / (2 * h));
+  }
+  return g;
+}
+
+std::vector<double> finite_difference(const std::function<double(const std::vector<double>&)>& f,
+                                      const std::vector<double>& x, double h) {
+  std::vector<size_t> idx(x.size());
+  for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+  return finite_difference_at(f, x, idx, h);
+}
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+
+bool all_finite(const std::vector<float>& v) {
+  for (float x : v)
+    if (!std::isfinite(x)) return false;
+  return true;
+}
+
+std::string shared_data_dir() {
+  if (const char* d = std::getenv("STYLERF_TEST_DATA"); d && std::filesystem::exists(d)) return d;
+  return "";
+}
+
+}  // namespace stylerf::testing

@@ -1,0 +1,37 @@
+// Test helpers: seeded random data, comparison against double-precision references with stated
+// tolerances, and central finite differences of those references.
+#pragma once
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace stylerf::testing {
+
+std::vector<float> random_normal(size_t n, uint64_t seed, float stddev = 1.0f, float mean = 0.0f);
+std::vector<float> random_uniform(size_t n, uint64_t seed, float lo, float hi);
+std::vector<double> to_double(const std::vector<float>& v);
+
+// Largest |got - want| / (atol + rtol * |want|) over all elements; <= 1 means within tolerance.
+// On failure the doctest message names the worst index and both values.
+void check_close(const std::vector<float>& got, const std::vector<double>& want, double rtol, double atol,
+                 const std::string& what);
+
+// Central differences of a scalar function of many inputs: d f / d x_i ~ (f(x+h e_i) - f(x-h e_i)) / 2h.
+std::vector<double> finite_difference(const std::function<double(const std::vector<double>&)>& f,
+                                      const std::vector<double>& x, double h = 1e-4);
+// Same, for only the listed indices (large tensors: probe a sample).
+std::vector<double> finite_difference_at(const std::function<double(const std::vector<double>&)>& f,
+                                         const std::vector<double>& x, const std::vector<size_t>& indices,
+                                         double h = 1e-4);
+
+// Sum of elementwise products: the scalar loss <g, y> whose gradient w.r.t. y is g; tests use it
+// to turn a tensor-valued op into a scalar for finite differences.
+double dot(const std::vector<double>& a, const std::vector<double>& b);
+
+bool all_finite(const std::vector<float>& v);
+
+// Directory of ../shared/data, or "" if absent (tests needing it say so and fail loudly, not skip).
+std::string shared_data_dir();
+
+}  // namespace stylerf::testing
