@@ -1,0 +1,43 @@
+// stylerf bench <gemm|conv|ops> [--json FILE] [--repeats N] [--quick] [--device D]
+#include <boost/program_options.hpp>
+#include <iostream>
+
+#include "bench/bench.hpp"
+#include "examples/stylerf/commands.hpp"
+
+namespace po = boost::program_options;
+
+namespace {
+int run_bench(int argc, char** argv) {
+  std::string which, device;
+  stylerf::bench::BenchOptions opt;
+  po::options_description desc("stylerf bench <gemm|conv|ops> [options]");
+  desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
+      "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
+      "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
+      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+  po::options_description hidden;
+  hidden.add_options()("which", po::value(&which));
+  po::positional_options_description pos;
+  pos.add("which", 1);
+  po::options_description all;
+  all.add(desc).add(hidden);
+  po::variables_map vm;
+  po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
+  po::notify(vm);
+  if (vm.count("help") || which.empty()) {
+    std::cout << desc << "\n  gemm  GEMM GFLOP/s: CLBlast defaults, CLBlast tuned, own kernel, OpenBLAS\n"
+              << "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
+              << "  ops   perf mode of every NN op kernel (GB/s)\n";
+    return which.empty() && !vm.count("help") ? 2 : 0;
+  }
+  if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
+  stylerf::cli::init_runtime(device, false);
+  if (which == "gemm") return stylerf::bench::bench_gemm(opt);
+  if (which == "conv") return stylerf::bench::bench_conv(opt);
+  if (which == "ops") return stylerf::bench::bench_ops(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops)\n";
+  return 2;
+}
+stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);
+}  // namespace

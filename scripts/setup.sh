@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs what stylerf needs on a fresh Debian machine, fetches the pretrained weights and builds.
+# Idempotent: packages already present are not reinstalled, weights already verified are kept.
+#   BUILD_DIR   build directory (default: build)
+#   JOBS        parallel build jobs (default: number of cores)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(build-essential cmake pkg-config python3 python3-pip
+          ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
+          libclblast-dev clblast-utils libopenexr-dev libboost-program-options-dev doctest-dev
+          nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "== installing: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+else
+  echo "== system packages present"
+fi
+
+echo "== weights (AdaIN's VGG-19 encoder and decoder)"
+bash scripts/fetch_weights.sh
+
+BUILD_DIR=${BUILD_DIR:-build}
+JOBS=${JOBS:-$(nproc)}
+echo "== building in $BUILD_DIR with $JOBS jobs"
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release > "$BUILD_DIR.cmake.log" 2>&1 || { cat "$BUILD_DIR.cmake.log"; exit 1; }
+cmake --build "$BUILD_DIR" -j "$JOBS"
