@@ -90,9 +90,11 @@ Runtime::Runtime(const DeviceInfo& device) : device_(device) {
 #endif
   check(err, "clCreateCommandQueue", device_.name);
   if (const char* p = std::getenv("STYLERF_PROFILE"); p && std::string(p) == "1") profiling_ = true;
+  pool_cap_bytes_ = std::min<size_t>(device_.global_mem_bytes / 4, size_t(1) << 30);
 }
 
 Runtime::~Runtime() {
+  trim_buffer_pool();
   for (auto& e : pending_events_) clReleaseEvent(e.second);
   for (auto& k : kernels_) clReleaseKernel(k.second);
   for (auto& p : programs_) clReleaseProgram(p.second);
@@ -188,6 +190,19 @@ cl_kernel Runtime::kernel(const std::string& program, const std::string& name, c
   return k;
 }
 
+namespace {
+// Pool size classes: exact below 64 KiB (many small tensors), else rounded up to 1/16 of the power of two,
+// so slightly different shapes share buffers while wasting at most ~6%.
+size_t pool_size_class(size_t bytes) {
+  bytes = std::max<size_t>(bytes, 4);
+  if (bytes <= 65536) return (bytes + 255) / 256 * 256;
+  size_t p = 1;
+  while (p < bytes) p <<= 1;
+  size_t step = p / 16;
+  return (bytes + step - 1) / step * step;
+}
+}  // namespace
+
 cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
   auto limits = [&] {
     std::ostringstream o;
@@ -198,10 +213,39 @@ cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
     return o.str();
   };
   if (bytes > device_.max_alloc_bytes) throw Error(limits() + " (request exceeds the per-buffer limit)");
+  const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
+  if (auto it = pool_.find(cls); it != pool_.end() && !it->second.empty()) {
+    cl_mem m = it->second.back();
+    it->second.pop_back();
+    pooled_bytes_ -= cls;
+    return m;
+  }
   cl_int err = CL_SUCCESS;
-  cl_mem m = clCreateBuffer(context_, CL_MEM_READ_WRITE, std::max<size_t>(bytes, 4), nullptr, &err);
+  cl_mem m = clCreateBuffer(context_, CL_MEM_READ_WRITE, cls, nullptr, &err);
+  if (err != CL_SUCCESS && !pool_.empty()) {  // memory held by the pool may be what is missing
+    trim_buffer_pool();
+    m = clCreateBuffer(context_, CL_MEM_READ_WRITE, cls, nullptr, &err);
+  }
   if (err != CL_SUCCESS) throw Error(limits() + ": clCreateBuffer returned " + cl_error_name(err));
   return m;
+}
+
+void Runtime::release(cl_mem mem, size_t bytes) {
+  if (!mem) return;
+  const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
+  if (pooled_bytes_ + cls > pool_cap_bytes_) {
+    clReleaseMemObject(mem);
+    return;
+  }
+  pool_[cls].push_back(mem);
+  pooled_bytes_ += cls;
+}
+
+void Runtime::trim_buffer_pool() {
+  for (auto& kv : pool_)
+    for (cl_mem m : kv.second) clReleaseMemObject(m);
+  pool_.clear();
+  pooled_bytes_ = 0;
 }
 
 void Runtime::finish() { check(clFinish(queue_), "clFinish"); }

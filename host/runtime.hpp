@@ -47,6 +47,13 @@ class Runtime {
   // Allocates a device buffer. Throws an Error naming `what`, the bytes asked for and the device's
   // limits when the request exceeds them or the driver refuses it.
   cl_mem allocate(size_t bytes, const std::string& what);
+  // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap) and handed out again
+  // for requests of the same rounded size: a fresh buffer costs first-touch page faults on a CPU device and
+  // an allocation on a GPU, and training loops allocate the same shapes every step. The in-order queue
+  // makes reuse safe: commands using the old owner finish before commands of the new owner start.
+  void release(cl_mem mem, size_t bytes);
+  void trim_buffer_pool();  // frees every cached buffer
+  size_t pooled_bytes() const { return pooled_bytes_; }
 
   void finish();
 
@@ -72,6 +79,8 @@ class Runtime {
   cl_command_queue queue_ = nullptr;
   std::map<std::string, cl_program> programs_;  // key: program + '\n' + options
   std::map<std::string, cl_kernel> kernels_;    // key: program + '\n' + options + '\n' + name
+  std::map<size_t, std::vector<cl_mem>> pool_;  // key: rounded size in bytes
+  size_t pooled_bytes_ = 0, pool_cap_bytes_ = 0;
   bool profiling_ = false;
   std::vector<std::pair<std::string, cl_event>> pending_events_;
   std::map<std::string, KernelTiming> totals_;

@@ -29,7 +29,11 @@ Buffer::Buffer(size_t bytes, const std::string& what) : bytes_(bytes) {
 }
 
 Buffer::~Buffer() {
-  if (mem_) clReleaseMemObject(mem_);
+  if (!mem_) return;
+  if (Runtime::initialised())
+    Runtime::instance().release(mem_, bytes_);
+  else
+    clReleaseMemObject(mem_);  // runtime already gone (process exit)
 }
 
 Tensor::Tensor(Shape shape, const std::string& what) : shape_(std::move(shape)) {

@@ -83,3 +83,21 @@ TEST_CASE("profiling sums time per kernel") {
   CHECK(t[0].launches == 3);
   CHECK(b.to_host()[5] == doctest::Approx(4.0f));
 }
+
+TEST_CASE("freed buffers are pooled and reused for the same size class") {
+  auto& rt = Runtime::instance();
+  rt.trim_buffer_pool();
+  cl_mem first = nullptr;
+  {
+    Tensor a({1000, 100}, "pool test");
+    first = a.mem();
+  }
+  CHECK(rt.pooled_bytes() >= 400000);
+  Tensor b({1000, 100}, "pool test");
+  CHECK(b.mem() == first);  // same buffer handed out again
+  CHECK(rt.pooled_bytes() == 0);
+  Tensor c({7}, "small");  // a different size class gets a new buffer
+  CHECK(c.mem() != first);
+  rt.trim_buffer_pool();
+  CHECK(rt.pooled_bytes() == 0);
+}

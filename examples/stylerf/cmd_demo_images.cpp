@@ -1,0 +1,44 @@
+// stylerf demo-images -o DIR [--size N]: writes content.png (a ray-traced scene) and style.png (a painterly
+// pattern), both made by stylerf itself, so the demo needs nothing downloaded besides the weights.
+#include <boost/program_options.hpp>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "lib/demo/procedural_images.hpp"
+#include "lib/io/image.hpp"
+
+namespace po = boost::program_options;
+
+namespace {
+
+stylerf::io::Image to_io(const stylerf::demo::RgbImage& src) {
+  stylerf::io::Image img;
+  img.width = src.width;
+  img.height = src.height;
+  img.data = src.data;  // both planar [3,H,W]
+  return img;
+}
+
+int run_demo_images(int argc, char** argv) {
+  std::string out_dir;
+  int size = 256;
+  po::options_description desc("stylerf demo-images -o DIR [options]");
+  desc.add_options()("help,h", "show this help")("out,o", po::value(&out_dir), "output folder")(
+      "size", po::value(&size)->default_value(256), "image side in pixels");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || out_dir.empty()) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  if (size < 16 || size > 4096) throw std::runtime_error("--size must be in [16, 4096]");
+  stylerf::io::save_png(out_dir + "/content.png", to_io(stylerf::demo::render_content_image(size, size)));
+  stylerf::io::save_png(out_dir + "/style.png", to_io(stylerf::demo::make_style_image(size, size)));
+  std::cout << "wrote " << out_dir << "/content.png and " << out_dir << "/style.png (" << size << "x" << size << ")\n";
+  return 0;
+}
+
+stylerf::cli::Register reg("demo-images", "make a content and a style image procedurally (for the demo)",
+                           run_demo_images);
+}  // namespace

@@ -1,0 +1,79 @@
+// Losses (kernels/loss.cl): MSE and the AdaIN style loss, forward and backward (w.r.t. the first input).
+#include <string>
+
+#include "host/error.hpp"
+#include "host/launch.hpp"
+#include "lib/nn/checks.hpp"
+#include "lib/nn/norm_internal.hpp"
+#include "lib/nn/ops.hpp"
+#include "lib/nn/reduce_internal.hpp"
+
+namespace stylerf::nn {
+
+using host::Error;
+using host::launch;
+
+namespace {
+int expect_pair(const Tensor& a, const Tensor& b, const char* op) {
+  const int n = expect_flat(a, op, "a");
+  expect_flat(b, op, "b");
+  host::expect_shape(b, a.shape(), op, "b");
+  if (n == 0) throw Error(std::string(op) + ": a is empty (shape " + host::shape_str(a.shape()) + ")");
+  return n;
+}
+}  // namespace
+
+// ---- MSE ---------------------------------------------------------------------------------------
+
+Tensor mse_forward(const Tensor& a, const Tensor& b) {
+  const int n = expect_pair(a, b, "mse_forward");
+  const detail::Partition p = detail::partition(n);
+  Tensor partials({p.parts}, "mse partials");
+  launch("loss", "sqdiff_partials", {size_t(p.parts)}, a, b, partials, n, p.chunk);
+  return detail::finish_sum(partials, p.parts, static_cast<float>(1.0 / n));
+}
+
+Tensor mse_backward(const Tensor& a, const Tensor& b, float dloss) {
+  const int n = expect_pair(a, b, "mse_backward");
+  Tensor da(a.shape(), "mse_backward da");
+  launch("loss", "mse_backward", {size_t((n + 63) / 64)}, a, b, da, n, static_cast<float>(2.0 * dloss / n));
+  return da;
+}
+
+// ---- AdaIN style loss --------------------------------------------------------------------------
+
+namespace {
+void expect_style_pair(const Tensor& a, const Tensor& b, const char* op) {
+  const ChannelDims da = expect_nchw(a, op, "a");
+  const ChannelDims db = expect_nchw(b, op, "b");
+  if (da.n != db.n || da.c != db.c)
+    throw Error(std::string(op) + ": a has shape " + host::shape_str(a.shape()) + " and b " +
+                host::shape_str(b.shape()) + ": N and C must match (H, W may differ)");
+}
+}  // namespace
+
+Tensor style_loss_forward(const Tensor& a, const Tensor& b, float eps) {
+  const char* op = "style_loss_forward";
+  expect_style_pair(a, b, op);
+  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
+  const detail::PreciseStats pb = detail::channel_stats_precise(b, eps, op, "b");
+  const int nc = static_cast<int>(pa.stats.mean.numel());
+  Tensor out({1}, "style loss");
+  launch("loss", "style_loss_forward", {1}, pa.stats.mean, pa.mean_lo, pa.stats.std, pb.stats.mean, pb.mean_lo,
+         pb.stats.std, out, nc);
+  return out;
+}
+
+Tensor style_loss_backward(const Tensor& a, const Tensor& b, float dloss, float eps) {
+  const char* op = "style_loss_backward";
+  expect_style_pair(a, b, op);
+  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
+  const detail::PreciseStats pb = detail::channel_stats_precise(b, eps, op, "b");
+  const int nc = static_cast<int>(pa.stats.mean.numel());
+  Tensor dmean(pa.stats.mean.shape(), "style loss dmean"), dstd(pa.stats.mean.shape(), "style loss dstd");
+  launch("loss", "style_loss_stat_grads", {size_t(nc)}, pa.stats.mean, pa.mean_lo, pa.stats.std, pb.stats.mean,
+         pb.mean_lo, pb.stats.std, dmean, dstd, nc, static_cast<float>(2.0 * dloss / nc));
+  return detail::channel_stats_backward_precise(a, pa.stats, pa.mean_lo, dmean, dstd, op);
+}
+
+}  // namespace stylerf::nn
