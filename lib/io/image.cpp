@@ -1,0 +1,159 @@
+#include "lib/io/image.hpp"
+
+#include <stb/stb_image.h>
+#include <stb/stb_image_write.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include "host/error.hpp"
+#include "host/files.hpp"
+
+namespace stylerf::io {
+
+using host::Error;
+
+Image load_image(const std::string& path, const std::array<float, 3>* background) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error("image " + path + " does not exist");
+  if (fs::is_directory(path, ec)) throw Error("image " + path + " is a directory, not an image file");
+  if (fs::file_size(path, ec) == 0) throw Error("image " + path + " is an empty file (0 bytes)");
+
+  int w = 0, h = 0, comp = 0;
+  // 16-bit PNGs keep their precision; everything else decodes to 8 bits. Always ask for 4 channels and
+  // use `comp` (the file's own count) to know whether the alpha is real.
+  bool sixteen = stbi_is_16_bit(path.c_str());
+  void* pixels = sixteen ? static_cast<void*>(stbi_load_16(path.c_str(), &w, &h, &comp, 4))
+                         : static_cast<void*>(stbi_load(path.c_str(), &w, &h, &comp, 4));
+  if (!pixels) {
+    const char* why = stbi_failure_reason();
+    throw Error("cannot read image " + path + ": " + (why ? why : "unknown format") +
+                " (PNG, JPEG, BMP, TGA are supported)");
+  }
+  std::unique_ptr<void, void (*)(void*)> guard(pixels, stbi_image_free);
+  if (w <= 0 || h <= 0) throw Error("image " + path + " has zero size");
+
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.data.resize(size_t(3) * w * h);
+  const float scale = sixteen ? 1.0f / 65535.0f : 1.0f / 255.0f;
+  const bool has_alpha = comp == 2 || comp == 4;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      size_t p = (size_t(y) * w + x) * 4;
+      auto value = [&](int c) {
+        return sixteen ? static_cast<const uint16_t*>(pixels)[p + c] * scale
+                       : static_cast<const unsigned char*>(pixels)[p + c] * scale;
+      };
+      float a = has_alpha && background ? value(3) : 1.0f;
+      for (int c = 0; c < 3; ++c) img.at(c, y, x) = a * value(c) + (background ? (1.0f - a) * (*background)[c] : 0.0f);
+    }
+  return img;
+}
+
+namespace {
+
+struct Tap {
+  int index;
+  float weight;
+};
+
+// For each output position, the source pixels and their normalised weights along one axis.
+//  - shrinking: area averaging, each output pixel is the mean of the source interval it covers,
+//    [o * scale, (o + 1) * scale), partially covered pixels weighted by their coverage (no aliasing);
+//  - enlarging: bilinear between the two nearest source pixel centres, edges repeated.
+std::vector<std::vector<Tap>> filter_taps(int src, int dst) {
+  const double scale = double(src) / dst;
+  std::vector<std::vector<Tap>> taps(dst);
+  for (int o = 0; o < dst; ++o) {
+    if (scale > 1.0) {
+      const double lo = o * scale, hi = (o + 1) * scale;
+      for (int i = int(std::floor(lo)); i < int(std::ceil(hi)) && i < src; ++i) {
+        double cover = std::min(hi, i + 1.0) - std::max(lo, double(i));
+        if (cover > 0) taps[o].push_back({i, float(cover / scale)});
+      }
+    } else {
+      const double centre = (o + 0.5) * scale - 0.5;  // pixel centres aligned
+      const int i0 = int(std::floor(centre));
+      const double f = centre - i0;
+      taps[o].push_back({std::clamp(i0, 0, src - 1), float(1.0 - f)});
+      taps[o].push_back({std::clamp(i0 + 1, 0, src - 1), float(f)});
+    }
+  }
+  return taps;
+}
+
+}  // namespace
+
+Image resize(const Image& img, int width, int height) {
+  if (width <= 0 || height <= 0) throw Error("resize: target size must be positive");
+  if (width == img.width && height == img.height) return img;
+  auto tx = filter_taps(img.width, width), ty = filter_taps(img.height, height);
+  Image tmp;  // horizontal pass first
+  tmp.width = width;
+  tmp.height = img.height;
+  tmp.data.assign(size_t(3) * width * img.height, 0.0f);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < width; ++x) {
+        float s = 0;
+        for (const Tap& t : tx[x]) s += t.weight * img.at(c, y, t.index);
+        tmp.at(c, y, x) = s;
+      }
+  Image out;
+  out.width = width;
+  out.height = height;
+  out.data.assign(size_t(3) * width * height, 0.0f);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < height; ++y)
+      for (const Tap& t : ty[y])
+        for (int x = 0; x < width; ++x) out.at(c, y, x) += t.weight * tmp.at(c, t.index, x);
+  return out;
+}
+
+std::array<int, 2> fit_size(int width, int height, int longer, int multiple) {
+  if (width <= 0 || height <= 0 || longer <= 0 || multiple <= 0) throw Error("fit_size: sizes must be positive");
+  double s = double(longer) / std::max(width, height);
+  auto round_to = [&](double v) { return std::max(multiple, int(std::lround(v / multiple)) * multiple); };
+  return {round_to(width * s), round_to(height * s)};
+}
+
+void save_png(const std::string& path, const Image& img) {
+  if (img.width <= 0 || img.height <= 0 || img.data.size() != size_t(3) * img.width * img.height)
+    throw Error("save_png " + path + ": image has an invalid size");
+  std::vector<unsigned char> rgb(size_t(3) * img.width * img.height);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      for (int c = 0; c < 3; ++c) {
+        float v = img.at(c, y, x);
+        v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
+        rgb[(size_t(y) * img.width + x) * 3 + c] = static_cast<unsigned char>(std::lround(v * 255.0f));
+      }
+  host::write_atomic_with(path, [&](const std::string& tmp) {
+    if (!stbi_write_png(tmp.c_str(), img.width, img.height, 3, rgb.data(), img.width * 3))
+      throw Error("cannot write PNG " + path);
+  });
+}
+
+host::Tensor to_tensor(const Image& img) {
+  return host::Tensor::from_host(img.data, {1, 3, img.height, img.width}, "image");
+}
+
+Image from_tensor(const host::Tensor& t, int n) {
+  if (t.ndim() != 4 || t.dim(1) != 3 || n < 0 || n >= t.dim(0))
+    throw Error("from_tensor: expected [N,3,H,W] with n < N, got " + host::shape_str(t.shape()) + " and n = " +
+                std::to_string(n));
+  Image img;
+  img.height = int(t.dim(2));
+  img.width = int(t.dim(3));
+  std::vector<float> all = t.to_host();
+  size_t per = size_t(3) * img.width * img.height;
+  img.data.assign(all.begin() + per * n, all.begin() + per * (n + 1));
+  return img;
+}
+
+}  // namespace stylerf::io
