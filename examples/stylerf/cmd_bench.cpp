@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "bench/bench_field.hpp"
 #include "examples/stylerf/commands.hpp"
 
 namespace po = boost::program_options;
@@ -28,7 +29,8 @@ int run_bench(int argc, char** argv) {
   if (vm.count("help") || which.empty()) {
     std::cout << desc << "\n  gemm  GEMM GFLOP/s: CLBlast defaults, CLBlast tuned, own kernel, OpenBLAS\n"
               << "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
-              << "  ops   perf mode of every NN op kernel (GB/s)\n";
+              << "  ops   perf mode of every NN op kernel (GB/s)\n"
+              << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
@@ -36,7 +38,8 @@ int run_bench(int argc, char** argv) {
   if (which == "gemm") return stylerf::bench::bench_gemm(opt);
   if (which == "conv") return stylerf::bench::bench_conv(opt);
   if (which == "ops") return stylerf::bench::bench_ops(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops)\n";
+  if (which == "field") return stylerf::bench::bench_field(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);

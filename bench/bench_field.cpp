@@ -1,0 +1,210 @@
+// `stylerf bench field`: see bench_field.hpp. Sizes follow training: 4096 rays through a box with a
+// 300^3 grid (quick: 512 rays, 128^3), step half a voxel (~600 candidate samples per ray), density rank
+// [16,4,4], appearance rank [48,12,12]. Points for grid sampling are the marched samples (ray order, as in
+// training), not uniform random points.
+#include "bench/bench_field.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <vector>
+
+#include "host/files.hpp"
+#include "host/runtime.hpp"
+#include "host/tensor.hpp"
+#include "lib/field/alpha_mask.hpp"
+#include "lib/field/appearance_head.hpp"
+#include "lib/field/vm_grid.hpp"
+#include "lib/render/composite.hpp"
+#include "lib/render/ray_march.hpp"
+
+namespace stylerf::bench {
+
+using host::Tensor;
+
+namespace {
+
+// Best wall time in ms over `repeats` runs after one warm-up (each run ends with a queue finish).
+double best_ms(int repeats, const std::function<void()>& f) {
+  auto& rt = host::Runtime::instance();
+  f();
+  rt.finish();
+  double best = 1e30;
+  for (int i = 0; i < repeats; ++i) {
+    auto t0 = std::chrono::steady_clock::now();
+    f();
+    rt.finish();
+    best = std::min(best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  return best;
+}
+
+std::vector<float> normal(size_t n, uint64_t seed, float sd) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> d(0.0f, sd);
+  std::vector<float> v(n);
+  for (auto& x : v) x = d(rng);
+  return v;
+}
+
+// Camera-like rays: origins on a sphere of radius 4 around the box, aimed at random points in [-1,1]^3.
+void make_rays(int R, std::vector<float>& o, std::vector<float>& d) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int i = 0; i < R; ++i) {
+    float a[3] = {u(rng), u(rng), u(rng)};
+    const float l = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) + 1e-6f;
+    float org[3], dir[3], dl = 0;
+    for (int k = 0; k < 3; ++k) org[k] = 4.0f * a[k] / l;
+    for (int k = 0; k < 3; ++k) dir[k] = u(rng) - org[k], dl += dir[k] * dir[k];
+    for (int k = 0; k < 3; ++k) o.push_back(org[k]), d.push_back(dir[k] / std::sqrt(dl));
+  }
+}
+
+struct Row {
+  std::string name;
+  double ms, rate, gbs;
+  std::string unit;
+};
+
+}  // namespace
+
+int bench_field(const BenchOptions& opt) {
+  auto& rt = host::Runtime::instance();
+  const int repeats = opt.quick ? 1 : opt.repeats;
+  const int R = opt.quick ? 512 : 4096, G = opt.quick ? 128 : 300;
+  std::cout << "device: " << rt.device().describe() << "\n"
+            << "field kernels: " << R << " rays, grid " << G << "^3, best of " << repeats << " after a warm-up\n";
+  std::vector<Row> rows;
+  auto add = [&](const std::string& name, double ms, double items, const std::string& unit, double bytes) {
+    rows.push_back({name, ms, items / (ms * 1e3), bytes / (ms * 1e6), unit});
+    std::printf("%-34s %10.2f ms %10.2f %-8s %8.2f GB/s\n", name.c_str(), ms, items / (ms * 1e3), unit.c_str(),
+                bytes / (ms * 1e6));
+    std::fflush(stdout);
+  };
+
+  // ---- ray marching ----------------------------------------------------------------------------------
+  render::MarchConfig mc;
+  mc.box_lo = {-1.5f, -1.5f, -1.5f};
+  mc.box_hi = {1.5f, 1.5f, 1.5f};
+  mc.near = 0.0f;
+  mc.far = 100.0f;
+  mc.step = render::step_for_grid(mc.box_lo, mc.box_hi, {G, G, G}, 0.5f);
+  mc.max_samples = render::max_samples_for_grid(mc.box_lo, mc.box_hi, mc.step);
+  mc.jitter = true;
+  std::vector<float> o, d;
+  make_rays(R, o, d);
+  Tensor to = Tensor::from_host(o, {R, 3}), td = Tensor::from_host(d, {R, 3});
+  render::Samples s;
+  double ms = best_ms(repeats, [&] { s = render::march(to, td, mc, nullptr); });
+  std::printf("samples: %lld (%.0f per ray), step %.5f\n", (long long)s.count, double(s.count) / R, mc.step);
+  add("march (no mask)", ms, R, "Mrays/s", double(s.count) * 24 + R * 32.0);
+
+  // A mask with a ball of radius 0.8 (of the half-size 1.5) occupied, at half the grid resolution.
+  field::VMGrid dens = field::VMGrid::create({G, G, G}, {16, 4, 4}, 0.1f, 1);
+  const int M = G / 2;
+  {
+    field::AlphaMask mask;
+    ms = best_ms(repeats, [&] {
+      mask = field::build_alpha_mask(dens, field::DensityActivation::Relu, {M, M, M}, mc.step, 1e-4f);
+    });
+    add("alpha mask build (" + std::to_string(M) + "^3)", ms, double(M) * M * M, "Mvox/s", double(M) * M * M * 2);
+  }
+  std::vector<uint8_t> ball(size_t(M) * M * M);
+  for (int z = 0; z < M; ++z)
+    for (int y = 0; y < M; ++y)
+      for (int x = 0; x < M; ++x) {
+        auto c = [&](int i) { return -1.0 + (2.0 * i + 1) / M; };
+        ball[(size_t(z) * M + y) * M + x] = c(x) * c(x) + c(y) * c(y) + c(z) * c(z) < 0.8 * 0.8 / (1.5 * 1.5) * 2.25;
+      }
+  field::AlphaMask mask;
+  mask.res = {M, M, M};
+  mask.voxels = std::make_shared<host::Buffer>(ball.size(), "bench mask");
+  clEnqueueWriteBuffer(rt.queue(), mask.voxels->mem(), CL_TRUE, 0, ball.size(), ball.data(), 0, nullptr, nullptr);
+  render::Samples sm;
+  ms = best_ms(repeats, [&] { sm = render::march(to, td, mc, &mask); });
+  std::printf("samples with mask: %lld (%.0f per ray)\n", (long long)sm.count, double(sm.count) / R);
+  add("march (ball mask)", ms, R, "Mrays/s", double(sm.count) * 24 + R * 32.0);
+
+  // ---- grid sampling ---------------------------------------------------------------------------------
+  const int64_t N = s.count;
+  const Tensor& pts = s.positions;
+  const double pts_bytes = double(N) * 12;
+  {
+    const double taps = double(N) * 6 * 24 * 4;  // 6 taps per mode, rank 16+4+4, floats gathered
+    Tensor sigma;
+    ms = best_ms(repeats, [&] { sigma = field::density_forward(dens, pts, field::DensityActivation::Relu); });
+    add("density fwd (rank 16,4,4)", ms, double(N), "Mpts/s", pts_bytes + N * 4.0 + taps);
+    Tensor dsig = Tensor::full({N}, 1e-3f);
+    Tensor dgrid = Tensor::zeros(dens.params.shape());
+    // Softplus so every point has a gradient (relu of a random grid zeroes about half).
+    Tensor sp = field::density_forward(dens, pts, field::DensityActivation::Softplus);
+    ms = best_ms(repeats, [&] {
+      field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
+                              field::ScatterMode::Private);
+    });
+    add("density bwd private", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
+    ms = best_ms(repeats, [&] {
+      field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
+                              field::ScatterMode::Atomic);
+    });
+    add("density bwd atomic", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
+  }
+  const int64_t Nm = sm.count;  // appearance runs on the (masked, compacted) samples, as in training
+  {
+    field::VMGrid app = field::VMGrid::create({G, G, G}, {48, 12, 12}, 0.1f, 2);
+    const double taps = double(Nm) * 6 * 72 * 4;
+    Tensor feat;
+    ms = best_ms(repeats, [&] { feat = field::features_forward(app, sm.positions); });
+    add("app features fwd (rank 48,12,12)", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + taps);
+    Tensor dfeat = Tensor::full({Nm, 72}, 1e-3f);
+    Tensor dgrid = Tensor::zeros(app.params.shape());
+    ms = best_ms(repeats, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Private); });
+    add("app features bwd private", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
+    ms = best_ms(repeats, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Atomic); });
+    add("app features bwd atomic", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
+    ms = best_ms(repeats, [&] { field::tv_backward(app, 1.0f, dgrid); });
+    add("TV bwd (appearance planes)", ms, double(app.numel()), "Mparam/s", app.numel() * 12.0);
+
+    field::AppearanceHead head = field::AppearanceHead::create(field::AppearanceHeadConfig{}, 3);
+    field::HeadCache cache;
+    ms = best_ms(repeats, [&] { field::appearance_forward(head, feat, Tensor(), &cache); });
+    const double flop = 2.0 * Nm * (72 * 27 + 27 * 128 + 128 * 128 + 128 * 3);
+    add("head fwd (GFLOP/s in GB/s col)", ms, double(Nm), "Mpts/s", flop / 1e0);
+    Tensor drgb = Tensor::full({Nm, 3}, 1e-3f);
+    ms = best_ms(repeats, [&] { field::appearance_backward(head, cache, drgb); });
+    add("head bwd (GFLOP/s in GB/s col)", ms, double(Nm), "Mpts/s", 2 * flop);
+  }
+
+  // ---- compositing ------------------------------------------------------------------------------------
+  {
+    Tensor sigma = Tensor::from_host(normal(size_t(N), 4, 2.0f), {N});
+    Tensor rgb = Tensor::full({N, 3}, 0.5f);
+    Tensor bg = Tensor::full({3}, 1.0f);
+    render::Composited c;
+    ms = best_ms(repeats, [&] { c = render::composite_forward(s, sigma, rgb, bg); });
+    add("composite fwd", ms, double(N), "Msmp/s", N * (4.0 + 12 + 4 + 4 + 4) + R * 28.0);
+    Tensor dv = Tensor::full({R, 3}, 1.0f), da = Tensor::full({R}, 1.0f);
+    ms = best_ms(repeats, [&] { render::composite_backward(s, sigma, rgb, bg, dv, da, Tensor()); });
+    add("composite bwd", ms, double(N), "Msmp/s", N * 2 * (4.0 + 12 + 4 + 4) + N * 16.0);
+    ms = best_ms(repeats, [&] { render::compact(s, render::keep_by_weight(s, c.weights, 1e-4f)); });
+    add("keep_by_weight + compact", ms, double(N), "Msmp/s", N * 4.0 * 2 + N * 32.0);
+  }
+
+  if (!opt.json_path.empty()) {
+    nlohmann::json j = {{"bench", "field"}, {"device", rt.device().describe()}, {"rays", R}, {"grid", G},
+                        {"samples", N}, {"samples_masked", Nm}, {"repeats", repeats}};
+    for (auto& r : rows)
+      j["rows"].push_back({{"name", r.name}, {"ms", r.ms}, {"rate", r.rate}, {"unit", r.unit}, {"gb_s", r.gbs}});
+    host::write_file_atomic(opt.json_path, j.dump(2) + "\n");
+    std::cout << "wrote " << opt.json_path << "\n";
+  }
+  return 0;
+}
+
+}  // namespace stylerf::bench

@@ -1,0 +1,109 @@
+#include "lib/render/composite.hpp"
+
+#include <algorithm>
+
+#include "host/error.hpp"
+#include "host/launch.hpp"
+#include "lib/render/int_tensor.hpp"
+
+namespace stylerf::render {
+
+using host::Error;
+using host::launch;
+
+// Stand-in for an absent optional float input (kernels get a valid buffer and a has_* flag).
+static const Tensor& absent() {
+  static Tensor t = Tensor::zeros({1}, "absent input");
+  return t;
+}
+
+static int channels_of(const Samples& s, const Tensor& sigma, const Tensor& values, const char* op) {
+  host::expect_shape(sigma, {s.count}, op, "sigma");
+  if (values.ndim() != 2 || values.dim(0) != s.count)
+    throw Error(std::string(op) + ": values have shape " + host::shape_str(values.shape()) + ", expected [" +
+                std::to_string(s.count) + ", C]");
+  return static_cast<int>(values.dim(1));
+}
+
+Composited composite_forward(const Samples& s, const Tensor& sigma, const Tensor& values, const Tensor& background) {
+  const int C = channels_of(s, sigma, values, "composite_forward");
+  const int R = static_cast<int>(s.ray_count.numel());
+  if (background.defined()) host::expect_shape(background, {C}, "composite_forward", "background");
+  Composited out;
+  out.value = Tensor({R, C}, "composited value");
+  out.acc = Tensor({R}, "accumulated opacity");
+  out.depth = Tensor({R}, "depth");
+  out.weights = Tensor({s.count}, "sample weights");
+  launch("render", "composite_forward", {size_t(R)}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
+         background.defined() ? background : absent(), int(background.defined()), out.value, out.acc, out.depth,
+         out.weights);
+  return out;
+}
+
+CompositeGrads composite_backward(const Samples& s, const Tensor& sigma, const Tensor& values,
+                                  const Tensor& background, const Tensor& dvalue, const Tensor& dacc,
+                                  const Tensor& ddepth) {
+  const int C = channels_of(s, sigma, values, "composite_backward");
+  const int R = static_cast<int>(s.ray_count.numel());
+  if (background.defined()) host::expect_shape(background, {C}, "composite_backward", "background");
+  if (dvalue.defined()) host::expect_shape(dvalue, {R, C}, "composite_backward", "dvalue");
+  if (dacc.defined()) host::expect_shape(dacc, {R}, "composite_backward", "dacc");
+  if (ddepth.defined()) host::expect_shape(ddepth, {R}, "composite_backward", "ddepth");
+  CompositeGrads g;
+  g.dsigma = Tensor({s.count}, "dsigma");
+  g.dvalues = Tensor({s.count, C}, "dvalues");
+  auto opt = [](const Tensor& t) -> const Tensor& { return t.defined() ? t : absent(); };
+  launch("render", "composite_backward", {size_t(R)}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
+         opt(background), int(background.defined()), opt(dvalue), int(dvalue.defined()), opt(dacc),
+         int(dacc.defined()), opt(ddepth), int(ddepth.defined()), g.dsigma, g.dvalues);
+  return g;
+}
+
+Kept keep_by_weight(const Samples& s, const Tensor& weights, float threshold) {
+  host::expect_shape(weights, {s.count}, "keep_by_weight", "weights");
+  const int R = static_cast<int>(s.ray_count.numel());
+  Kept k;
+  k.ray_count = Tensor({R}, "kept counts");
+  launch("render", "keep_count", {size_t(R)}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_count);
+  std::vector<int32_t> offsets;
+  k.count = exclusive_scan(int_tensor_to_host(k.ray_count), offsets);
+  k.ray_offset = int_tensor_from_host(offsets, "kept offsets");
+  k.index = Tensor({k.count}, "kept sample index");
+  launch("render", "keep_write", {size_t(R)}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_offset,
+         k.index);
+  return k;
+}
+
+Tensor gather_rows(const Tensor& src, const Tensor& index, int64_t count) {
+  if (src.ndim() < 1) throw Error("gather_rows: source has no rows");
+  const int64_t C = src.ndim() == 1 ? 1 : src.numel() / std::max<int64_t>(src.dim(0), 1);
+  host::Shape shape = src.shape();
+  shape[0] = count;
+  Tensor out(shape, "gathered rows");
+  launch("render", "gather_rows", {size_t(count)}, src, index, out, int(count), int(C));
+  return out;
+}
+
+Tensor scatter_rows(const Tensor& rows, const Tensor& index, int64_t total) {
+  const int64_t K = rows.dim(0);
+  const int64_t C = rows.ndim() == 1 ? 1 : rows.numel() / std::max<int64_t>(K, 1);
+  host::Shape shape = rows.shape();
+  shape[0] = total;
+  Tensor out = Tensor::zeros(shape, "scattered rows");
+  launch("render", "scatter_rows", {size_t(K)}, rows, index, out, int(K), int(C));
+  return out;
+}
+
+Samples compact(const Samples& s, const Kept& k) {
+  Samples out;
+  out.count = k.count;
+  out.positions = gather_rows(s.positions, k.index, k.count);
+  out.t = gather_rows(s.t, k.index, k.count);
+  out.deltas = gather_rows(s.deltas, k.index, k.count);
+  out.ray_index = gather_rows(s.ray_index, k.index, k.count);
+  out.ray_offset = k.ray_offset;
+  out.ray_count = k.ray_count;
+  return out;
+}
+
+}  // namespace stylerf::render

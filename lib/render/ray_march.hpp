@@ -1,0 +1,50 @@
+// Ray marching through the scene box: per ray a slab intersection, evenly spaced samples (step = a fraction
+// of a voxel), optional seeded jitter of the first sample, skipping of samples in empty alpha-mask voxels,
+// and a compacted sample list (count pass, host exclusive prefix sum, write pass: deterministic).
+//
+// Samples of ray r: t_i = t_start + step * (i + jitter_r), i = 0, 1, ... while t_i <= t_end, where
+// t_start = max(near, t_enter), t_end = min(far, t_exit), jitter_r in [0,1) per ray (0 when off); at most
+// max_samples candidates per ray (TensoRF's N_samples cap, applied before mask skipping). Rays missing the
+// box (or with t_end < t_start) get none. t is in ray-parameter units: delta = step * |d| * delta_scale is
+// the world length of a step (times TensoRF's distance_scale if the trainer wants it).
+#pragma once
+#include <array>
+#include <cstdint>
+
+#include "host/tensor.hpp"
+#include "lib/field/alpha_mask.hpp"
+
+namespace stylerf::render {
+
+using host::Tensor;
+
+struct MarchConfig {
+  std::array<float, 3> box_lo{-1, -1, -1}, box_hi{1, 1, 1};  // world aabb
+  float near = 0.0f, far = 1e10f;
+  float step = 0.01f;       // in t units; see step_for_grid
+  int max_samples = 1024;   // candidate cap per ray
+  bool jitter = false;      // training: random offset of the first sample
+  uint32_t seed = 0;        // jitter seed (vary per iteration)
+  float delta_scale = 1.0f;
+};
+
+// TensoRF's step: mean voxel side of a grid of res points over the box (size / (res - 1)) times step_ratio.
+float step_for_grid(const std::array<float, 3>& box_lo, const std::array<float, 3>& box_hi,
+                    const std::array<int, 3>& res, float step_ratio = 0.5f);
+// TensoRF's candidate cap for a grid: |box diagonal| / step + 1.
+int max_samples_for_grid(const std::array<float, 3>& box_lo, const std::array<float, 3>& box_hi, float step);
+
+struct Samples {
+  int64_t count = 0;   // S
+  Tensor positions;    // [S,3] normalised to [-1,1]^3 by the box
+  Tensor t;            // [S]   ray parameter
+  Tensor deltas;       // [S]   step * |d| * delta_scale
+  Tensor ray_index;    // [S]   int32 bits: which ray
+  Tensor ray_offset;   // [R]   int32 bits: first sample of ray r
+  Tensor ray_count;    // [R]   int32 bits: samples of ray r (consecutive)
+};
+
+// origins, dirs: [R,3] world. mask may be null (no skipping).
+Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask);
+
+}  // namespace stylerf::render

@@ -1,0 +1,453 @@
+// VM grid (kernels/grid.cl via lib/field/vm_grid.hpp, lib/field/alpha_mask.hpp): forward against a
+// double-precision CPU reference, backward against central finite differences of that reference, the
+// hard cases (exact corners and edges, points outside the box or NaN, empty point lists), regularisers,
+// resampling and the alpha mask.
+#include <doctest/doctest.h>
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "host/tensor.hpp"
+#include "lib/field/alpha_mask.hpp"
+#include "lib/field/vm_grid.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using field::DensityActivation;
+using field::ScatterMode;
+using field::VMGrid;
+using host::Tensor;
+using testing::check_close;
+
+namespace {
+
+// ---- double-precision reference, written from the layout documented in vm_grid.hpp -------------------
+struct Ref {
+  std::array<int, 3> res, rank;
+  int U[3] = {0, 0, 1}, V[3] = {1, 2, 2}, W[3] = {2, 1, 0};
+  size_t plane_off(int m) const {
+    size_t o = 0;
+    for (int i = 0; i < m; ++i) o += size_t(res[U[i]]) * res[V[i]] * rank[i];
+    return o;
+  }
+  size_t line_off(int m) const {
+    size_t o = plane_off(3);
+    for (int i = 0; i < m; ++i) o += size_t(res[W[i]]) * rank[i];
+    return o;
+  }
+  size_t numel() const { return line_off(3); }
+  static void corner(double p, int n, int& i, double& f) {
+    const double x = (p + 1.0) * 0.5 * (n - 1);
+    i = std::min(std::max(int(std::floor(x)), 0), n - 2);
+    f = x - i;
+  }
+  static bool inside(const double* p) {
+    for (int a = 0; a < 3; ++a)
+      if (!(p[a] >= -1.0 && p[a] <= 1.0)) return false;
+    return true;
+  }
+  // plane_m[r] and line_m[r] at p; optionally the taps (index, weight) for gradients.
+  void values(const std::vector<double>& g, int m, int r, const double* p, double& pv, double& lv,
+              std::vector<std::pair<size_t, double>>* ptaps = nullptr,
+              std::vector<std::pair<size_t, double>>* ltaps = nullptr) const {
+    const int nu = res[U[m]], nv = res[V[m]], nw = res[W[m]], R = rank[m];
+    int iu, iv, iw;
+    double fu, fv, fw;
+    corner(p[U[m]], nu, iu, fu);
+    corner(p[V[m]], nv, iv, fv);
+    corner(p[W[m]], nw, iw, fw);
+    auto P = [&](int v, int u) { return plane_off(m) + (size_t(v) * nu + u) * R + r; };
+    auto L = [&](int w) { return line_off(m) + size_t(w) * R + r; };
+    std::pair<size_t, double> pt[4] = {{P(iv, iu), (1 - fu) * (1 - fv)},
+                                       {P(iv, iu + 1), fu * (1 - fv)},
+                                       {P(iv + 1, iu), (1 - fu) * fv},
+                                       {P(iv + 1, iu + 1), fu * fv}};
+    std::pair<size_t, double> lt[2] = {{L(iw), 1 - fw}, {L(iw + 1), fw}};
+    pv = lv = 0;
+    for (auto& t : pt) pv += g[t.first] * t.second;
+    for (auto& t : lt) lv += g[t.first] * t.second;
+    if (ptaps) ptaps->assign(pt, pt + 4);
+    if (ltaps) ltaps->assign(lt, lt + 2);
+  }
+  double raw_density(const std::vector<double>& g, const double* p) const {
+    if (!inside(p)) return 0.0;
+    double s = 0;
+    for (int m = 0; m < 3; ++m)
+      for (int r = 0; r < rank[m]; ++r) {
+        double pv, lv;
+        values(g, m, r, p, pv, lv);
+        s += pv * lv;
+      }
+    return s;
+  }
+  static double act(double f, DensityActivation a) {
+    if (a == DensityActivation::Relu) return std::max(f, 0.0);
+    const double x = f - 10.0;
+    return std::max(x, 0.0) + std::log1p(std::exp(-std::fabs(x)));
+  }
+  double density(const std::vector<double>& g, const double* p, DensityActivation a) const {
+    return inside(p) ? act(raw_density(g, p), a) : 0.0;
+  }
+  std::vector<double> features(const std::vector<double>& g, const double* p) const {
+    std::vector<double> f;
+    for (int m = 0; m < 3; ++m)
+      for (int r = 0; r < rank[m]; ++r) {
+        double pv = 0, lv = 0;
+        if (inside(p)) values(g, m, r, p, pv, lv);
+        f.push_back(pv * lv);
+      }
+    return f;
+  }
+  // Analytic d(sum_i gfeat_i . feat_i)/dparams (checked against finite differences below).
+  std::vector<double> features_grad(const std::vector<double>& g, const std::vector<double>& pts,
+                                    const std::vector<double>& gfeat) const {
+    std::vector<double> d(g.size(), 0.0);
+    const int F = rank[0] + rank[1] + rank[2];
+    for (size_t i = 0; i < pts.size() / 3; ++i) {
+      const double* p = &pts[3 * i];
+      if (!inside(p)) continue;
+      int k = 0;
+      for (int m = 0; m < 3; ++m)
+        for (int r = 0; r < rank[m]; ++r, ++k) {
+          double pv, lv;
+          std::vector<std::pair<size_t, double>> pt, lt;
+          values(g, m, r, p, pv, lv, &pt, &lt);
+          const double gg = gfeat[i * F + k];
+          for (auto& t : pt) d[t.first] += gg * lv * t.second;
+          for (auto& t : lt) d[t.first] += gg * pv * t.second;
+        }
+    }
+    return d;
+  }
+  double tv(const std::vector<double>& g) const {
+    double s = 0;
+    for (int m = 0; m < 3; ++m) {
+      const int nu = res[U[m]], nv = res[V[m]], R = rank[m];
+      double su = 0, sv = 0;
+      for (int v = 0; v < nv; ++v)
+        for (int u = 0; u < nu; ++u)
+          for (int r = 0; r < R; ++r) {
+            const double x = g[plane_off(m) + (size_t(v) * nu + u) * R + r];
+            if (u + 1 < nu) su += std::pow(g[plane_off(m) + (size_t(v) * nu + u + 1) * R + r] - x, 2);
+            if (v + 1 < nv) sv += std::pow(g[plane_off(m) + (size_t(v + 1) * nu + u) * R + r] - x, 2);
+          }
+      s += su / (double(R) * nv * (nu - 1)) + sv / (double(R) * (nv - 1) * nu);
+    }
+    return s;
+  }
+  double l1(const std::vector<double>& g) const {
+    size_t starts[7] = {plane_off(0), plane_off(1), plane_off(2), line_off(0), line_off(1), line_off(2), numel()};
+    double s = 0;
+    for (int q = 0; q < 6; ++q) {
+      double part = 0;
+      for (size_t k = starts[q]; k < starts[q + 1]; ++k) part += std::fabs(g[k]);
+      s += part / double(starts[q + 1] - starts[q]);
+    }
+    return s;
+  }
+};
+
+// Random points in the box plus the special ones: all 8 corners, edge midpoints, face points, exact grid
+// nodes, points just outside, NaN.
+std::vector<float> test_points(int n_random, uint64_t seed, bool with_outside) {
+  std::vector<float> p = testing::random_uniform(size_t(3) * n_random, seed, -1.0f, 1.0f);
+  for (int c = 0; c < 8; ++c)
+    for (int a = 0; a < 3; ++a) p.push_back((c >> a) & 1 ? 1.0f : -1.0f);
+  const float special[][3] = {{1, 0, 0}, {-1, 0.5f, 1}, {0, 1, -1}, {0.5f, 0.5f, 0.5f}, {0, 0, 0},
+                              {1, 1, 0.25f}, {-1, -1, 0.3f}, {0.25f, -0.5f, 1}};
+  for (auto& s : special) p.insert(p.end(), s, s + 3);
+  if (with_outside) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float out[][3] = {{1.0001f, 0, 0}, {0, -1.5f, 0}, {0, 0, 3}, {nan, 0, 0}, {-2, -2, -2}};
+    for (auto& s : out) p.insert(p.end(), s, s + 3);
+  }
+  return p;
+}
+
+Ref ref_of(const VMGrid& g) { return Ref{g.res, g.rank}; }
+
+}  // namespace
+
+TEST_CASE("VM density forward matches the double reference at random, corner, edge and outside points") {
+  // Ranks 8/4/5 exercise the float4 path and the scalar tail; an uneven grid catches axis mix-ups.
+  VMGrid g = VMGrid::create({5, 6, 7}, {8, 4, 5}, 0.5f, 11);
+  Ref ref = ref_of(g);
+  const auto params = testing::to_double(g.params.to_host());
+  const auto pts = test_points(300, 3, true);
+  const int n = int(pts.size() / 3);
+  Tensor tp = Tensor::from_host(pts, {n, 3});
+  for (auto act : {DensityActivation::Relu, DensityActivation::Softplus}) {
+    CAPTURE(int(act));
+    // Softplus(x - 10) of small x is ~e^-10: scale the grid up so the values are not all tiny.
+    std::vector<double> want(n);
+    for (int i = 0; i < n; ++i) {
+      const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+      want[i] = ref.density(params, p, act);
+    }
+    // Tolerance: float accumulation of <= 17 * 6 terms of size ~1: rtol 1e-5, atol 1e-5.
+    check_close(field::density_forward(g, tp, act).to_host(), want, 1e-5, 1e-5, "density");
+  }
+  // The outside points and the NaN point give exactly 0.
+  const auto got = field::density_forward(g, tp, DensityActivation::Relu).to_host();
+  for (int i = n - 5; i < n; ++i) CHECK(got[i] == 0.0f);
+}
+
+TEST_CASE("VM density at exact grid nodes equals the node values (align_corners semantics)") {
+  // A rank-1 grid with planes = 1 and line 0 = node index: density at z-node k is exactly k (other lines 0).
+  const std::array<int, 3> res{3, 4, 5}, rank{1, 1, 1};
+  Ref ref{res, rank};
+  std::vector<float> p(ref.numel(), 0.0f);
+  for (size_t k = 0; k < ref.line_off(0); ++k) p[k] = 1.0f;
+  for (int z = 0; z < res[2]; ++z) p[ref.line_off(0) + z] = float(z);
+  VMGrid g = VMGrid::from_params(res, rank, Tensor::from_host(p, {int64_t(p.size())}));
+  std::vector<float> pts;
+  for (int z = 0; z < res[2]; ++z) {
+    const float q = -1.0f + 2.0f * z / (res[2] - 1);
+    pts.insert(pts.end(), {0.3f, -0.7f, q});
+  }
+  const auto got = field::density_forward(g, Tensor::from_host(pts, {res[2], 3}), DensityActivation::Relu).to_host();
+  for (int z = 0; z < res[2]; ++z) CHECK(got[z] == doctest::Approx(z).epsilon(1e-6));
+}
+
+TEST_CASE("VM features forward matches the double reference") {
+  VMGrid g = VMGrid::create({4, 7, 5}, {12, 3, 6}, 0.5f, 12);
+  Ref ref = ref_of(g);
+  const auto params = testing::to_double(g.params.to_host());
+  const auto pts = test_points(200, 4, true);
+  const int n = int(pts.size() / 3);
+  std::vector<double> want;
+  for (int i = 0; i < n; ++i) {
+    const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+    auto f = ref.features(params, p);
+    want.insert(want.end(), f.begin(), f.end());
+  }
+  // Each feature is one product of two interpolations: rtol 1e-5, atol 1e-6.
+  check_close(field::features_forward(g, Tensor::from_host(pts, {n, 3})).to_host(), want, 1e-5, 1e-6, "features");
+}
+
+TEST_CASE("VM density backward matches finite differences of the reference (5^3, rank 2), both scatter modes") {
+  // Softplus shifted by -10 is smooth everywhere; relu too away from 0 (the grid is offset so f > 0).
+  const auto pts = test_points(40, 5, true);
+  const int n = int(pts.size() / 3);
+  const auto gs = testing::to_double(testing::random_normal(n, 6));
+  Tensor tp = Tensor::from_host(pts, {n, 3});
+  for (auto act : {DensityActivation::Softplus, DensityActivation::Relu}) {
+    // Softplus(f - 10) needs f of order 10 to have gradients worth checking: a larger init there.
+    VMGrid g = VMGrid::create({5, 5, 5}, {2, 2, 2}, act == DensityActivation::Softplus ? 2.5f : 0.6f, 21);
+    Ref ref = ref_of(g);
+    auto params = testing::to_double(g.params.to_host());
+    auto loss = [&](const std::vector<double>& x) {
+      double s = 0;
+      for (int i = 0; i < n; ++i) {
+        const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+        s += gs[i] * ref.density(x, p, act);
+      }
+      return s;
+    };
+    const auto fd = testing::finite_difference(loss, params, 1e-5);
+    Tensor sigma = field::density_forward(g, tp, act);
+    Tensor dsig = Tensor::from_host(std::vector<float>(gs.begin(), gs.end()), {n});
+    for (auto mode : {ScatterMode::Private, ScatterMode::Atomic}) {
+      CAPTURE(int(act));
+      CAPTURE(int(mode));
+      Tensor dgrid = Tensor::zeros(g.params.shape());
+      field::density_backward(g, tp, sigma, dsig, dgrid, act, mode);
+      // FD truncation ~h^2 plus float rounding in sigma: rtol 1e-3, atol 1e-4 (relu kinks are avoided:
+      // a point with |f| < 1e-3 would flip; none is that close for this seed, else this fails loudly).
+      check_close(dgrid.to_host(), fd, 1e-3, 1e-4, "density grad");
+      double mx = 0;
+      for (double v : fd) mx = std::max(mx, std::fabs(v));
+      CHECK(mx > 0.1);  // gradients large against atol: the comparison can fail
+    }
+  }
+}
+
+TEST_CASE("VM features backward matches finite differences, and the privatised and atomic scatters agree") {
+  VMGrid g = VMGrid::create({5, 5, 5}, {2, 2, 2}, 0.6f, 22);
+  Ref ref = ref_of(g);
+  auto params = testing::to_double(g.params.to_host());
+  const auto pts = test_points(30, 7, true);
+  const int n = int(pts.size() / 3), F = g.features();
+  const auto gf = testing::to_double(testing::random_normal(size_t(n) * F, 8));
+  auto loss = [&](const std::vector<double>& x) {
+    double s = 0;
+    for (int i = 0; i < n; ++i) {
+      const double p[3] = {pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]};
+      auto f = ref.features(x, p);
+      for (int k = 0; k < F; ++k) s += gf[size_t(i) * F + k] * f[k];
+    }
+    return s;
+  };
+  const auto fd = testing::finite_difference(loss, params, 1e-5);
+  // The analytic reference gradient used by the larger test below agrees with FD (validates it).
+  check_close(std::vector<float>(fd.begin(), fd.end()), ref.features_grad(params, std::vector<double>(pts.begin(), pts.end()), gf),
+              1e-6, 1e-6, "reference analytic vs FD");
+  Tensor tp = Tensor::from_host(pts, {n, 3});
+  Tensor tg = Tensor::from_host(std::vector<float>(gf.begin(), gf.end()), {n, F});
+  for (auto mode : {ScatterMode::Private, ScatterMode::Atomic}) {
+    Tensor dgrid = Tensor::zeros(g.params.shape());
+    field::features_backward(g, tp, tg, dgrid, mode);
+    check_close(dgrid.to_host(), fd, 1e-4, 1e-5, "features grad");
+  }
+}
+
+TEST_CASE("VM scatter with many points (several gradient copies) matches the reference and accumulates") {
+  VMGrid g = VMGrid::create({9, 8, 7}, {4, 4, 8}, 0.3f, 23);
+  Ref ref = ref_of(g);
+  auto params = testing::to_double(g.params.to_host());
+  // Clustered points so many hit the same cells (contention for the atomic path).
+  auto pts = testing::random_uniform(size_t(3) * 20000, 9, -0.3f, 0.2f);
+  const int n = int(pts.size() / 3), F = g.features();
+  const auto gf = testing::random_normal(size_t(n) * F, 10);
+  const auto want1 = ref.features_grad(params, testing::to_double(pts), testing::to_double(gf));
+  std::vector<double> want(want1.size());
+  for (size_t k = 0; k < want.size(); ++k) want[k] = 1.0 + want1[k];  // accumulates into an existing gradient
+  Tensor tp = Tensor::from_host(pts, {n, 3}), tg = Tensor::from_host(gf, {n, F});
+  std::vector<float> first;
+  for (auto mode : {ScatterMode::Private, ScatterMode::Atomic, ScatterMode::Private}) {
+    Tensor dgrid = Tensor::full(g.params.shape(), 1.0f);
+    field::features_backward(g, tp, tg, dgrid, mode);
+    const auto got = dgrid.to_host();
+    // Sums of up to ~20000 float terms of size ~0.1: rtol 1e-3, atol 1e-3.
+    check_close(got, want, 1e-3, 1e-3, "many-point grad");
+    if (mode == ScatterMode::Private) {
+      if (first.empty())
+        first = got;
+      else
+        CHECK(got == first);  // the privatised scatter is deterministic: bit-identical on a rerun
+    }
+  }
+}
+
+TEST_CASE("VM empty point lists and all-outside points: no launch errors, zero gradient") {
+  VMGrid g = VMGrid::create({4, 4, 4}, {2, 2, 2}, 0.5f, 31);
+  Tensor empty({0, 3});
+  CHECK(field::density_forward(g, empty, DensityActivation::Relu).numel() == 0);
+  CHECK(field::features_forward(g, empty).numel() == 0);
+  Tensor dgrid = Tensor::zeros(g.params.shape());
+  field::density_backward(g, empty, Tensor({0}), Tensor({0}), dgrid, DensityActivation::Relu);
+  field::features_backward(g, empty, Tensor({0, 6}), dgrid);
+  std::vector<float> out = {2, 0, 0, 0, -1.01f, 0, 0, 0, 5};
+  Tensor tp = Tensor::from_host(out, {3, 3});
+  Tensor sigma = field::density_forward(g, tp, DensityActivation::Softplus);
+  for (float s : sigma.to_host()) CHECK(s == 0.0f);
+  field::density_backward(g, tp, sigma, Tensor::full({3}, 1.0f), dgrid, DensityActivation::Softplus);
+  field::features_backward(g, tp, Tensor::full({3, 6}, 1.0f), dgrid);
+  for (float d : dgrid.to_host()) CHECK(d == 0.0f);
+}
+
+TEST_CASE("TV and L1 regularisers: forward vs reference, backward vs finite differences") {
+  VMGrid g = VMGrid::create({4, 5, 3}, {2, 3, 1}, 0.5f, 41);
+  Ref ref = ref_of(g);
+  auto params = testing::to_double(g.params.to_host());
+  // Forward: float partial sums, host sum in double: rtol 1e-5.
+  CHECK(field::tv_forward(g) == doctest::Approx(ref.tv(params)).epsilon(1e-5));
+  CHECK(field::l1_forward(g) == doctest::Approx(ref.l1(params)).epsilon(1e-5));
+  const float wtv = 0.7f, wl1 = 1.3f;
+  const auto fd_tv = testing::finite_difference([&](const std::vector<double>& x) { return wtv * ref.tv(x); }, params);
+  const auto fd_l1 = testing::finite_difference([&](const std::vector<double>& x) { return wl1 * ref.l1(x); }, params);
+  Tensor dgrid = Tensor::zeros(g.params.shape());
+  field::tv_backward(g, wtv, dgrid);
+  check_close(dgrid.to_host(), fd_tv, 1e-4, 1e-6, "TV grad");
+  dgrid.zero();
+  field::l1_backward(g, wl1, dgrid);
+  check_close(dgrid.to_host(), fd_l1, 1e-4, 1e-6, "L1 grad");  // no parameter is within h of 0
+  // Constant planes: TV 0 with zero gradient (no NaN).
+  VMGrid c = VMGrid::from_params(g.res, g.rank, Tensor::full(g.params.shape(), 0.25f));
+  CHECK(field::tv_forward(c) == 0.0);
+  dgrid.zero();
+  field::tv_backward(c, 1.0f, dgrid);
+  for (float d : dgrid.to_host()) CHECK(d == 0.0f);
+}
+
+TEST_CASE("VM resampling: upsampling and sub-box crop match the reference; linear fields are kept exactly") {
+  VMGrid g = VMGrid::create({5, 4, 6}, {2, 3, 4}, 0.5f, 51);
+  Ref ref = ref_of(g);
+  auto params = testing::to_double(g.params.to_host());
+  const std::array<float, 3> lo{-0.5f, -1.0f, 0.0f}, hi{0.75f, 1.0f, 1.0f};
+  for (bool crop : {false, true}) {
+    const std::array<int, 3> nr{9, 7, 11};
+    VMGrid u = crop ? field::resample(g, nr, lo, hi) : field::resample(g, nr);
+    // The new grid sampled at its nodes equals the old one sampled at the mapped positions: compare the
+    // density (sum of products) at every node of the new grid.
+    std::vector<float> pts;
+    std::vector<double> want;
+    for (int z = 0; z < nr[2]; ++z)
+      for (int y = 0; y < nr[1]; ++y)
+        for (int x = 0; x < nr[0]; ++x) {
+          const int idx[3] = {x, y, z};
+          double q[3], old[3];
+          for (int a = 0; a < 3; ++a) {
+            q[a] = -1.0 + 2.0 * idx[a] / (nr[a] - 1);
+            const double l = crop ? lo[a] : -1.0, h = crop ? hi[a] : 1.0;
+            old[a] = l + (h - l) * (q[a] + 1) / 2;
+          }
+          pts.insert(pts.end(), {float(q[0]), float(q[1]), float(q[2])});
+          want.push_back(ref.raw_density(params, old));
+        }
+    const int n = int(pts.size() / 3);
+    // relu would hide negative values: compare raw features summed per point instead.
+    const auto feat = field::features_forward(u, Tensor::from_host(pts, {n, 3})).to_host();
+    std::vector<float> got(n, 0.0f);
+    for (int i = 0; i < n; ++i)
+      for (int k = 0; k < u.features(); ++k) got[i] += feat[size_t(i) * u.features() + k];
+    check_close(got, want, 1e-4, 1e-5, crop ? "cropped grid" : "upsampled grid");
+  }
+}
+
+TEST_CASE("alpha mask matches the reference occupancy (threshold + 3x3x3 dilation) and its tight box") {
+  // A grid whose density is a blob: relu(plane values * line values) with a random grid, threshold high
+  // enough that part of the box is empty.
+  VMGrid g = VMGrid::create({8, 8, 8}, {2, 2, 2}, 0.7f, 61);
+  Ref ref = ref_of(g);
+  auto params = testing::to_double(g.params.to_host());
+  const std::array<int, 3> mr{6, 5, 7};
+  const float step = 0.1f, thr = 0.05f;
+  field::AlphaMask m = field::build_alpha_mask(g, DensityActivation::Relu, mr, step, thr);
+  std::vector<uint8_t> raw(size_t(mr[0]) * mr[1] * mr[2]), want(raw.size());
+  int near_threshold = 0;
+  for (int z = 0; z < mr[2]; ++z)
+    for (int y = 0; y < mr[1]; ++y)
+      for (int x = 0; x < mr[0]; ++x) {
+        const double p[3] = {-1 + (2.0 * x + 1) / mr[0], -1 + (2.0 * y + 1) / mr[1], -1 + (2.0 * z + 1) / mr[2]};
+        const double alpha = 1 - std::exp(-ref.density(params, p, DensityActivation::Relu) * step);
+        near_threshold += std::fabs(alpha - thr) < 1e-5;
+        raw[(size_t(z) * mr[1] + y) * mr[0] + x] = alpha > thr;
+      }
+  REQUIRE(near_threshold == 0);  // no voxel is ambiguous in float for this seed
+  std::array<int, 3> blo{99, 99, 99}, bhi{-1, -1, -1};
+  int64_t occ = 0;
+  for (int z = 0; z < mr[2]; ++z)
+    for (int y = 0; y < mr[1]; ++y)
+      for (int x = 0; x < mr[0]; ++x) {
+        uint8_t o = 0;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int xx = x + dx, yy = y + dy, zz = z + dz;
+              if (xx >= 0 && yy >= 0 && zz >= 0 && xx < mr[0] && yy < mr[1] && zz < mr[2])
+                o |= raw[(size_t(zz) * mr[1] + yy) * mr[0] + xx];
+            }
+        want[(size_t(z) * mr[1] + y) * mr[0] + x] = o;
+        if (o) {
+          ++occ;
+          const int c[3] = {x, y, z};
+          for (int a = 0; a < 3; ++a) blo[a] = std::min(blo[a], c[a]), bhi[a] = std::max(bhi[a], c[a]);
+        }
+      }
+  CHECK(m.to_host() == want);
+  CHECK(m.occupied == occ);
+  REQUIRE(occ > 0);
+  CHECK(occ < int64_t(want.size()));  // the test means something: part of the box is empty
+  for (int a = 0; a < 3; ++a) {
+    CHECK(m.lo[a] == doctest::Approx(-1.0 + 2.0 * blo[a] / mr[a]));
+    CHECK(m.hi[a] == doctest::Approx(-1.0 + 2.0 * (bhi[a] + 1) / mr[a]));
+  }
+  // A zero grid: nothing occupied, box empty (lo > hi).
+  VMGrid z = VMGrid::from_params(g.res, g.rank, Tensor::zeros(g.params.shape()));
+  field::AlphaMask e = field::build_alpha_mask(z, DensityActivation::Relu, mr, step, thr);
+  CHECK(e.empty());
+  CHECK(e.lo[0] > e.hi[0]);
+}

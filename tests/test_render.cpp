@@ -1,0 +1,449 @@
+// Ray marching and compositing (kernels/render.cl via lib/render/): sample lists against a CPU reference,
+// compositing forward against a double reference and backward against its finite differences, and the
+// hard cases: sigma = 0 everywhere, sigma = 1e6 at the first sample, delta = 0, huge sigma, a ray that
+// misses the box, an empty ray list, NDC-like rays starting at the near plane (near = 0).
+#include <doctest/doctest.h>
+
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "host/error.hpp"
+#include "host/runtime.hpp"
+#include "host/tensor.hpp"
+#include "lib/field/alpha_mask.hpp"
+#include "lib/render/composite.hpp"
+#include "lib/render/int_tensor.hpp"
+#include "lib/render/ray_march.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using host::Tensor;
+using render::int_tensor_from_host;
+using render::int_tensor_to_host;
+using render::MarchConfig;
+using render::Samples;
+using testing::check_close;
+
+namespace {
+
+// ---- ray-marching reference (double; the jitter hash is integer and identical) -------------------------
+float hash_uniform(uint32_t seed, uint32_t i) {
+  uint32_t h = (i * 0x9E3779B9u) ^ seed;
+  h ^= h >> 16;
+  h *= 0x7feb352du;
+  h ^= h >> 15;
+  h *= 0x846ca68bu;
+  h ^= h >> 16;
+  return float(h >> 8) * (1.0f / 16777216.0f);
+}
+
+struct RefSample {
+  double t, q[3];
+};
+
+// Samples of one ray; `ambiguous` is set when a float implementation could legitimately decide a sample
+// differently (count boundary or mask voxel boundary within 1e-4; float error is ~1e-6).
+std::vector<RefSample> ref_march(const float* o, const float* d, int r, const MarchConfig& c,
+                                 const std::vector<uint8_t>* mask, const std::array<int, 3>& mr, bool& ambiguous) {
+  ambiguous = false;
+  double tmin = c.near, tmax = c.far;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0f) {
+      if (o[a] < c.box_lo[a] || o[a] > c.box_hi[a]) return {};
+    } else {
+      const double t1 = (c.box_lo[a] - double(o[a])) / d[a], t2 = (c.box_hi[a] - double(o[a])) / d[a];
+      tmin = std::max(tmin, std::min(t1, t2));
+      tmax = std::min(tmax, std::max(t1, t2));
+    }
+  }
+  if (!(tmax >= tmin)) return {};
+  const double jitter = c.jitter ? hash_uniform(c.seed, uint32_t(r)) : 0.0;
+  const double span = (tmax - tmin) / c.step - jitter;
+  if (span < 0) return {};
+  if (std::fabs(span - std::round(span)) < 1e-4) ambiguous = true;
+  const int n = int(std::min(std::floor(span) + 1.0, double(c.max_samples)));
+  std::vector<RefSample> out;
+  for (int i = 0; i < n; ++i) {
+    RefSample s;
+    s.t = tmin + c.step * (i + jitter);
+    bool occ = true;
+    int v[3];
+    for (int a = 0; a < 3; ++a) {
+      const double p = o[a] + s.t * d[a];
+      s.q[a] = std::min(1.0, std::max(-1.0, (p - c.box_lo[a]) / (c.box_hi[a] - c.box_lo[a]) * 2 - 1));
+      if (mask) {
+        const double f = (s.q[a] + 1) * 0.5 * mr[a];
+        if (std::fabs(f - std::round(f)) < 1e-4 && std::round(f) > 0 && std::round(f) < mr[a]) ambiguous = true;
+        v[a] = std::min(std::max(int(std::floor(f)), 0), mr[a] - 1);
+      }
+    }
+    if (mask) occ = (*mask)[(size_t(v[2]) * mr[1] + v[1]) * mr[0] + v[0]] != 0;
+    if (occ) out.push_back(s);
+  }
+  return out;
+}
+
+field::AlphaMask mask_from_host(const std::vector<uint8_t>& v, std::array<int, 3> res) {
+  field::AlphaMask m;
+  m.res = res;
+  m.voxels = std::make_shared<host::Buffer>(v.size(), "test mask");
+  host::check(clEnqueueWriteBuffer(host::Runtime::instance().queue(), m.voxels->mem(), CL_TRUE, 0, v.size(), v.data(),
+                                   0, nullptr, nullptr),
+              "clEnqueueWriteBuffer", "test mask");
+  for (auto b : v) m.occupied += b;
+  return m;
+}
+
+// Random rays: origins on a sphere of radius 3 aimed near the box centre (some miss), plus rays starting
+// inside, rays parallel to axes (inside and outside the slab), and one pointing away.
+void make_rays(int n, uint64_t seed, std::vector<float>& o, std::vector<float>& d) {
+  auto u = testing::random_uniform(size_t(6) * n, seed, -1.0f, 1.0f);
+  for (int i = 0; i < n; ++i) {
+    float oo[3] = {u[6 * i] * 3, u[6 * i + 1] * 3, u[6 * i + 2] * 3};
+    float len = std::sqrt(oo[0] * oo[0] + oo[1] * oo[1] + oo[2] * oo[2]) + 1e-6f;
+    if (i % 5 == 0) for (auto& x : oo) x /= len;  // inside the box
+    float tgt[3] = {u[6 * i + 3] * 1.5f, u[6 * i + 4] * 1.5f, u[6 * i + 5] * 1.5f};
+    float dd[3] = {tgt[0] - oo[0], tgt[1] - oo[1], tgt[2] - oo[2]};
+    float dl = std::sqrt(dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2]);
+    for (int a = 0; a < 3; ++a) {
+      o.push_back(oo[a]);
+      d.push_back(dd[a] / dl);
+    }
+  }
+  const float extra[][6] = {{-3, 0.2f, 0.3f, 1, 0, 0},   {-3, 2.0f, 0.3f, 1, 0, 0},  {0.1f, 0.2f, -5, 0, 0, 1},
+                            {0, 0, 0, 0, 1, 0},          {3, 3, 3, 1, 1, 1},         {-3, -1.0f, 0.0f, 1, 0, 0}};
+  for (auto& e : extra) {
+    float l = std::sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]);
+    o.insert(o.end(), {e[0], e[1], e[2]});
+    d.insert(d.end(), {e[3] / l, e[4] / l, e[5] / l});
+  }
+}
+
+void check_march(const Samples& s, const std::vector<float>& o, const std::vector<float>& d, const MarchConfig& c,
+                 const std::vector<uint8_t>* mask, const std::array<int, 3>& mr) {
+  const int R = int(o.size() / 3);
+  const auto counts = int_tensor_to_host(s.ray_count), offs = int_tensor_to_host(s.ray_offset);
+  const auto ridx = int_tensor_to_host(s.ray_index);
+  const auto pos = s.positions.to_host(), tv = s.t.to_host(), dl = s.deltas.to_host();
+  REQUIRE(int(counts.size()) == R);
+  int ambiguous = 0, hits = 0;
+  int64_t total = 0;
+  for (int r = 0; r < R; ++r) {
+    CHECK(offs[r] == total);  // exclusive prefix sum
+    total += counts[r];
+    bool amb;
+    const auto want = ref_march(&o[3 * r], &d[3 * r], r, c, mask, mr, amb);
+    if (amb) {
+      ++ambiguous;
+      continue;
+    }
+    hits += !want.empty();
+    REQUIRE_MESSAGE(counts[r] == int(want.size()), "ray " << r);
+    for (int k = 0; k < counts[r]; ++k) {
+      const int j = offs[r] + k;
+      CHECK(ridx[j] == r);
+      // Positions and t in float against double: atol 1e-4 (|t| <= ~10, float epsilon 1e-7 * a few ops).
+      CHECK(std::fabs(tv[j] - want[k].t) < 1e-4 * (1 + std::fabs(want[k].t)));
+      for (int a = 0; a < 3; ++a) CHECK(std::fabs(pos[3 * j + a] - want[k].q[a]) < 1e-4);
+      const double len = std::sqrt(d[3 * r] * d[3 * r] + d[3 * r + 1] * d[3 * r + 1] + d[3 * r + 2] * d[3 * r + 2]);
+      CHECK(std::fabs(dl[j] - c.step * len * c.delta_scale) < 1e-6);
+    }
+  }
+  CHECK(total == s.count);
+  CHECK(ambiguous < R / 10 + 1);
+  CHECK(hits > R / 3);  // most rays hit: the comparison covers real samples
+}
+
+}  // namespace
+
+TEST_CASE("ray marching matches the CPU reference: counts, offsets, positions, t, deltas (no mask, jitter)") {
+  std::vector<float> o, d;
+  make_rays(300, 1, o, d);
+  const int R = int(o.size() / 3);
+  Tensor to = Tensor::from_host(o, {R, 3}), td = Tensor::from_host(d, {R, 3});
+  MarchConfig c;
+  c.box_lo = {-1.0f, -0.8f, -1.2f};
+  c.box_hi = {1.0f, 0.9f, 1.1f};
+  c.near = 0.1f;
+  c.far = 6.0f;
+  c.step = render::step_for_grid(c.box_lo, c.box_hi, {32, 30, 34});
+  c.max_samples = render::max_samples_for_grid(c.box_lo, c.box_hi, c.step);
+  c.delta_scale = 2.0f;
+  for (bool jitter : {false, true}) {
+    c.jitter = jitter;
+    c.seed = 1234;
+    check_march(render::march(to, td, c, nullptr), o, d, c, nullptr, {1, 1, 1});
+  }
+  // The cap: at most max_samples per ray.
+  c.max_samples = 7;
+  Samples s = render::march(to, td, c, nullptr);
+  for (int n : int_tensor_to_host(s.ray_count)) CHECK(n <= 7);
+  check_march(s, o, d, c, nullptr, {1, 1, 1});
+}
+
+TEST_CASE("ray marching skips empty alpha-mask voxels exactly like the reference") {
+  std::vector<float> o, d;
+  make_rays(300, 2, o, d);
+  const int R = int(o.size() / 3);
+  Tensor to = Tensor::from_host(o, {R, 3}), td = Tensor::from_host(d, {R, 3});
+  const std::array<int, 3> mr{5, 6, 7};
+  std::vector<uint8_t> mv(size_t(mr[0]) * mr[1] * mr[2]);
+  auto u = testing::random_uniform(mv.size(), 3, 0.0f, 1.0f);
+  for (size_t i = 0; i < mv.size(); ++i) mv[i] = u[i] < 0.4f;
+  field::AlphaMask m = mask_from_host(mv, mr);
+  MarchConfig c;
+  c.near = 0.0f;
+  c.far = 10.0f;
+  c.step = 0.05f;
+  c.jitter = true;
+  c.seed = 99;
+  Samples with = render::march(to, td, c, &m);
+  check_march(with, o, d, c, &mv, mr);
+  Samples without = render::march(to, td, c, nullptr);
+  CHECK(with.count < without.count);  // the mask removed samples
+  CHECK(with.count > 0);
+}
+
+TEST_CASE("ray marching hard cases: a ray that misses, an empty ray list, NDC-like rays from the near plane") {
+  MarchConfig c;
+  c.step = 0.1f;
+  // A ray that misses: zero samples.
+  {
+    std::vector<float> o = {-3, 2.5f, 0}, d = {1, 0, 0};
+    Samples s = render::march(Tensor::from_host(o, {1, 3}), Tensor::from_host(d, {1, 3}), c, nullptr);
+    CHECK(s.count == 0);
+    CHECK(int_tensor_to_host(s.ray_count)[0] == 0);
+  }
+  // No rays at all.
+  {
+    Samples s = render::march(Tensor({0, 3}), Tensor({0, 3}), c, nullptr);
+    CHECK(s.count == 0);
+    CHECK(s.positions.numel() == 0);
+  }
+  // NDC-like: origins on the near plane z = -1 of the NDC box, near = 0, far = 1, d.z = 2 (z: -1 -> 1).
+  {
+    MarchConfig n;
+    n.box_lo = {-1.5f, -1.67f, -1.0f};
+    n.box_hi = {1.5f, 1.67f, 1.0f};
+    n.near = 0.0f;
+    n.far = 1.0f;
+    n.step = 1.0f / 128;
+    n.max_samples = 1000;
+    std::vector<float> o = {0.3f, -0.2f, -1.0f, -1.4f, 1.6f, -1.0f}, d = {0.1f, 0.05f, 2.0f, 0.0f, 0.0f, 2.0f};
+    Samples s = render::march(Tensor::from_host(o, {2, 3}), Tensor::from_host(d, {2, 3}), n, nullptr);
+    const auto cnt = int_tensor_to_host(s.ray_count);
+    CHECK(cnt[0] == 129);  // t = 0, 1/128, ..., 1
+    CHECK(cnt[1] == 129);
+    const auto t = s.t.to_host(), p = s.positions.to_host();
+    CHECK(t[0] == 0.0f);
+    CHECK(p[2] == -1.0f);  // the first sample sits on the near plane
+    CHECK(testing::all_finite(p));
+  }
+}
+
+// ---- compositing reference -------------------------------------------------------------------------------
+namespace {
+struct RefComp {
+  std::vector<double> val, acc, depth, w;
+};
+RefComp ref_composite(const std::vector<double>& sigma, const std::vector<double>& vals, const std::vector<float>& delta,
+                      const std::vector<float>& t, const std::vector<int>& off, const std::vector<int>& cnt, int C,
+                      const std::vector<float>* bg) {
+  const int R = int(off.size());
+  RefComp r;
+  r.val.assign(size_t(R) * C, 0.0);
+  r.acc.assign(R, 0.0);
+  r.depth.assign(R, 0.0);
+  r.w.assign(sigma.size(), 0.0);
+  for (int i = 0; i < R; ++i) {
+    double T = 1.0;
+    for (int k = off[i]; k < off[i] + cnt[i]; ++k) {
+      const double x = delta[k] > 0 ? std::max(sigma[k] * delta[k], 0.0) : 0.0;
+      const double w = T * -std::expm1(-x);
+      T *= std::exp(-x);
+      r.w[k] = w;
+      r.acc[i] += w;
+      r.depth[i] += w * t[k];
+      for (int c = 0; c < C; ++c) r.val[size_t(i) * C + c] += w * vals[size_t(k) * C + c];
+    }
+    if (bg)
+      for (int c = 0; c < C; ++c) r.val[size_t(i) * C + c] += (1 - r.acc[i]) * (*bg)[c];
+  }
+  return r;
+}
+
+// A sample list for compositing tests without marching: R rays with the given counts.
+Samples make_samples(const std::vector<int>& counts, const std::vector<float>& t, const std::vector<float>& delta) {
+  Samples s;
+  std::vector<int32_t> off;
+  s.count = render::exclusive_scan(counts, off);
+  s.ray_count = int_tensor_from_host(counts);
+  s.ray_offset = int_tensor_from_host(off);
+  s.t = Tensor::from_host(t, {s.count});
+  s.deltas = Tensor::from_host(delta, {s.count});
+  return s;
+}
+}  // namespace
+
+TEST_CASE("compositing forward matches the double reference; backward matches its finite differences") {
+  const std::vector<int> counts = {5, 0, 1, 12, 3};  // includes an empty ray
+  int S = 0;
+  for (int c : counts) S += c;
+  std::vector<int32_t> off;
+  render::exclusive_scan(counts, off);
+  const int R = int(counts.size());
+  for (int C : {3, 5}) {
+    for (bool with_bg : {true, false}) {
+      CAPTURE(C);
+      CAPTURE(with_bg);
+      auto sigma = testing::random_uniform(S, 1, 0.05f, 8.0f);
+      auto vals = testing::random_uniform(size_t(S) * C, 2, 0.0f, 1.0f);
+      auto delta = testing::random_uniform(S, 3, 0.01f, 0.2f);
+      auto t = testing::random_uniform(S, 4, 0.5f, 4.0f);
+      std::vector<float> bg = testing::random_uniform(C, 5, 0.0f, 1.0f);
+      Samples s = make_samples(counts, t, delta);
+      Tensor ts = Tensor::from_host(sigma, {S}), tv = Tensor::from_host(vals, {S, C});
+      Tensor tbg = with_bg ? Tensor::from_host(bg, {C}) : Tensor();
+      auto out = render::composite_forward(s, ts, tv, tbg);
+      auto ref = ref_composite(testing::to_double(sigma), testing::to_double(vals), delta, t, off, counts, C,
+                               with_bg ? &bg : nullptr);
+      // Products of <= 12 factors in float: rtol 1e-5, atol 1e-6.
+      check_close(out.value.to_host(), ref.val, 1e-5, 1e-6, "value");
+      check_close(out.acc.to_host(), ref.acc, 1e-5, 1e-6, "acc");
+      check_close(out.depth.to_host(), ref.depth, 1e-5, 1e-6, "depth");
+      check_close(out.weights.to_host(), ref.w, 1e-5, 1e-6, "weights");
+
+      const auto gv = testing::to_double(testing::random_normal(size_t(R) * C, 6));
+      const auto ga = testing::to_double(testing::random_normal(R, 7));
+      const auto gd = testing::to_double(testing::random_normal(R, 8));
+      auto loss = [&](const std::vector<double>& sg, const std::vector<double>& vl) {
+        auto r = ref_composite(sg, vl, delta, t, off, counts, C, with_bg ? &bg : nullptr);
+        return testing::dot(r.val, gv) + testing::dot(r.acc, ga) + testing::dot(r.depth, gd);
+      };
+      const auto sd = testing::to_double(sigma), vd = testing::to_double(vals);
+      const auto fd_sigma = testing::finite_difference([&](const std::vector<double>& x) { return loss(x, vd); }, sd, 1e-6);
+      const auto fd_vals = testing::finite_difference([&](const std::vector<double>& x) { return loss(sd, x); }, vd, 1e-6);
+      auto g = render::composite_backward(s, ts, tv, tbg, Tensor::from_host(std::vector<float>(gv.begin(), gv.end()), {R, C}),
+                                          Tensor::from_host(std::vector<float>(ga.begin(), ga.end()), {R}),
+                                          Tensor::from_host(std::vector<float>(gd.begin(), gd.end()), {R}));
+      // FD of a double function (h 1e-6: error ~1e-10); float kernel: rtol 1e-4, atol 1e-5.
+      check_close(g.dsigma.to_host(), fd_sigma, 1e-4, 1e-5, "dsigma");
+      check_close(g.dvalues.to_host(), fd_vals, 1e-4, 1e-5, "dvalues");
+    }
+  }
+}
+
+TEST_CASE("compositing hard cases: sigma 0, sigma 1e6 first, delta 0, huge sigma, missing ray, no rays") {
+  const int C = 3;
+  const std::vector<float> bg = {0.2f, 0.5f, 0.9f};
+  Tensor tbg = Tensor::from_host(bg, {3});
+  const std::vector<int> counts = {4, 0, 4, 4, 4};  // ray 1 missed the box
+  const int S = 16, R = 5;
+  std::vector<float> t(S), delta(S, 0.1f);
+  for (int i = 0; i < S; ++i) t[i] = 1.0f + 0.1f * (i % 4);
+  // ray 0: sigma 0 everywhere; ray 2: sigma 1e6 at the first sample; ray 3: large sigma with delta 0;
+  // ray 4: FLT_MAX, 1e30 and inf (sigma * delta overflows to inf: exp(-inf) = 0, never inf * 0).
+  std::vector<float> sigma(S, 0.0f);
+  delta.assign(S, 0.1f);
+  sigma[4] = 1e6f;  // ray 2, first sample
+  sigma[5] = 3.0f;
+  for (int i = 8; i < 12; ++i) {
+    sigma[i] = 7.0f;
+    delta[i] = 0.0f;
+  }
+  sigma[12] = 0.5f;
+  sigma[13] = FLT_MAX;
+  sigma[14] = 1e30f;
+  sigma[15] = INFINITY;
+  Samples s = make_samples(counts, t, delta);
+  auto vals = testing::random_uniform(size_t(S) * C, 9, 0.0f, 1.0f);
+  Tensor ts = Tensor::from_host(sigma, {S}), tv = Tensor::from_host(vals, {S, C});
+  auto out = render::composite_forward(s, ts, tv, tbg);
+  const auto val = out.value.to_host(), acc = out.acc.to_host(), w = out.weights.to_host();
+  CHECK(testing::all_finite(val));
+  CHECK(testing::all_finite(acc));
+  CHECK(testing::all_finite(w));
+  CHECK(testing::all_finite(out.depth.to_host()));
+  for (int r : {0, 1, 3}) {  // sigma 0 / no samples / delta 0: nothing absorbs, the background shows
+    CHECK(acc[r] == 0.0f);
+    for (int c = 0; c < 3; ++c) CHECK(val[3 * r + c] == bg[c]);
+  }
+  CHECK(w[4] == 1.0f);  // sigma 1e6 at the first sample: w_0 = 1 exactly, the rest 0
+  for (int k = 5; k < 8; ++k) CHECK(w[k] == 0.0f);
+  CHECK(acc[2] == 1.0f);
+  for (int c = 0; c < 3; ++c) CHECK(val[6 + c] == doctest::Approx(vals[12 + c]).epsilon(1e-6));
+  // Ray 4: the FLT_MAX sample absorbs everything left.
+  CHECK(acc[4] == doctest::Approx(1.0f).epsilon(1e-6));
+  CHECK(w[14] == 0.0f);
+  CHECK(w[15] == 0.0f);
+
+  auto ones = [](int n) { return Tensor::full({n}, 1.0f); };
+  auto g = render::composite_backward(s, ts, tv, tbg, Tensor::full({R, C}, 1.0f), ones(R), ones(R));
+  const auto ds = g.dsigma.to_host(), dv = g.dvalues.to_host();
+  CHECK(testing::all_finite(ds));
+  CHECK(testing::all_finite(dv));
+  // sigma = 0 everywhere: dL/dsigma_k = delta_k * v_k with v_k = <1, c_k - bg> + 1 + t_k (T = 1, no later weight).
+  for (int k = 0; k < 4; ++k) {
+    double v = 1.0 + t[k];
+    for (int c = 0; c < 3; ++c) v += vals[3 * k + c] - bg[c];
+    CHECK(ds[k] == doctest::Approx(0.1 * v).epsilon(1e-5));
+  }
+  // sigma 1e6 first: nothing behind it matters, its own gradient is 0 (saturated), colour gradient = dvalue.
+  for (int k = 4; k < 8; ++k) CHECK(ds[k] == 0.0f);
+  for (int c = 0; c < 3; ++c) CHECK(dv[12 + c] == 1.0f);
+  for (int k = 8; k < 12; ++k) CHECK(ds[k] == 0.0f);  // delta 0
+
+  // No rays, no samples.
+  Samples e = make_samples({}, {}, {});
+  auto eo = render::composite_forward(e, Tensor({0}), Tensor({0, 3}), tbg);
+  CHECK(eo.value.numel() == 0);
+  auto eg = render::composite_backward(e, Tensor({0}), Tensor({0, 3}), tbg, Tensor({0, 3}), Tensor(), Tensor());
+  CHECK(eg.dsigma.numel() == 0);
+}
+
+TEST_CASE("dropping samples below a weight threshold keeps the rest in order; gather/scatter round trip") {
+  const std::vector<int> counts = {6, 0, 3, 9};
+  const int S = 18;
+  auto w = testing::random_uniform(S, 11, 0.0f, 2e-4f);  // about half below 1e-4
+  w[0] = 1e-4f;                                           // exactly at the threshold: kept
+  std::vector<float> t(S), delta(S, 0.1f);
+  for (int i = 0; i < S; ++i) t[i] = float(i);
+  Samples s = make_samples(counts, t, delta);
+  auto pos = testing::random_uniform(size_t(S) * 3, 12, -1.0f, 1.0f);
+  s.positions = Tensor::from_host(pos, {S, 3});
+  std::vector<int32_t> ridx;
+  for (int r = 0; r < 4; ++r) ridx.insert(ridx.end(), counts[r], r);
+  s.ray_index = int_tensor_from_host(ridx);
+  auto k = render::keep_by_weight(s, Tensor::from_host(w, {S}), 1e-4f);
+  std::vector<int32_t> want;
+  for (int i = 0; i < S; ++i)
+    if (w[i] >= 1e-4f) want.push_back(i);
+  REQUIRE(k.count == int64_t(want.size()));
+  CHECK(want.size() > 3);
+  CHECK(want.size() < size_t(S));
+  CHECK(int_tensor_to_host(k.index) == want);
+  Samples c = render::compact(s, k);
+  const auto cp = c.positions.to_host(), ct = c.t.to_host();
+  const auto cr = int_tensor_to_host(c.ray_index);
+  for (size_t j = 0; j < want.size(); ++j) {
+    CHECK(ct[j] == t[want[j]]);
+    CHECK(cr[j] == ridx[want[j]]);
+    for (int a = 0; a < 3; ++a) CHECK(cp[3 * j + a] == pos[3 * want[j] + a]);
+  }
+  // Per-ray counts of the compacted list sum to the kept count; offsets are their exclusive scan.
+  const auto kc = int_tensor_to_host(c.ray_count), ko = int_tensor_to_host(c.ray_offset);
+  int64_t run = 0;
+  for (size_t r = 0; r < kc.size(); ++r) {
+    CHECK(ko[r] == run);
+    run += kc[r];
+  }
+  CHECK(run == k.count);
+  // scatter_rows puts kept rows back, zeros elsewhere.
+  auto back = render::scatter_rows(c.positions, k.index, S).to_host();
+  for (int i = 0; i < S; ++i) {
+    const bool kept = w[i] >= 1e-4f;
+    for (int a = 0; a < 3; ++a) CHECK(back[3 * i + a] == (kept ? pos[3 * i + a] : 0.0f));
+  }
+}
