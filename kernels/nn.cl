@@ -2,7 +2,12 @@
 // (relu, 2x2 max pooling, x2 nearest upsampling). NCHW float32, stride 1, "same" convolutions.
 //
 // On PoCL/CPU one work-item runs a whole image row and moves 8 floats at a time (vload8/vstore8);
-// only the one or two columns that touch the padding take the scalar path.
+// only the one or two columns that touch the padding take the scalar path. No float16: PoCL's
+// "haswell" CPU target has no AVX-512, so float16 builtins go through an out-of-line ABI (it warns).
+
+// Interleaving masks for shuffle2: (a0 b0 a1 b1 a2 b2 a3 b3) and (a4 b4 ... a7 b7).
+#define ZIP_LO (uint8)(0, 8, 1, 9, 2, 10, 3, 11)
+#define ZIP_HI (uint8)(4, 12, 5, 13, 6, 14, 7, 15)
 
 // Padding modes, as passed by lib/nn/conv.cpp.
 #define PAD_ZERO 0
@@ -81,44 +86,36 @@ __kernel void col2im(__global const float* col, __global float* dx, int dx_off, 
   const long plane = (long)rows * W;
   __global float* dst = dx + dx_off + ((long)c * H + y) * W;
 
-  // Gather, for kernel row ky and output row oy present in this chunk, the taps along the row.
-  // Column taps: input column x is read by output column ox = x - kx + pad, plus the reflected
-  // columns (x == 1 from ox = 0 with kx = 0; x == W-2 from ox = W-1 with kx = 2).
+  // The col rows (ky, oy) that read input row y and are present in this chunk: at most 2 per ky.
+  // Found once per row, so the loop over x below only walks pointers.
+  __global const float* taps[6];
+  int ntaps = 0;
+  for (int ky = 0; ky < K; ++ky) {
+    int oys[2];
+    const int nt = taps_from(y, ky, H, pad, mode, oys);
+    for (int t = 0; t < nt; ++t)
+      if (oys[t] >= y0 && oys[t] < y0 + rows)
+        taps[ntaps++] = col + (long)(c * K + ky) * K * plane + (long)(oys[t] - y0) * W;
+  }
+
+  // Direct taps along the row: input column x is read by output column ox = x - kx + pad of col row
+  // (ky, kx); the K col rows of one ky are `plane` apart.
   for (int x0 = 0; x0 < W; x0 += 8) {
     const int n = min(8, W - x0);
     float8 acc = (float8)(0.0f);
-    for (int ky = 0; ky < K; ++ky) {
-      int oys[2];
-      const int nt = taps_from(y, ky, H, pad, mode, oys);
-      for (int t = 0; t < nt; ++t) {
-        const int oy = oys[t];
-        if (oy < y0 || oy >= y0 + rows) continue;
-        for (int kx = 0; kx < K; ++kx) {
-          __global const float* src = col + ((long)(c * K + ky) * K + kx) * plane + (long)(oy - y0) * W;
-          const int ox0 = x0 - kx + pad;
-          if (n == 8 && ox0 >= 0 && ox0 + 8 <= W) {
-            acc += vload8(0, src + ox0);
-          } else {
-            float t8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-            for (int l = 0; l < n; ++l) {
-              const int ox = ox0 + l;
-              if (ox >= 0 && ox < W) t8[l] = src[ox];
-            }
-            acc += vload8(0, t8);
+    for (int t = 0; t < ntaps; ++t) {
+      for (int kx = 0; kx < K; ++kx) {
+        __global const float* src = taps[t] + kx * plane;
+        const int ox0 = x0 - kx + pad;
+        if (n == 8 && ox0 >= 0 && ox0 + 8 <= W) {
+          acc += vload8(0, src + ox0);
+        } else {
+          float t8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+          for (int l = 0; l < n; ++l) {
+            const int ox = ox0 + l;
+            if (ox >= 0 && ox < W) t8[l] = src[ox];
           }
-          if (mode == PAD_REFLECT && pad == 1) {
-            // Reflected column taps land on x = 1 (kx = 0) and x = W-2 (kx = 2).
-            if (kx == 0 && x0 <= 1 && 1 < x0 + n) {
-              float t8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-              t8[1 - x0] = src[0];
-              acc += vload8(0, t8);
-            }
-            if (kx == 2 && x0 <= W - 2 && W - 2 < x0 + n) {
-              float t8[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-              t8[W - 2 - x0] = src[W - 1];
-              acc += vload8(0, t8);
-            }
-          }
+          acc += vload8(0, t8);
         }
       }
     }
@@ -130,6 +127,18 @@ __kernel void col2im(__global const float* col, __global float* dx, int dx_off, 
       vstore8(acc, 0, t8);
       for (int l = 0; l < n; ++l) dst[x0 + l] = accumulate ? dst[x0 + l] + t8[l] : t8[l];
     }
+  }
+
+  // Reflected column taps, kept out of the loop above: output column 0 read padded column -1 = column 1
+  // through kx = 0, output column W-1 read padded column W = column W-2 through kx = 2.
+  if (mode == PAD_REFLECT && pad == 1) {
+    float add1 = 0.0f, add2 = 0.0f;
+    for (int t = 0; t < ntaps; ++t) {
+      add1 += taps[t][0];                  // kx = 0
+      add2 += taps[t][2 * plane + W - 1];  // kx = 2
+    }
+    dst[1] += add1;
+    dst[W - 2] += add2;
   }
 }
 
@@ -191,7 +200,7 @@ __kernel void relu_backward(__global const float* y, __global const float* dy, _
 }
 
 // ---- 2x2 max pooling, stride 2 ------------------------------------------------------------------
-// One work-item per output row (n, c, oy): reads two input rows 16 floats at a time.
+// One work-item per output row (n, c, oy): reads two input rows 16 floats at a time (2 x float8).
 // Global: (Ho, N * C), Ho = H / 2, Wo = W / 2.
 __kernel void maxpool2x2_forward(__global const float* x, __global float* y, int H, int W) {
   const int oy = get_global_id(0);
@@ -203,9 +212,9 @@ __kernel void maxpool2x2_forward(__global const float* x, __global float* y, int
   __global float* out = y + ((long)nc * Ho + oy) * Wo;
   int ox = 0;
   for (; ox + 8 <= Wo; ox += 8) {
-    const float16 a = vload16(0, r0 + 2 * ox), b = vload16(0, r1 + 2 * ox);
-    const float16 m = fmax(a, b);
-    vstore8(fmax(m.even, m.odd), 0, out + ox);
+    const float8 m0 = fmax(vload8(0, r0 + 2 * ox), vload8(0, r1 + 2 * ox));
+    const float8 m1 = fmax(vload8(0, r0 + 2 * ox + 8), vload8(0, r1 + 2 * ox + 8));
+    vstore8(fmax((float8)(m0.even, m1.even), (float8)(m0.odd, m1.odd)), 0, out + ox);
   }
   for (; ox < Wo; ++ox)
     out[ox] = fmax(fmax(r0[2 * ox], r0[2 * ox + 1]), fmax(r1[2 * ox], r1[2 * ox + 1]));
@@ -228,8 +237,10 @@ __kernel void maxpool2x2_backward(__global const float* x, __global const float*
   __global const float* g = dy + ((long)nc * Ho + oy) * Wo;
   int ox = 0;
   for (; ox + 8 <= Wo; ox += 8) {
-    const float16 a = vload16(0, r0 + 2 * ox), b = vload16(0, r1 + 2 * ox);
-    const float8 v00 = a.even, v01 = a.odd, v10 = b.even, v11 = b.odd;
+    const float8 a0 = vload8(0, r0 + 2 * ox), a1 = vload8(0, r0 + 2 * ox + 8);
+    const float8 b0 = vload8(0, r1 + 2 * ox), b1 = vload8(0, r1 + 2 * ox + 8);
+    const float8 v00 = (float8)(a0.even, a1.even), v01 = (float8)(a0.odd, a1.odd);
+    const float8 v10 = (float8)(b0.even, b1.even), v11 = (float8)(b0.odd, b1.odd);
     const float8 gv = vload8(0, g + ox);
     const float8 m = fmax(fmax(v00, v01), fmax(v10, v11));
     // First-maximum masks (comparisons give -1 for true in vector form).
@@ -238,13 +249,12 @@ __kernel void maxpool2x2_backward(__global const float* x, __global const float*
     const int8 is10 = (v10 == m) & ~is00 & ~is01;
     const int8 is11 = ~is00 & ~is01 & ~is10;
     const float8 z = (float8)(0.0f);
-    float16 o0, o1;
-    o0.even = select(z, gv, is00);
-    o0.odd = select(z, gv, is01);
-    o1.even = select(z, gv, is10);
-    o1.odd = select(z, gv, is11);
-    vstore16(o0, 0, d0 + 2 * ox);
-    vstore16(o1, 0, d1 + 2 * ox);
+    const float8 g00 = select(z, gv, is00), g01 = select(z, gv, is01);
+    const float8 g10 = select(z, gv, is10), g11 = select(z, gv, is11);
+    vstore8(shuffle2(g00, g01, ZIP_LO), 0, d0 + 2 * ox);
+    vstore8(shuffle2(g00, g01, ZIP_HI), 0, d0 + 2 * ox + 8);
+    vstore8(shuffle2(g10, g11, ZIP_LO), 0, d1 + 2 * ox);
+    vstore8(shuffle2(g10, g11, ZIP_HI), 0, d1 + 2 * ox + 8);
   }
   for (; ox < Wo; ++ox) {
     const float v[4] = {r0[2 * ox], r0[2 * ox + 1], r1[2 * ox], r1[2 * ox + 1]};
@@ -270,11 +280,11 @@ __kernel void upsample2x_forward(__global const float* x, __global float* y, int
   int ix = 0;
   for (; ix + 8 <= W; ix += 8) {
     const float8 v = vload8(0, src + ix);
-    float16 o;
-    o.even = v;
-    o.odd = v;
-    vstore16(o, 0, o0 + 2 * ix);
-    vstore16(o, 0, o1 + 2 * ix);
+    const float8 lo = shuffle2(v, v, ZIP_LO), hi = shuffle2(v, v, ZIP_HI);
+    vstore8(lo, 0, o0 + 2 * ix);
+    vstore8(hi, 0, o0 + 2 * ix + 8);
+    vstore8(lo, 0, o1 + 2 * ix);
+    vstore8(hi, 0, o1 + 2 * ix + 8);
   }
   for (; ix < W; ++ix) {
     const float v = src[ix];
@@ -292,8 +302,9 @@ __kernel void upsample2x_backward(__global const float* dy, __global float* dx, 
   __global float* dst = dx + ((long)nc * H + iy) * W;
   int ix = 0;
   for (; ix + 8 <= W; ix += 8) {
-    const float16 s = vload16(0, g0 + 2 * ix) + vload16(0, g1 + 2 * ix);
-    vstore8(s.even + s.odd, 0, dst + ix);
+    const float8 s0 = vload8(0, g0 + 2 * ix) + vload8(0, g1 + 2 * ix);
+    const float8 s1 = vload8(0, g0 + 2 * ix + 8) + vload8(0, g1 + 2 * ix + 8);
+    vstore8((float8)(s0.even + s0.odd, s1.even + s1.odd), 0, dst + ix);
   }
   for (; ix < W; ++ix) dst[ix] = (g0[2 * ix] + g0[2 * ix + 1]) + (g1[2 * ix] + g1[2 * ix + 1]);
 }

@@ -1,0 +1,10 @@
+// The op families of `stylerf bench ops`, one file each (bench/bench_ops_<family>.cpp).
+#pragma once
+#include "bench/bench.hpp"
+
+namespace stylerf::bench {
+
+void bench_ops_spatial(const BenchOptions& opt);  // bench/bench_ops_spatial.cpp: relu, pool, upsample, im2col, col2im
+void bench_ops_norm(const BenchOptions& opt);     // bench/bench_ops_norm.cpp: stats, instance norm, AdaIN, losses
+
+}  // namespace stylerf::bench

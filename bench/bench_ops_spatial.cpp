@@ -1,0 +1,125 @@
+// Perf mode of the spatial kernels of kernels/nn.cl (part of `stylerf bench ops`): relu, 2x2 max pool,
+// x2 upsample, im2col, col2im at the sizes StyleRF runs them (256x256 images). All are memory-bound, so
+// the figure is GB/s = (bytes read once + bytes written) / time; im2col reads each input element k*k
+// times from cache, which is not counted.
+// --quick: every tensor a quarter per side of the full size, one repetition.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <string>
+
+#include "bench/bench_ops_parts.hpp"
+#include "host/launch.hpp"
+#include "host/runtime.hpp"
+#include "lib/nn/ops.hpp"
+
+namespace stylerf::bench {
+namespace {
+
+using host::Tensor;
+
+struct Timing {
+  double wall_ms = 1e300;  // the whole op call: output allocation, launch, wait
+  double kernel_ms = 0;    // the kernel itself (event profiling)
+};
+
+// Best-of-`repeats` of f after one warm-up.
+Timing best_of(int repeats, const std::function<void()>& f) {
+  auto& rt = host::Runtime::instance();
+  f();
+  rt.finish();
+  Timing best;
+  for (int r = 0; r < repeats; ++r) {
+    rt.reset_timings();
+    rt.set_profiling(true);
+    auto t0 = std::chrono::steady_clock::now();
+    f();
+    rt.finish();
+    const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    double k = 0;
+    for (const auto& t : rt.timings()) k += t.total_ms;
+    rt.set_profiling(false);
+    if (wall < best.wall_ms) best = {wall, k};
+  }
+  return best;
+}
+
+// call: the nn:: op (allocates its output, as real use does: fresh pages are faulted in by the kernel);
+// kernel: the same kernel launched into a reused output; GB/s from the reused-output kernel time.
+void row(const std::string& op, const std::string& shape, double bytes, const Timing& call, const Timing& kern) {
+  std::printf("  %-20s %-24s %9.3f %9.3f %8.2f\n", op.c_str(), shape.c_str(), call.wall_ms, kern.kernel_ms,
+              bytes / (kern.kernel_ms * 1e6));
+  std::fflush(stdout);
+}
+
+size_t g8(int64_t n) { return size_t((n + 7) / 8); }
+
+}  // namespace
+
+void bench_ops_spatial(const BenchOptions& opt) {
+  const int s = opt.quick ? 64 : 256;
+  const int reps = opt.quick ? 1 : std::max(opt.repeats, 3);
+  std::printf("spatial ops (kernels/nn.cl), best of %d; GB/s = bytes (each tensor read or written once) / kernel "
+              "time\n  call ms: the op, allocating its output; kernel ms: the kernel alone into a reused output\n",
+              reps);
+  std::printf("  %-20s %-24s %9s %9s %8s\n", "op", "input", "call ms", "kernel ms", "GB/s");
+
+  {  // relu on a decoder activation [1,256,s,s]
+    Tensor x = Tensor::full({1, 256, s, s}, -0.5f), y = nn::relu_forward(x), dy = Tensor::full(x.shape(), 1.0f);
+    Tensor dx = Tensor::zeros(x.shape());
+    const int n = int(x.numel());
+    const double b = double(n) * 4;
+    const std::string shape = host::shape_str(x.shape());
+    row("relu_forward", shape, 2 * b, best_of(reps, [&] { nn::relu_forward(x); }),
+        best_of(reps, [&] { host::launch("nn", "relu_forward", {g8(n)}, x, y, n); }));
+    row("relu_backward", shape, 3 * b, best_of(reps, [&] { nn::relu_backward(y, dy); }),
+        best_of(reps, [&] { host::launch("nn", "relu_backward", {g8(n)}, y, dy, dx, n); }));
+  }
+  {  // maxpool after VGG conv1_2: [1,64,s,s]
+    Tensor x = Tensor::full({1, 64, s, s}, 1.0f), dy = Tensor::full({1, 64, s / 2, s / 2}, 1.0f);
+    Tensor y = Tensor::zeros(dy.shape()), dx = Tensor::zeros(x.shape());
+    const double b = double(x.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape());
+    const size_t ho = size_t(s / 2), nc = 64;
+    row("maxpool2x2_forward", shape, 1.25 * b, best_of(reps, [&] { nn::maxpool2x2_forward(x); }),
+        best_of(reps, [&] { host::launch("nn", "maxpool2x2_forward", {ho, nc}, x, y, s, s); }));
+    row("maxpool2x2_backward", shape, 2.25 * b, best_of(reps, [&] { nn::maxpool2x2_backward(x, dy); }),
+        best_of(reps, [&] { host::launch("nn", "maxpool2x2_backward", {ho, nc}, x, dy, dx, s, s); }));
+  }
+  {  // upsample [1,128,s/2,s/2] -> [1,128,s,s]
+    Tensor x = Tensor::full({1, 128, s / 2, s / 2}, 1.0f), dy = Tensor::full({1, 128, s, s}, 1.0f);
+    Tensor y = Tensor::zeros(dy.shape()), dx = Tensor::zeros(x.shape());
+    const double b = double(x.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape());
+    const size_t h = size_t(s / 2), nc = 128;
+    row("upsample2x_forward", shape, 5 * b, best_of(reps, [&] { nn::upsample2x_forward(x); }),
+        best_of(reps, [&] { host::launch("nn", "upsample2x_forward", {h, nc}, x, y, s / 2, s / 2); }));
+    row("upsample2x_backward", shape, 5 * b, best_of(reps, [&] { nn::upsample2x_backward(dy); }),
+        best_of(reps, [&] { host::launch("nn", "upsample2x_backward", {h, nc}, dy, dx, s / 2, s / 2); }));
+  }
+  // im2col / col2im of VGG conv1_2 (64 channels at s x s, 3x3 reflect): col is [576, s*s]; and of the
+  // decoder's 256-channel layer at s/2 (col [2304, s*s/4]).
+  for (int c : {64, 256}) {
+    const int h = c == 64 ? s : s / 2;
+    const int ckk = c * 9;
+    Tensor x = Tensor::full({1, c, h, h}, 1.0f), dx = Tensor::zeros({1, c, h, h});
+    Tensor col = Tensor::zeros({int64_t(ckk), int64_t(h) * h}, "bench col");
+    const double xb = double(x.numel()) * 4, colb = double(col.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape()) + " k3";
+    for (int mode : {0, 1}) {
+      const std::string m = mode ? " reflect" : " zero";
+      // Launched directly into reused buffers (conv2d keeps its col scratch), so call == kernel.
+      Timing t = best_of(reps, [&] {
+        host::launch("nn", "im2col", {size_t(h), size_t(ckk)}, x, 0, col, c, h, h, 3, mode, 0, h);
+      });
+      row("im2col" + m, shape, xb + colb, t, t);
+      t = best_of(reps, [&] {
+        host::launch("nn", "col2im", {size_t(h), size_t(c)}, col, dx, 0, c, h, h, 3, mode, 0, h, 0, h, 0);
+      });
+      row("col2im" + m, shape, xb + colb, t, t);
+    }
+  }
+}
+
+}  // namespace stylerf::bench

@@ -1,0 +1,200 @@
+// conv2d, stride 1, "same" size, kernel 1 or 3, zero or reflect padding: im2col + GEMM.
+//
+//   forward  y_n[Cout, HW]   = W[Cout, CKK] x col_n[CKK, HW]              (+ bias)
+//   dX       col_n[CKK, HW]  = W^T x dY_n, then col2im (a gather, no atomics)
+//   dW       dW[Cout, CKK]  += dY_n[Cout, HW] x col_n^T                     (beta = 1 after image 0)
+//   db       sum of dY over n and pixels
+// CKK = Cin * k * k. With k = 1 the input itself is the col matrix, so im2col / col2im are skipped.
+//
+// The col matrix is large (decoder layer 1 at 256x256: 2304 x 65536 floats = 604 MB), so one scratch
+// buffer is kept for the process and grown on demand. When one image's col would exceed the scratch
+// limit (the device's max allocation, or STYLERF_CONV_SCRATCH_BYTES if smaller) the image is processed
+// in chunks of whole output rows; the GEMMs take offsets and leading dimensions into the full tensors.
+#include <algorithm>
+#include <cstdlib>
+#include <string>
+
+#include "host/error.hpp"
+#include "host/gemm.hpp"
+#include "host/launch.hpp"
+#include "host/runtime.hpp"
+#include "lib/nn/ops.hpp"
+
+namespace stylerf::nn {
+namespace {
+
+using host::Error;
+using host::Trans;
+
+constexpr int kPadZero = 0, kPadReflect = 1;  // must match kernels/nn.cl
+
+struct ConvGeom {
+  int N, Cin, Cout, H, W, K;
+  int mode;
+  int64_t ckk() const { return int64_t(Cin) * K * K; }
+  int64_t hw() const { return int64_t(H) * W; }
+};
+
+std::string dims(const Tensor& t) { return host::shape_str(t.shape()); }
+
+ConvGeom check_conv(const char* op, const Tensor& x, const Tensor& w, Padding pad) {
+  if (!x.defined() || !w.defined()) throw Error(std::string(op) + ": input and weight must be defined");
+  if (x.ndim() != 4) throw Error(std::string(op) + ": input must be [N,Cin,H,W], got " + dims(x));
+  if (w.ndim() != 4) throw Error(std::string(op) + ": weight must be [Cout,Cin,k,k], got " + dims(w));
+  ConvGeom g{};
+  g.N = int(x.dim(0));
+  g.Cin = int(x.dim(1));
+  g.H = int(x.dim(2));
+  g.W = int(x.dim(3));
+  g.Cout = int(w.dim(0));
+  g.K = int(w.dim(2));
+  g.mode = pad == Padding::Reflect ? kPadReflect : kPadZero;
+  if (w.dim(2) != w.dim(3) || (g.K != 1 && g.K != 3))
+    throw Error(std::string(op) + ": kernel must be 1x1 or 3x3, weight has shape " + dims(w));
+  if (w.dim(1) != g.Cin)
+    throw Error(std::string(op) + ": channel mismatch: input " + dims(x) + " has " + std::to_string(g.Cin) +
+                " channels but weight " + dims(w) + " expects " + std::to_string(w.dim(1)));
+  if (g.N < 1 || g.Cin < 1 || g.Cout < 1 || g.H < 1 || g.W < 1)
+    throw Error(std::string(op) + ": empty input " + dims(x) + " or weight " + dims(w));
+  if (pad == Padding::Reflect && g.K == 3 && (g.H < 2 || g.W < 2))
+    throw Error(std::string(op) + ": reflect padding needs H, W >= 2, input is " + dims(x));
+  // Kernels index with int.
+  const int64_t big = std::max({x.numel(), int64_t(g.N) * g.Cout * g.hw(), g.ckk() * g.hw()});
+  if (big >= (int64_t(1) << 31))
+    throw Error(std::string(op) + ": tensors too large for 32-bit indexing (input " + dims(x) + ", weight " +
+                dims(w) + ")");
+  return g;
+}
+
+// The process-wide col scratch buffer. Grown, never shrunk; conv calls are serialised on the one
+// in-order queue, so reusing it between calls is safe.
+Tensor& scratch_slot() {
+  static Tensor t;
+  return t;
+}
+
+size_t scratch_limit_bytes() {
+  size_t limit = host::Runtime::instance().device().max_alloc_bytes;
+  if (const char* env = std::getenv("STYLERF_CONV_SCRATCH_BYTES")) {
+    long long v = std::atoll(env);
+    if (v > 0) limit = std::min(limit, static_cast<size_t>(v));
+  }
+  return limit;
+}
+
+// Output rows per chunk so that a [CKK, rows*W] col fits under the scratch limit.
+int rows_per_chunk(const char* op, const ConvGeom& g) {
+  const size_t row_bytes = size_t(g.ckk()) * g.W * sizeof(float);
+  const size_t limit = scratch_limit_bytes();
+  if (row_bytes > limit)
+    throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
+                " bytes (Cin*k*k = " + std::to_string(g.ckk()) + ", W = " + std::to_string(g.W) +
+                "), more than the scratch limit of " + std::to_string(limit) + " bytes");
+  return int(std::min<size_t>(g.H, limit / row_bytes));
+}
+
+cl_mem scratch(size_t floats) {
+  Tensor& t = scratch_slot();
+  if (!t.defined() || size_t(t.numel()) < floats) {
+    t = Tensor();  // free the old one first: both may not fit at once
+    t = Tensor({int64_t(floats)}, "conv im2col scratch");
+  }
+  return t.mem();
+}
+
+void im2col(const Tensor& x, int n, const ConvGeom& g, cl_mem col, int y0, int rows) {
+  host::launch("nn", "im2col", {size_t(rows), size_t(g.ckk())}, x, int(n * g.Cin * g.hw()), col, g.Cin, g.H, g.W,
+               g.K, g.mode, y0, rows);
+}
+
+// Adds (or, for the first chunk, writes) the contributions of col rows [y0, y0+rows) into dx image n.
+void col2im(cl_mem col, Tensor& dx, int n, const ConvGeom& g, int y0, int rows, bool accumulate) {
+  // Input rows a chunk of output rows can reach: one row either side (reflected taps stay inside).
+  const int ylo = accumulate ? std::max(0, y0 - 1) : 0;
+  const int yhi = accumulate ? std::min(g.H, y0 + rows + 1) : g.H;
+  host::launch("nn", "col2im", {size_t(yhi - ylo), size_t(g.Cin)}, col, dx, int(n * g.Cin * g.hw()), g.Cin, g.H,
+               g.W, g.K, g.mode, y0, rows, ylo, yhi - ylo, accumulate ? 1 : 0);
+}
+
+}  // namespace
+
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad) {
+  const ConvGeom g = check_conv("conv2d_forward", x, w, pad);
+  if (b.defined()) expect_shape(b, {g.Cout}, "conv2d_forward", "bias");
+  Tensor y({g.N, g.Cout, g.H, g.W}, "conv2d_forward output");
+  const int hw = int(g.hw()), ckk = int(g.ckk());
+  if (g.K == 1) {
+    // The input image [Cin, HW] is already the col matrix.
+    for (int n = 0; n < g.N; ++n)
+      host::gemm(Trans::No, Trans::No, g.Cout, hw, ckk, 1.0f, w.mem(), 0, ckk, x.mem(), size_t(n) * g.Cin * hw, hw,
+                 0.0f, y.mem(), size_t(n) * g.Cout * hw, hw);
+  } else {
+    const int chunk_rows = rows_per_chunk("conv2d_forward", g);
+    cl_mem col = scratch(size_t(ckk) * chunk_rows * g.W);
+    for (int n = 0; n < g.N; ++n) {
+      for (int y0 = 0; y0 < g.H; y0 += chunk_rows) {
+        const int rows = std::min(chunk_rows, g.H - y0), cols = rows * g.W;
+        im2col(x, n, g, col, y0, rows);
+        host::gemm(Trans::No, Trans::No, g.Cout, cols, ckk, 1.0f, w.mem(), 0, ckk, col, 0, cols, 0.0f, y.mem(),
+                   size_t(n) * g.Cout * hw + size_t(y0) * g.W, hw);
+      }
+    }
+  }
+  if (b.defined()) {
+    host::launch("nn", "bias_add", {size_t((hw + 7) / 8), size_t(g.N) * g.Cout}, y, b, g.Cout, hw);
+  }
+  return y;
+}
+
+Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
+                            bool need_params) {
+  const ConvGeom g = check_conv("conv2d_backward", x, w, pad);
+  expect_shape(dy, {g.N, g.Cout, g.H, g.W}, "conv2d_backward", "dy");
+  Conv2dGrads out;
+  if (!need_dx && !need_params) return out;
+  const int hw = int(g.hw()), ckk = int(g.ckk());
+  if (need_dx) out.dx = Tensor({g.N, g.Cin, g.H, g.W}, "conv2d_backward dx");
+  if (need_params) {
+    out.dw = Tensor(w.shape(), "conv2d_backward dw");
+    out.db = Tensor({g.Cout}, "conv2d_backward db");
+    host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, hw);
+  }
+
+  if (g.K == 1) {
+    for (int n = 0; n < g.N; ++n) {
+      const size_t xo = size_t(n) * g.Cin * hw, yo = size_t(n) * g.Cout * hw;
+      if (need_params)  // dW[Cout, Cin] (+)= dY_n [Cout, HW] x X_n^T
+        host::gemm(Trans::No, Trans::Yes, g.Cout, ckk, hw, 1.0f, dy.mem(), yo, hw, x.mem(), xo, hw,
+                   n == 0 ? 0.0f : 1.0f, out.dw.mem(), 0, ckk);
+      if (need_dx)  // dX_n [Cin, HW] = W^T x dY_n
+        host::gemm(Trans::Yes, Trans::No, ckk, hw, g.Cout, 1.0f, w.mem(), 0, ckk, dy.mem(), yo, hw, 0.0f,
+                   out.dx.mem(), xo, hw);
+    }
+    return out;
+  }
+
+  const int chunk_rows = rows_per_chunk("conv2d_backward", g);
+  cl_mem col = scratch(size_t(ckk) * chunk_rows * g.W);
+  bool first_dw = true;
+  for (int n = 0; n < g.N; ++n) {
+    for (int y0 = 0; y0 < g.H; y0 += chunk_rows) {
+      const int rows = std::min(chunk_rows, g.H - y0), cols = rows * g.W;
+      const size_t yo = size_t(n) * g.Cout * hw + size_t(y0) * g.W;
+      if (need_params) {
+        im2col(x, n, g, col, y0, rows);
+        host::gemm(Trans::No, Trans::Yes, g.Cout, ckk, cols, 1.0f, dy.mem(), yo, hw, col, 0, cols,
+                   first_dw ? 0.0f : 1.0f, out.dw.mem(), 0, ckk);
+        first_dw = false;
+      }
+      if (need_dx) {
+        // The in-order queue finishes the dW GEMM before this overwrites col.
+        host::gemm(Trans::Yes, Trans::No, ckk, cols, g.Cout, 1.0f, w.mem(), 0, ckk, dy.mem(), yo, hw, 0.0f, col, 0,
+                   cols);
+        col2im(col, out.dx, n, g, y0, rows, /*accumulate=*/y0 > 0);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace stylerf::nn

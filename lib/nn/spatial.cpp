@@ -1,0 +1,99 @@
+// Pointwise and spatial ops: relu, 2x2 max pooling, x2 nearest upsampling (kernels/nn.cl).
+#include <string>
+
+#include "host/error.hpp"
+#include "host/launch.hpp"
+#include "lib/nn/ops.hpp"
+
+namespace stylerf::nn {
+namespace {
+
+using host::Error;
+
+void check_defined(const Tensor& t, const char* op, const char* name) {
+  if (!t.defined()) throw Error(std::string(op) + ": " + name + " is undefined");
+}
+
+void check_int_size(const Tensor& t, const char* op) {
+  if (t.numel() >= (int64_t(1) << 31))
+    throw Error(std::string(op) + ": tensor " + host::shape_str(t.shape()) + " too large for 32-bit indexing");
+}
+
+// [N,C,H,W] as (N*C, H, W).
+struct Planes {
+  int nc, h, w;
+};
+
+Planes planes_of(const Tensor& x, const char* op) {
+  check_defined(x, op, "input");
+  if (x.ndim() != 4) throw Error(std::string(op) + ": input must be [N,C,H,W], got " + host::shape_str(x.shape()));
+  check_int_size(x, op);
+  return {int(x.dim(0) * x.dim(1)), int(x.dim(2)), int(x.dim(3))};
+}
+
+size_t groups_of_8(int64_t n) { return size_t((n + 7) / 8); }
+
+}  // namespace
+
+// ---- relu ----------------------------------------------------------------------------------------
+Tensor relu_forward(const Tensor& x) {
+  check_defined(x, "relu_forward", "input");
+  check_int_size(x, "relu_forward");
+  Tensor y(x.shape(), "relu_forward output");
+  host::launch("nn", "relu_forward", {groups_of_8(x.numel())}, x, y, int(x.numel()));
+  return y;
+}
+
+Tensor relu_backward(const Tensor& y, const Tensor& dy) {
+  check_defined(y, "relu_backward", "y");
+  expect_shape(dy, y.shape(), "relu_backward", "dy");
+  check_int_size(y, "relu_backward");
+  Tensor dx(y.shape(), "relu_backward dx");
+  host::launch("nn", "relu_backward", {groups_of_8(y.numel())}, y, dy, dx, int(y.numel()));
+  return dx;
+}
+
+// ---- 2x2 max pooling -----------------------------------------------------------------------------
+namespace {
+Planes pool_planes(const Tensor& x, const char* op) {
+  Planes p = planes_of(x, op);
+  if (p.h % 2 != 0 || p.w % 2 != 0 || p.h < 2 || p.w < 2)
+    throw Error(std::string(op) + ": 2x2 pooling needs even H and W >= 2, input is " + host::shape_str(x.shape()));
+  return p;
+}
+}  // namespace
+
+Tensor maxpool2x2_forward(const Tensor& x) {
+  const Planes p = pool_planes(x, "maxpool2x2_forward");
+  Tensor y({x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_forward output");
+  host::launch("nn", "maxpool2x2_forward", {size_t(p.h / 2), size_t(p.nc)}, x, y, p.h, p.w);
+  return y;
+}
+
+Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy) {
+  const Planes p = pool_planes(x, "maxpool2x2_backward");
+  expect_shape(dy, {x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_backward", "dy");
+  Tensor dx(x.shape(), "maxpool2x2_backward dx");  // every element is written by the kernel
+  host::launch("nn", "maxpool2x2_backward", {size_t(p.h / 2), size_t(p.nc)}, x, dy, dx, p.h, p.w);
+  return dx;
+}
+
+// ---- x2 nearest upsampling -----------------------------------------------------------------------
+Tensor upsample2x_forward(const Tensor& x) {
+  const Planes p = planes_of(x, "upsample2x_forward");
+  Tensor y({x.dim(0), x.dim(1), 2 * int64_t(p.h), 2 * int64_t(p.w)}, "upsample2x_forward output");
+  check_int_size(y, "upsample2x_forward");
+  host::launch("nn", "upsample2x_forward", {size_t(p.h), size_t(p.nc)}, x, y, p.h, p.w);
+  return y;
+}
+
+Tensor upsample2x_backward(const Tensor& dy) {
+  const Planes p = planes_of(dy, "upsample2x_backward");
+  if (p.h % 2 != 0 || p.w % 2 != 0)
+    throw Error("upsample2x_backward: dy must have even H and W, got " + host::shape_str(dy.shape()));
+  Tensor dx({dy.dim(0), dy.dim(1), p.h / 2, p.w / 2}, "upsample2x_backward dx");
+  host::launch("nn", "upsample2x_backward", {size_t(p.h / 2), size_t(p.nc)}, dy, dx, p.h / 2, p.w / 2);
+  return dx;
+}
+
+}  // namespace stylerf::nn
