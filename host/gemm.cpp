@@ -1,15 +1,134 @@
-// Minimal CLBlast-backed GEMM; tuned parameters and the own-kernel engine are added by the GEMM work.
+// GEMM entry points: engine choice, CLBlast (defaults or tuned parameters) and the own kernel
+// (host/gemm_own.cpp).
 #include "host/gemm.hpp"
 
 #include <clblast.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <unordered_map>
 
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 
 namespace stylerf::host {
 namespace {
+
 GemmEngine g_default = GemmEngine::Auto;
+std::optional<OwnGemmParams> g_own_override;
+std::optional<DeviceTuning> g_tuning_override;
+
+using ParamSet = std::unordered_map<std::string, size_t>;
+
+// CLBlast's parameter sets for the runtime's device: its built-in defaults and our tuned values, both
+// complete (OverrideParameters rejects a partial set), and which of the two is applied right now.
+struct ClblastState {
+  bool prepared = false;
+  std::map<std::string, ParamSet> defaults, tuned;
+  bool tuned_applied = false;  // nothing overridden yet means CLBlast's defaults are in effect
+  std::string status;
+};
+
+ClblastState& clblast_state() {
+  static ClblastState p;
+  return p;
 }
+
+std::string join_names(const std::map<std::string, ParamSet>& m) {
+  std::string s;
+  for (const auto& kv : m) s += (s.empty() ? "" : ", ") + kv.first;
+  return s;
+}
+
+void prepare_clblast_params() {
+  ClblastState& cp = clblast_state();
+  if (cp.prepared) return;
+  cp.prepared = true;
+  const DeviceInfo& dev = Runtime::instance().device();
+  const DeviceTuning* t = current_device_tuning();
+  if (!t || t->clblast.empty()) {
+    cp.status = "no CLBlast entry for '" + dev.name + "' in the tuning database: clblast-tuned runs CLBlast's defaults";
+    return;
+  }
+  std::string problems;
+  for (const auto& [kernel, params] : t->clblast) {
+    ParamSet def;
+    // Read before our first override, so these are CLBlast's own values for this device.
+    auto st = clblast::RetrieveParameters(dev.id, kernel, clblast::Precision::kSingle, def);
+    if (st != clblast::StatusCode::kSuccess) {
+      problems += " " + kernel + ": CLBlast does not know this kernel family (" + std::to_string(int(st)) + ");";
+      continue;
+    }
+    ParamSet full = def;
+    std::string unknown;
+    for (const auto& [name, value] : params) {
+      if (def.count(name)) full[name] = value;
+      else unknown += " " + name;
+    }
+    if (!unknown.empty()) {
+      problems += " " + kernel + ": unknown parameters" + unknown + ";";
+      continue;
+    }
+    cp.defaults[kernel] = def;
+    cp.tuned[kernel] = full;
+  }
+  cp.status = cp.tuned.empty() ? "tuning database entry for '" + dev.name + "' is unusable:" + problems
+                               : "tuning database (" + join_names(cp.tuned) + ")";
+  if (!problems.empty()) {
+    std::cerr << "stylerf: CLBlast tuning for '" << dev.name << "' partly skipped:" << problems << "\n";
+    if (!cp.tuned.empty()) cp.status += "; skipped:" + problems;
+  }
+}
+
+// Makes CLBlast use the tuned (or default) parameter sets from now on.
+void apply_clblast_params(bool tuned) {
+  prepare_clblast_params();
+  ClblastState& cp = clblast_state();
+  if (cp.tuned_applied == tuned || cp.tuned.empty()) return;
+  const DeviceInfo& dev = Runtime::instance().device();
+  for (const auto& [kernel, params] : tuned ? cp.tuned : cp.defaults) {
+    auto st = clblast::OverrideParameters(dev.id, kernel, clblast::Precision::kSingle, params);
+    if (st != clblast::StatusCode::kSuccess)
+      throw Error("clblast::OverrideParameters(" + kernel + ") failed with status " + std::to_string(int(st)));
+  }
+  cp.tuned_applied = tuned;
+}
+
+GemmEngine engine_from_environment_or_db() {
+  if (const char* env = std::getenv("STYLERF_GEMM_ENGINE"); env && *env) {
+    try {
+      GemmEngine e = parse_gemm_engine(env);
+      if (e != GemmEngine::Auto) return e;
+    } catch (const Error& err) {
+      throw Error(std::string("STYLERF_GEMM_ENGINE: ") + err.what());
+    }
+  }
+  if (const DeviceTuning* t = current_device_tuning(); t && !t->recommended_engine.empty()) {
+    GemmEngine e = parse_gemm_engine(t->recommended_engine);
+    if (e != GemmEngine::Auto) return e;
+  }
+  // Without a recommendation: CLBlast ships tunings for common GPUs but none for CPU drivers, where
+  // our register-tiled kernel is the better default.
+  return Runtime::instance().device().type & CL_DEVICE_TYPE_CPU ? GemmEngine::Own : GemmEngine::ClblastTuned;
+}
+
+void clblast_gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
+                  size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, bool tuned) {
+  apply_clblast_params(tuned);
+  Runtime& rt = Runtime::instance();
+  auto st = clblast::Gemm<float>(clblast::Layout::kRowMajor,
+                                 ta == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo,
+                                 tb == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo, M, N, K, alpha,
+                                 A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, rt.queue_ptr(), nullptr);
+  if (st != clblast::StatusCode::kSuccess)
+    throw Error("clblast::Gemm failed (" + std::to_string(static_cast<int>(st)) + ") for M=" + std::to_string(M) +
+                " N=" + std::to_string(N) + " K=" + std::to_string(K));
+}
+
+}  // namespace
 
 const char* gemm_engine_name(GemmEngine e) {
   switch (e) {
@@ -30,16 +149,68 @@ GemmEngine parse_gemm_engine(const std::string& name) {
 void set_default_gemm_engine(GemmEngine e) { g_default = e; }
 GemmEngine default_gemm_engine() { return g_default; }
 
+GemmEngine resolve_gemm_engine(GemmEngine e) {
+  if (e != GemmEngine::Auto) return e;
+  if (g_default != GemmEngine::Auto) return g_default;
+  static const GemmEngine chosen = engine_from_environment_or_db();
+  return chosen;
+}
+
+OwnGemmParams own_gemm_params() {
+  if (g_own_override) return *g_own_override;
+  if (const DeviceTuning* t = current_device_tuning(); t && t->own_gemm) return *t->own_gemm;
+  return OwnGemmParams{};
+}
+
+void set_own_gemm_params(const OwnGemmParams& p) {
+  p.validate();
+  g_own_override = p;
+}
+
+const DeviceTuning* current_device_tuning() {
+  return g_tuning_override ? &*g_tuning_override : active_device_tuning();
+}
+
+void use_device_tuning(const DeviceTuning& t) {
+  // Put CLBlast back on its defaults first: the next prepare reads them again with RetrieveParameters.
+  apply_clblast_params(false);
+  clblast_state() = ClblastState{};
+  g_tuning_override = t;
+}
+
+std::string clblast_tuning_status() {
+  prepare_clblast_params();
+  return clblast_state().status;
+}
+
 void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
           size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, GemmEngine engine) {
-  Runtime& rt = Runtime::instance();
-  auto st = clblast::Gemm<float>(clblast::Layout::kRowMajor,
-                                 ta == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo,
-                                 tb == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo, M, N, K, alpha,
-                                 A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, rt.queue_ptr(), nullptr);
-  if (st != clblast::StatusCode::kSuccess)
-    throw Error("clblast::Gemm failed (" + std::to_string(static_cast<int>(st)) + ") for M=" + std::to_string(M) +
-                " N=" + std::to_string(N) + " K=" + std::to_string(K));
+  if (M < 0 || N < 0 || K < 0)
+    throw Error("gemm: negative size M=" + std::to_string(M) + " N=" + std::to_string(N) + " K=" + std::to_string(K));
+  // Row-major leading dimensions must cover a stored row; CLBlast checks this too, the own kernel relies on it.
+  const int a_cols = ta == Trans::No ? K : M, b_cols = tb == Trans::No ? N : K;
+  if (lda < std::max(1, a_cols) || ldb < std::max(1, b_cols) || ldc < std::max(1, N))
+    throw Error("gemm: leading dimension too small (lda=" + std::to_string(lda) + " ldb=" + std::to_string(ldb) +
+                " ldc=" + std::to_string(ldc) + " for M=" + std::to_string(M) + " N=" + std::to_string(N) +
+                " K=" + std::to_string(K) + ")");
+  if (M == 0 || N == 0) return;
+  if (K == 0) {
+    // C = beta * C (BLAS semantics). CLBlast rejects K = 0, so every engine takes the own kernel's path.
+    gemm_own_with(own_gemm_params(), ta, tb, M, N, 0, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc);
+    return;
+  }
+  switch (resolve_gemm_engine(engine)) {
+    case GemmEngine::Own:
+      gemm_own_with(own_gemm_params(), ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset,
+                    ldc);
+      return;
+    case GemmEngine::ClblastDefault:
+      clblast_gemm(ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, false);
+      return;
+    default:
+      clblast_gemm(ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, true);
+      return;
+  }
 }
 
 void matmul(const Tensor& A, Trans ta, const Tensor& B, Trans tb, Tensor& C, float alpha, float beta,

@@ -4,8 +4,14 @@
 //
 // Engines: CLBlast with its built-in defaults, CLBlast with our per-device tuned parameters
 // (tuning/clblast.json, applied once per process with clblast::OverrideParameters), and our own
-// register-tiled kernel (kernels/gemm.cl). `Auto` picks what the tuning database recommends for the
-// device, falling back to tuned CLBlast.
+// register-tiled kernel (kernels/gemm.cl). `Auto` resolves, in order: set_default_gemm_engine(), the
+// STYLERF_GEMM_ENGINE environment variable, the tuning database's recommendation for the device, and
+// finally `own` on CPU devices (CLBlast has no tuning for them) and tuned CLBlast elsewhere.
+//
+// CLBlast's parameters are process-global per device. This module keeps CLBlast's built-in defaults
+// (read with RetrieveParameters before anything is overridden) and re-applies whichever set a call's
+// engine needs, so ClblastDefault really runs CLBlast's defaults even after tuned calls. CLBlast keys
+// its compiled programs by the parameter values, so switching back and forth does not recompile.
 #pragma once
 #include <CL/cl.h>
 
@@ -13,6 +19,7 @@
 #include <string>
 
 #include "host/tensor.hpp"
+#include "host/tuning_db.hpp"
 
 namespace stylerf::host {
 
@@ -33,5 +40,27 @@ void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t
 // Tensor convenience: C = alpha * op(A) op(B) + beta * C on 2-D tensors (shapes checked).
 void matmul(const Tensor& A, Trans ta, const Tensor& B, Trans tb, Tensor& C, float alpha = 1.0f, float beta = 0.0f,
             GemmEngine engine = GemmEngine::Auto);
+
+// The engine a call with `e` runs (never Auto).
+GemmEngine resolve_gemm_engine(GemmEngine e);
+
+// Our own kernel with explicit tile parameters (tuning, benchmarks); gemm() uses own_gemm_params().
+void gemm_own_with(const OwnGemmParams& params, Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A,
+                   size_t a_offset, int lda, cl_mem B, size_t b_offset, int ldb, float beta, cl_mem C,
+                   size_t c_offset, int ldc);
+// The own kernel's parameters for the runtime's device: the tuning database's, else built-in defaults.
+OwnGemmParams own_gemm_params();
+// Overrides own_gemm_params() for this process (used by `stylerf tune` while searching).
+void set_own_gemm_params(const OwnGemmParams& p);
+
+// Replaces, for this process, the tuning entry used for the runtime's device (CLBlast parameters and own
+// kernel parameters); `stylerf tune` uses it to measure fresh tuner results before saving them.
+void use_device_tuning(const DeviceTuning& t);
+// The entry in use for the runtime's device: use_device_tuning()'s, else active_device_tuning().
+const DeviceTuning* current_device_tuning();
+
+// What the ClblastTuned engine applies for the runtime's device: "tuning database" or a reason it runs
+// CLBlast's defaults instead ("no entry for device ..."). For reports.
+std::string clblast_tuning_status();
 
 }  // namespace stylerf::host

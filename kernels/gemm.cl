@@ -10,7 +10,9 @@
 // scalars of L into fma. On a CPU this is the classic outer-product micro-kernel: the accumulators stay
 // in registers and there are no barriers or local memory (both are costly on PoCL).
 //
-// Build options (all optional): -DMR=rows -DVW=4|8|16 -DNV=vectors per row.
+// Build options (all optional): -DMR=rows -DVW=4|8|16 -DNV=vectors per row, -DQT=tiles along q per
+// work-item (a work-item walks QT neighbouring tiles with the same L rows: fewer, longer work-items,
+// which matters on PoCL where each work-group has a fixed scheduling cost and small K makes tiles short).
 
 #ifndef MR
 #define MR 6
@@ -20,6 +22,9 @@
 #endif
 #ifndef NV
 #define NV 2
+#endif
+#ifndef QT
+#define QT 1
 #endif
 #define NR (VW * NV)
 
@@ -55,87 +60,90 @@ __kernel void gemm_tile(const int P, const int Q, const int K, const float alpha
                         const int r_off, const int srk, const float beta, __global float* C, const int c_off,
                         const int scp, const int scq) {
   const int p0 = (int)get_global_id(0) * MR;
-  const int q0 = (int)get_global_id(1) * NR;
-  if (p0 >= P || q0 >= Q) return;
+  if (p0 >= P) return;
 
   // Rows past P read the last valid row instead (results discarded): the hot loop needs no guard.
   __global const float* lrow[MR];
 #pragma unroll
   for (int i = 0; i < MR; ++i) lrow[i] = L + l_off + (size_t)min(p0 + i, P - 1) * slp;
-  __global const float* r = R + r_off + q0;
+  for (int qt = 0; qt < QT; ++qt) {
+    const int q0 = ((int)get_global_id(1) * QT + qt) * NR;
+    if (q0 >= Q) return;
+    __global const float* r = R + r_off + q0;
 
-  vec_t acc[MR][NV];
+    vec_t acc[MR][NV];
 #pragma unroll
-  for (int i = 0; i < MR; ++i)
+    for (int i = 0; i < MR; ++i)
 #pragma unroll
-    for (int j = 0; j < NV; ++j) acc[i][j] = (vec_t)(0.0f);
+      for (int j = 0; j < NV; ++j) acc[i][j] = (vec_t)(0.0f);
 
-  if (q0 + NR <= Q) {
-    // Full tile along q: vector loads of R.
-    for (int k = 0; k < K; ++k) {
-      vec_t b[NV];
+    if (q0 + NR <= Q) {
+      // Full tile along q: vector loads of R.
+      for (int k = 0; k < K; ++k) {
+        vec_t b[NV];
 #pragma unroll
-      for (int j = 0; j < NV; ++j) b[j] = VLOAD(0, r + j * VW);
-      r += srk;
-      const size_t ko = (size_t)k * slk;
+        for (int j = 0; j < NV; ++j) b[j] = VLOAD(0, r + j * VW);
+        r += srk;
+        const size_t ko = (size_t)k * slk;
 #pragma unroll
-      for (int i = 0; i < MR; ++i) {
-        const vec_t a = (vec_t)(lrow[i][ko]);
+        for (int i = 0; i < MR; ++i) {
+          const vec_t a = (vec_t)(lrow[i][ko]);
 #pragma unroll
-        for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
-      }
-    }
-  } else {
-    // Edge tile along q: gather the valid columns one by one (zeros past Q).
-    const int qn = Q - q0;
-    for (int k = 0; k < K; ++k) {
-      vec_t b[NV];
-#pragma unroll
-      for (int j = 0; j < NV; ++j) {
-        vec_u u;
-#pragma unroll
-        for (int e = 0; e < VW; ++e) u.s[e] = (j * VW + e < qn) ? r[j * VW + e] : 0.0f;
-        b[j] = u.v;
-      }
-      r += srk;
-      const size_t ko = (size_t)k * slk;
-#pragma unroll
-      for (int i = 0; i < MR; ++i) {
-        const vec_t a = (vec_t)(lrow[i][ko]);
-#pragma unroll
-        for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
-      }
-    }
-  }
-
-  const bool full_q = q0 + NR <= Q;
-#pragma unroll
-  for (int i = 0; i < MR; ++i) {
-    if (p0 + i >= P) break;
-    __global float* c = C + c_off + (size_t)(p0 + i) * scp + (size_t)q0 * scq;
-    if (full_q && scq == 1) {
-#pragma unroll
-      for (int j = 0; j < NV; ++j) {
-        vec_t o = alpha * acc[i][j];
-        if (beta != 0.0f) o = fma((vec_t)(beta), VLOAD(0, c + j * VW), o);
-        VSTORE(o, 0, c + j * VW);
+          for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
+        }
       }
     } else {
+      // Edge tile along q: gather the valid columns one by one (zeros past Q).
+      const int qn = Q - q0;
+      for (int k = 0; k < K; ++k) {
+        vec_t b[NV];
 #pragma unroll
-      for (int j = 0; j < NV; ++j) {
-        vec_u u;
-        u.v = acc[i][j];
+        for (int j = 0; j < NV; ++j) {
+          vec_u u;
 #pragma unroll
-        for (int e = 0; e < VW; ++e) {
-          const int q = j * VW + e;
-          if (q0 + q < Q) {
-            __global float* ce = c + (size_t)q * scq;
-            *ce = gemm_out(u.s[e], alpha, beta, ce);
+          for (int e = 0; e < VW; ++e) u.s[e] = (j * VW + e < qn) ? r[j * VW + e] : 0.0f;
+          b[j] = u.v;
+        }
+        r += srk;
+        const size_t ko = (size_t)k * slk;
+#pragma unroll
+        for (int i = 0; i < MR; ++i) {
+          const vec_t a = (vec_t)(lrow[i][ko]);
+#pragma unroll
+          for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
+        }
+      }
+    }
+
+    const bool full_q = q0 + NR <= Q;
+#pragma unroll
+    for (int i = 0; i < MR; ++i) {
+      if (p0 + i >= P) break;
+      __global float* c = C + c_off + (size_t)(p0 + i) * scp + (size_t)q0 * scq;
+      if (full_q && scq == 1) {
+#pragma unroll
+        for (int j = 0; j < NV; ++j) {
+          vec_t o = alpha * acc[i][j];
+          if (beta != 0.0f) o = fma((vec_t)(beta), VLOAD(0, c + j * VW), o);
+          VSTORE(o, 0, c + j * VW);
+        }
+      } else {
+#pragma unroll
+        for (int j = 0; j < NV; ++j) {
+          vec_u u;
+          u.v = acc[i][j];
+#pragma unroll
+          for (int e = 0; e < VW; ++e) {
+            const int q = j * VW + e;
+            if (q0 + q < Q) {
+              __global float* ce = c + (size_t)q * scq;
+              *ce = gemm_out(u.s[e], alpha, beta, ce);
+            }
           }
         }
       }
     }
-  }
+  }  // qt
 }
 
 // dst[c*ldd + r] = src[r*lds + c] for r < rows, c < cols, with element offsets. Each work-item moves an

@@ -1,0 +1,249 @@
+// GEMM: every engine against a double-precision CPU reference, all transpose cases, odd sizes, offsets,
+// leading dimensions, alpha/beta, K = 0, extreme magnitudes; the tuning database format.
+//
+// Tolerance: float32 accumulation of K products has error at most about K * eps * sum_k |a_ik b_kj|, so
+// each element must satisfy |got - ref| <= 4 * (K + 2) * 2^-24 * (|alpha| sum_k |a_ik b_kj| + |beta c_ij|)
+// + 1e-30. This bound is tight enough to catch any wrong index (errors of O(|a b|)) and loose enough
+// for any summation order.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <algorithm>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "host/error.hpp"
+#include "host/gemm.hpp"
+#include "host/runtime.hpp"
+#include "host/tensor.hpp"
+#include "host/tuning_db.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf::host;
+using stylerf::testing::random_normal;
+
+namespace {
+
+struct Case {
+  Trans ta, tb;
+  int M, N, K;
+  int pad_a = 0, pad_b = 0, pad_c = 0;  // extra columns beyond the stored row (leading dimension slack)
+  size_t off_a = 0, off_b = 0, off_c = 0;
+  float alpha = 1.0f, beta = 0.0f;
+};
+
+std::string describe(const Case& c) {
+  return std::string(c.ta == Trans::Yes ? "T" : "N") + (c.tb == Trans::Yes ? "T" : "N") + " M=" + std::to_string(c.M) +
+         " N=" + std::to_string(c.N) + " K=" + std::to_string(c.K) + " lda+" + std::to_string(c.pad_a) + " ldb+" +
+         std::to_string(c.pad_b) + " ldc+" + std::to_string(c.pad_c) + " off " + std::to_string(c.off_a) + "/" +
+         std::to_string(c.off_b) + "/" + std::to_string(c.off_c) + " alpha=" + std::to_string(c.alpha) +
+         " beta=" + std::to_string(c.beta);
+}
+
+struct Stored {
+  int rows, cols, ld;
+  size_t off;
+  size_t size() const { return off + static_cast<size_t>(rows) * ld; }
+};
+
+// Runs one case with one engine (or explicit own parameters) and compares with the double reference.
+// scale multiplies the random inputs (extreme-magnitude tests); c_fill, when set, fills C instead of
+// random values (NaN with beta = 0 must not leak).
+void run_case(const Case& c, GemmEngine engine, const OwnGemmParams* own = nullptr, float scale_a = 1.0f,
+              float scale_b = 1.0f, std::optional<float> c_fill = std::nullopt) {
+  const Stored sa{c.ta == Trans::No ? c.M : c.K, c.ta == Trans::No ? c.K : c.M, 0, c.off_a};
+  const Stored sb{c.tb == Trans::No ? c.K : c.N, c.tb == Trans::No ? c.N : c.K, 0, c.off_b};
+  Stored A = sa, B = sb, C{c.M, c.N, c.N + c.pad_c, c.off_c};
+  A.ld = std::max(1, A.cols + c.pad_a);
+  B.ld = std::max(1, B.cols + c.pad_b);
+  auto ha = random_normal(A.size(), 11 + c.M, scale_a);
+  auto hb = random_normal(B.size(), 23 + c.N, scale_b);
+  auto hc = random_normal(C.size(), 37 + c.K);
+  if (c_fill)
+    for (auto& v : hc) v = *c_fill;
+  auto at = [&](const std::vector<float>& v, const Stored& s, bool trans, int i, int k) {
+    return static_cast<double>(trans ? v[s.off + static_cast<size_t>(k) * s.ld + i] : v[s.off + static_cast<size_t>(i) * s.ld + k]);
+  };
+  std::vector<double> want(hc.begin(), hc.end()), bound(hc.size(), 0.0);
+  for (int i = 0; i < c.M; ++i)
+    for (int j = 0; j < c.N; ++j) {
+      double s = 0.0, sabs = 0.0;
+      for (int k = 0; k < c.K; ++k) {
+        const double p = at(ha, A, c.ta == Trans::Yes, i, k) * at(hb, B, c.tb == Trans::Yes, k, j);
+        s += p;
+        sabs += std::fabs(p);
+      }
+      const size_t ci = c.off_c + static_cast<size_t>(i) * C.ld + j;
+      const double old = c.beta == 0.0f ? 0.0 : c.beta * static_cast<double>(hc[ci]);
+      want[ci] = c.alpha * s + old;
+      bound[ci] = 4.0 * (c.K + 2) * std::ldexp(1.0, -24) * (std::fabs(c.alpha) * sabs + std::fabs(old)) + 1e-30;
+    }
+  Tensor ta = Tensor::from_host(ha, {static_cast<int64_t>(ha.size())});
+  Tensor tb = Tensor::from_host(hb, {static_cast<int64_t>(hb.size())});
+  Tensor tc = Tensor::from_host(hc, {static_cast<int64_t>(hc.size())});
+  if (own)
+    gemm_own_with(*own, c.ta, c.tb, c.M, c.N, c.K, c.alpha, ta.mem(), c.off_a, A.ld, tb.mem(), c.off_b, B.ld, c.beta,
+                  tc.mem(), c.off_c, C.ld);
+  else
+    gemm(c.ta, c.tb, c.M, c.N, c.K, c.alpha, ta.mem(), c.off_a, A.ld, tb.mem(), c.off_b, B.ld, c.beta, tc.mem(),
+         c.off_c, C.ld, engine);
+  auto got = tc.to_host();
+  double worst = 0.0;
+  size_t worst_i = 0;
+  bool finite = true;
+  for (size_t i = 0; i < got.size(); ++i) {
+    if (std::isnan(want[i]) && std::isnan(got[i])) continue;  // NaN fill outside the C window, untouched
+    if (!std::isfinite(got[i]) && std::isfinite(want[i])) finite = false;
+    // Elements outside the C window (offset, padding) must be untouched: bound 0 there means equality.
+    const double r = std::fabs(got[i] - want[i]) / std::max(bound[i], 1e-300);
+    if (!(r <= worst)) {
+      worst = r;
+      worst_i = i;
+    }
+  }
+  const std::string name = own ? "own(" + own->describe() + ")" : gemm_engine_name(engine);
+  CHECK_MESSAGE(finite, name << " " << describe(c) << ": non-finite output");
+  CHECK_MESSAGE(worst <= 1.0, name << " " << describe(c) << ": worst element " << worst_i << " got " << got[worst_i]
+                                   << " want " << want[worst_i] << " (error / bound = " << worst << ")");
+}
+
+const Trans kTrans[2] = {Trans::No, Trans::Yes};
+
+}  // namespace
+
+TEST_CASE("every engine matches the reference for all transpose cases and odd sizes") {
+  const int sizes[][3] = {{1, 1, 1}, {7, 33, 65}, {65, 7, 33}, {33, 129, 7}, {129, 65, 17}, {3, 70, 40}};
+  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault})
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans)
+        for (const auto& s : sizes) {
+          Case c{ta, tb, s[0], s[1], s[2]};
+          c.alpha = 1.0f;
+          c.beta = 0.0f;
+          run_case(c, e);
+        }
+}
+
+TEST_CASE("offsets, leading dimensions, alpha and beta") {
+  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault})
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans) {
+        Case c{ta, tb, 19, 37, 23, 3, 5, 2, 7, 13, 5, -1.5f, 0.75f};
+        run_case(c, e);
+      }
+}
+
+TEST_CASE("own kernel: every tile shape the tuner may pick, K chunking and work-group sizes") {
+  const OwnGemmParams variants[] = {{6, 8, 2, 0, 1, 1}, {4, 4, 3, 16, 1, 3}, {8, 8, 1, 7, 2, 2},
+                                    {2, 16, 1, 64, 4, 1}, {1, 4, 1, 5, 1, 4}};
+  for (const auto& p : variants)
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans) {
+        run_case(Case{ta, tb, 37, 45, 50, 1, 2, 3, 4, 5, 6, 0.5f, -2.0f}, GemmEngine::Own, &p);
+        run_case(Case{ta, tb, 3, 20, 33}, GemmEngine::Own, &p);  // fewer rows than the tile
+      }
+}
+
+TEST_CASE("K = 0 gives C = beta * C for every engine") {
+  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault}) {
+    run_case(Case{Trans::No, Trans::No, 9, 17, 0, 0, 0, 1, 0, 0, 2, 2.0f, 0.5f}, e);
+    run_case(Case{Trans::No, Trans::Yes, 9, 17, 0, 0, 0, 0, 0, 0, 0, 2.0f, 0.0f}, e);
+  }
+}
+
+TEST_CASE("beta = 0 ignores NaN in C (the own engine, which Auto uses on CPUs)") {
+  for (Trans ta : kTrans)
+    for (Trans tb : kTrans)
+      run_case(Case{ta, tb, 13, 21, 9}, GemmEngine::Own, nullptr, 1.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
+}
+
+TEST_CASE("huge and tiny magnitudes stay finite and accurate") {
+  // |a b| ~ 1e36 summed over K = 40 stays below FLT_MAX (3.4e38); tiny: |a b| ~ 1e-30, far from denormals.
+  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned})
+    for (Trans tb : kTrans) {
+      run_case(Case{Trans::No, tb, 17, 33, 40}, e, nullptr, 1e18f, 1e18f);
+      run_case(Case{Trans::No, tb, 17, 33, 40}, e, nullptr, 1e-15f, 1e-15f);
+    }
+}
+
+TEST_CASE("matmul checks shapes") {
+  Tensor a = Tensor::zeros({4, 5}), b = Tensor::zeros({6, 3}), c = Tensor::zeros({4, 3});
+  CHECK_THROWS_AS(matmul(a, Trans::No, b, Trans::No, c), Error);
+  Tensor b2 = Tensor::full({5, 3}, 1.0f);
+  Tensor a2 = Tensor::full({4, 5}, 2.0f);
+  matmul(a2, Trans::No, b2, Trans::No, c);
+  for (float v : c.to_host()) CHECK(v == 10.0f);
+}
+
+TEST_CASE("engine names and resolution") {
+  CHECK(parse_gemm_engine("own") == GemmEngine::Own);
+  CHECK_THROWS_AS(parse_gemm_engine("fast"), Error);
+  CHECK(resolve_gemm_engine(GemmEngine::Auto) != GemmEngine::Auto);
+  set_default_gemm_engine(GemmEngine::ClblastDefault);
+  CHECK(resolve_gemm_engine(GemmEngine::Auto) == GemmEngine::ClblastDefault);
+  set_default_gemm_engine(GemmEngine::Auto);
+}
+
+TEST_CASE("tuning database: parse, round trip, errors") {
+  const TuningDb embedded = TuningDb::parse(stylerf::host::active_tuning_db().dump(), "active");
+  CHECK(TuningDb::parse(embedded.dump(), "round trip").dump() == embedded.dump());
+
+  const std::string text = R"({"format": "stylerf-clblast-tuning-1", "devices": {"dev A": {
+      "clblast": {"Copy": {"COPY_DIMX": 8, "COPY_DIMY": 8, "COPY_VW": 4, "COPY_WPT": 1}},
+      "recommended_engine": "own", "own_gemm": {"mr": 4, "vw": 8, "nv": 2, "kc": 128, "wg": 1, "qt": 2}}}})";
+  TuningDb db = TuningDb::parse(text, "inline");
+  REQUIRE(db.find("dev A") != nullptr);
+  CHECK(db.find("dev B") == nullptr);
+  CHECK(db.find("dev A")->clblast.at("Copy").at("COPY_VW") == 4);
+  CHECK(db.find("dev A")->own_gemm->mr == 4);
+  CHECK(db.find("dev A")->own_gemm->qt == 2);
+  CHECK(db.find("dev A")->recommended_engine == "own");
+
+  TuningDb other = TuningDb::parse(R"({"format": "stylerf-clblast-tuning-1", "devices": {"dev A": {
+      "recommended_engine": "clblast-tuned"}}})", "other");
+  db.merge_from(other);
+  CHECK(db.find("dev A")->recommended_engine == "clblast-tuned");
+  CHECK(db.find("dev A")->clblast.empty());  // merge replaces a device's whole entry
+
+  CHECK_THROWS_AS(TuningDb::parse("{", "bad json"), Error);
+  CHECK_THROWS_AS(TuningDb::parse(R"({"format": "other"})", "bad format"), Error);
+  CHECK_THROWS_AS(TuningDb::parse(R"({"format": "stylerf-clblast-tuning-1", "devices": {"d": {"own_gemm": {"vw": 3}}}})",
+                                  "bad own"),
+                  Error);
+  CHECK_THROWS_AS(
+      TuningDb::parse(R"({"format": "stylerf-clblast-tuning-1", "devices": {"d": {"clblast": {"Copy": {"X": -1}}}}})",
+                      "negative"),
+      Error);
+}
+
+TEST_CASE("CLBlast tuner output converts to a parameter set") {
+  const std::string tuner = R"({"kernel_family": "xgemm_direct_2", "precision": "32", "device": "dev",
+    "results": [
+      {"kernel": "XgemmDirectTN", "time": 5.0, "parameters": {"WGD": 8, "PRECISION": 32}},
+      {"kernel": "XgemmDirectTN", "time": 2.5, "parameters": {"WGD": 16, "PRECISION": 32}},
+      {"kernel": "XgemmDirectTN", "time": 9.0, "parameters": {"WGD": 32, "PRECISION": 32}}]})";
+  auto r = parse_clblast_tuner_json(tuner, "inline");
+  CHECK(r.kernel == "XgemmDirect");
+  CHECK(r.best_ms == 2.5);
+  CHECK(r.params.at("WGD") == 16);
+  CHECK(r.params.count("PRECISION") == 0);
+  CHECK_THROWS_AS(parse_clblast_tuner_json(R"({"kernel_family": "xgemm_1", "results": []})", "empty"), Error);
+  CHECK_THROWS_AS(parse_clblast_tuner_json(R"({"kernel_family": "xfoo", "results": [{"time": 1, "parameters": {}}]})",
+                                           "family"),
+                  Error);
+}
+
+TEST_CASE("the tuning database entry for this device applies to CLBlast") {
+  // With an entry, clblast-tuned must report that it uses it (OverrideParameters accepted every set);
+  // without one, it must say so rather than pretend.
+  const std::string status = clblast_tuning_status();
+  INFO("status: " << status);
+  const DeviceTuning* t = active_device_tuning();
+  if (t && !t->clblast.empty())
+    CHECK(status.rfind("tuning database (", 0) == 0);
+  else
+    CHECK(status.find("no CLBlast entry") != std::string::npos);
+  CHECK(status.find("skipped") == std::string::npos);
+}
