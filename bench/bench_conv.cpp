@@ -8,6 +8,7 @@
 // last decoder conv, the 1x1, conv1_1, conv2_2, conv4_1), one repetition: a smoke run of seconds.
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "bench/bench.hpp"
+#include "bench/timing.hpp"
 #include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "lib/nn/ops.hpp"
@@ -60,28 +62,11 @@ struct PassTime {
   double ms = 0, aux_ms = 0;
 };
 
-// Best-of-`repeats` wall time of f (after one warm-up), and the time our kernels took in that run.
-template <class F>
-PassTime time_pass(int repeats, F f) {
-  auto& rt = host::Runtime::instance();
-  f();
-  rt.finish();
-  PassTime best{1e300, 0};
-  for (int r = 0; r < repeats; ++r) {
-    rt.reset_timings();
-    rt.set_profiling(true);
-    auto t0 = std::chrono::steady_clock::now();
-    f();
-    rt.finish();
-    double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    double aux = 0;
-    for (const auto& t : rt.timings())  // only ours: a GEMM engine may launch profiled kernels too
-      if (t.kernel == "im2col" || t.kernel == "col2im" || t.kernel == "bias_add" || t.kernel == "bias_grad")
-        aux += t.total_ms;
-    rt.set_profiling(false);
-    if (ms < best.ms) best = {ms, aux};
-  }
-  return best;
+// Best wall time of f, and the time our own kernels took in that run (a GEMM engine may launch profiled
+// kernels too; those count as GEMM).
+PassTime time_pass(int repeats, const std::function<void()>& f) {
+  Timing t = best_of(repeats, f);
+  return {t.wall_ms, t.kernels_named({"im2col", "col2im", "bias_add", "bias_grad"})};
 }
 
 }  // namespace

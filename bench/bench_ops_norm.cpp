@@ -14,6 +14,7 @@
 #include <string>
 
 #include "bench/bench_ops_parts.hpp"
+#include "bench/timing.hpp"
 #include "host/runtime.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
@@ -23,34 +24,8 @@ namespace {
 
 using host::Tensor;
 
-struct Timing {
-  double wall_ms;    // the whole op: launches, and allocating + first touch of its fresh output tensors
-  double kernel_ms;  // the op's kernels alone (profiling events), same repetition
-};
 
-// Best-of-`repeats` timing of f after one warm-up.
-Timing best_ms(int repeats, const std::function<void()>& f) {
-  auto& rt = host::Runtime::instance();
-  f();
-  rt.finish();
-  Timing best{1e300, 1e300};
-  const bool was_profiling = rt.profiling();
-  for (int r = 0; r < repeats; ++r) {
-    rt.reset_timings();
-    rt.set_profiling(true);
-    auto t0 = std::chrono::steady_clock::now();
-    f();
-    rt.finish();
-    const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    double kernels = 0;
-    for (const auto& k : rt.timings()) kernels += k.total_ms;
-    rt.set_profiling(was_profiling);
-    if (wall < best.wall_ms) best = {wall, kernels};
-  }
-  return best;
-}
-
-void row(const std::string& op, const std::string& shape, double bytes, Timing t) {
+void row(const std::string& op, const std::string& shape, double bytes, const Timing& t) {
   std::printf("  %-24s %-34s %9.3f ms %7.2f GB/s | kernels %9.3f ms %7.2f GB/s\n", op.c_str(), shape.c_str(),
               t.wall_ms, bytes / (t.wall_ms * 1e6), t.kernel_ms, bytes / (t.kernel_ms * 1e6));
   std::fflush(stdout);
@@ -78,17 +53,17 @@ void bench_ops_norm(const BenchOptions& opt) {
     const double n = double(x.numel()) * 4;
     nn::ChannelStats st = nn::channel_stats_forward(x);
     Tensor g = Tensor::full(st.mean.shape(), 1.0f);
-    row("channel_stats_forward", sh, n, best_ms(reps, [&] { nn::channel_stats_forward(x); }));
-    row("channel_stats_backward", sh, 2 * n, best_ms(reps, [&] { nn::channel_stats_backward(x, st, g, g); }));
-    row("instance_norm_forward", sh, 2 * n, best_ms(reps, [&] { nn::instance_norm_forward(x, nullptr); }));
-    row("instance_norm_backward", sh, 3 * n, best_ms(reps, [&] { nn::instance_norm_backward(x, st, dy); }));
-    row("mse_forward", sh, 2 * n, best_ms(reps, [&] { nn::mse_forward(x, x2); }));
-    row("mse_backward", sh, 3 * n, best_ms(reps, [&] { nn::mse_backward(x, x2, 1.0f); }));
-    row("style_loss_forward", sh, 2 * n, best_ms(reps, [&] { nn::style_loss_forward(x, x2); }));
-    row("style_loss_backward", sh, 3 * n, best_ms(reps, [&] { nn::style_loss_backward(x, x2, 1.0f); }));
-    row("sum", sh, n, best_ms(reps, [&] { nn::sum(x); }));
-    row("has_nonfinite", sh, n, best_ms(reps, [&] { nn::has_nonfinite(x); }));
-    row("axpby", sh, 3 * n, best_ms(reps, [&] { nn::axpby(0.5f, x2, 0.5f, x); }));
+    row("channel_stats_forward", sh, n, best_of(reps, [&] { nn::channel_stats_forward(x); }));
+    row("channel_stats_backward", sh, 2 * n, best_of(reps, [&] { nn::channel_stats_backward(x, st, g, g); }));
+    row("instance_norm_forward", sh, 2 * n, best_of(reps, [&] { nn::instance_norm_forward(x, nullptr); }));
+    row("instance_norm_backward", sh, 3 * n, best_of(reps, [&] { nn::instance_norm_backward(x, st, dy); }));
+    row("mse_forward", sh, 2 * n, best_of(reps, [&] { nn::mse_forward(x, x2); }));
+    row("mse_backward", sh, 3 * n, best_of(reps, [&] { nn::mse_backward(x, x2, 1.0f); }));
+    row("style_loss_forward", sh, 2 * n, best_of(reps, [&] { nn::style_loss_forward(x, x2); }));
+    row("style_loss_backward", sh, 3 * n, best_of(reps, [&] { nn::style_loss_backward(x, x2, 1.0f); }));
+    row("sum", sh, n, best_of(reps, [&] { nn::sum(x); }));
+    row("has_nonfinite", sh, n, best_of(reps, [&] { nn::has_nonfinite(x); }));
+    row("axpby", sh, 3 * n, best_of(reps, [&] { nn::axpby(0.5f, x2, 0.5f, x); }));
   }
   {
     const int h = s / 4;
@@ -96,15 +71,15 @@ void bench_ops_norm(const BenchOptions& opt) {
     Tensor c = ramp(cs, 0.0f, 1.0f), st = ramp(ss, 2.0f, -0.5f), dy = Tensor::full(cs, 0.1f);
     const double nc = double(c.numel()) * 4, ns = double(st.numel()) * 4;
     const std::string sh = host::shape_str(cs) + " s" + host::shape_str(ss);
-    row("adain_forward", sh, 2 * nc + ns, best_ms(reps, [&] { nn::adain_forward(c, st); }));
-    row("adain_backward", sh, 3 * nc + 2 * ns, best_ms(reps, [&] { nn::adain_backward(c, st, dy); }));
+    row("adain_forward", sh, 2 * nc + ns, best_of(reps, [&] { nn::adain_forward(c, st); }));
+    row("adain_backward", sh, 3 * nc + 2 * ns, best_of(reps, [&] { nn::adain_backward(c, st, dy); }));
   }
   {
     const int n = opt.quick ? 1000000 : 10000000;
     Tensor p = Tensor::full({n}, 1.0f), gr = Tensor::full({n}, 0.01f), m = Tensor::zeros({n}), v = Tensor::zeros({n});
     int step = 0;
     row("adam_step", "[" + std::to_string(n) + "]", 7.0 * n * 4,
-        best_ms(reps, [&] { nn::adam_step(p, gr, m, v, ++step, {}); }));
+        best_of(reps, [&] { nn::adam_step(p, gr, m, v, ++step, {}); }));
   }
 }
 

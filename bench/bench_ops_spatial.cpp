@@ -10,6 +10,7 @@
 #include <string>
 
 #include "bench/bench_ops_parts.hpp"
+#include "bench/timing.hpp"
 #include "host/launch.hpp"
 #include "host/runtime.hpp"
 #include "lib/nn/ops.hpp"
@@ -19,31 +20,6 @@ namespace {
 
 using host::Tensor;
 
-struct Timing {
-  double wall_ms = 1e300;  // the whole op call: output allocation, launch, wait
-  double kernel_ms = 0;    // the kernel itself (event profiling)
-};
-
-// Best-of-`repeats` of f after one warm-up.
-Timing best_of(int repeats, const std::function<void()>& f) {
-  auto& rt = host::Runtime::instance();
-  f();
-  rt.finish();
-  Timing best;
-  for (int r = 0; r < repeats; ++r) {
-    rt.reset_timings();
-    rt.set_profiling(true);
-    auto t0 = std::chrono::steady_clock::now();
-    f();
-    rt.finish();
-    const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    double k = 0;
-    for (const auto& t : rt.timings()) k += t.total_ms;
-    rt.set_profiling(false);
-    if (wall < best.wall_ms) best = {wall, k};
-  }
-  return best;
-}
 
 // call: the nn:: op (allocates its output, as real use does: fresh pages are faulted in by the kernel);
 // kernel: the same kernel launched into a reused output; GB/s from the reused-output kernel time.

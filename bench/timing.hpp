@@ -1,0 +1,19 @@
+// The one timing loop every benchmark uses: one warm-up call (first launches compile kernels), then the
+// best wall time of `repeats` calls, with per-kernel device times of that best run.
+#pragma once
+#include <functional>
+#include <map>
+#include <string>
+
+namespace stylerf::bench {
+
+struct Timing {
+  double wall_ms = 1e300;                     // best wall time of one call, queue drained
+  double kernel_ms = 0;                       // sum of profiled kernel times in that call
+  std::map<std::string, double> per_kernel;  // kernel name -> ms in that call
+  double kernels_named(std::initializer_list<const char*> names) const;
+};
+
+Timing best_of(int repeats, const std::function<void()>& f);
+
+}  // namespace stylerf::bench
