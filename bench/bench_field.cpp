@@ -1,13 +1,15 @@
 // `stylerf bench field`: see bench_field.hpp. Sizes follow training: 4096 rays through a box with a
 // 300^3 grid (quick: 512 rays, 128^3), step half a voxel (~600 candidate samples per ray), density rank
 // [16,4,4], appearance rank [48,12,12]. Points for grid sampling are the marched samples (ray order, as in
-// training), not uniform random points.
+// training), not uniform random points. STYLERF_BENCH_FILTER=part,part times only the rows whose names
+// contain one of the parts (rows whose results later rows need still run once, untimed).
 #include "bench/bench_field.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -81,7 +83,31 @@ int bench_field(const BenchOptions& opt) {
   std::cout << "device: " << rt.device().describe() << "\n"
             << "field kernels: " << R << " rays, grid " << G << "^3, best of " << repeats << " after a warm-up\n";
   std::vector<Row> rows;
+  // STYLERF_BENCH_FILTER=a,b: time only rows whose name contains one of the comma-separated parts.
+  const char* filter_env = std::getenv("STYLERF_BENCH_FILTER");
+  const std::string filter = filter_env ? filter_env : "";
+  auto want = [&](const std::string& name) {
+    if (filter.empty()) return true;
+    size_t b = 0;
+    while (b <= filter.size()) {
+      size_t e = filter.find(',', b);
+      if (e == std::string::npos) e = filter.size();
+      if (e > b && name.find(filter.substr(b, e - b)) != std::string::npos) return true;
+      b = e + 1;
+    }
+    return false;
+  };
+  // Times f unless the row is filtered out; a filtered row still runs once when later rows need its result.
+  auto timed = [&](const std::string& name, bool needed, const std::function<void()>& f) {
+    if (want(name)) return best_ms(repeats, f);
+    if (needed) {
+      f();
+      rt.finish();
+    }
+    return -1.0;
+  };
   auto add = [&](const std::string& name, double ms, double items, const std::string& unit, double bytes) {
+    if (ms < 0) return;  // filtered out
     rows.push_back({name, ms, items / (ms * 1e3), bytes / (ms * 1e6), unit});
     std::printf("%-34s %10.2f ms %10.2f %-8s %8.2f GB/s\n", name.c_str(), ms, items / (ms * 1e3), unit.c_str(),
                 bytes / (ms * 1e6));
@@ -101,7 +127,7 @@ int bench_field(const BenchOptions& opt) {
   make_rays(R, o, d);
   Tensor to = Tensor::from_host(o, {R, 3}), td = Tensor::from_host(d, {R, 3});
   render::Samples s;
-  double ms = best_ms(repeats, [&] { s = render::march(to, td, mc, nullptr); });
+  double ms = timed("march (no mask)", true, [&] { s = render::march(to, td, mc, nullptr); });
   std::printf("samples: %lld (%.0f per ray), step %.5f\n", (long long)s.count, double(s.count) / R, mc.step);
   add("march (no mask)", ms, R, "Mrays/s", double(s.count) * 24 + R * 32.0);
 
@@ -110,7 +136,7 @@ int bench_field(const BenchOptions& opt) {
   const int M = G / 2;
   {
     field::AlphaMask mask;
-    ms = best_ms(repeats, [&] {
+    ms = timed("alpha mask build (" + std::to_string(M) + "^3)", false, [&] {
       mask = field::build_alpha_mask(dens, field::DensityActivation::Relu, {M, M, M}, mc.step, 1e-4f);
     });
     add("alpha mask build (" + std::to_string(M) + "^3)", ms, double(M) * M * M, "Mvox/s", double(M) * M * M * 2);
@@ -127,7 +153,7 @@ int bench_field(const BenchOptions& opt) {
   mask.voxels = std::make_shared<host::Buffer>(ball.size(), "bench mask");
   clEnqueueWriteBuffer(rt.queue(), mask.voxels->mem(), CL_TRUE, 0, ball.size(), ball.data(), 0, nullptr, nullptr);
   render::Samples sm;
-  ms = best_ms(repeats, [&] { sm = render::march(to, td, mc, &mask); });
+  ms = timed("march (ball mask)", true, [&] { sm = render::march(to, td, mc, &mask); });
   std::printf("samples with mask: %lld (%.0f per ray)\n", (long long)sm.count, double(sm.count) / R);
   add("march (ball mask)", ms, R, "Mrays/s", double(sm.count) * 24 + R * 32.0);
 
@@ -138,18 +164,18 @@ int bench_field(const BenchOptions& opt) {
   {
     const double taps = double(N) * 6 * 24 * 4;  // 6 taps per mode, rank 16+4+4, floats gathered
     Tensor sigma;
-    ms = best_ms(repeats, [&] { sigma = field::density_forward(dens, pts, field::DensityActivation::Relu); });
+    ms = timed("density fwd (rank 16,4,4)", false, [&] { sigma = field::density_forward(dens, pts, field::DensityActivation::Relu); });
     add("density fwd (rank 16,4,4)", ms, double(N), "Mpts/s", pts_bytes + N * 4.0 + taps);
     Tensor dsig = Tensor::full({N}, 1e-3f);
     Tensor dgrid = Tensor::zeros(dens.params.shape());
     // Softplus so every point has a gradient (relu of a random grid zeroes about half).
     Tensor sp = field::density_forward(dens, pts, field::DensityActivation::Softplus);
-    ms = best_ms(repeats, [&] {
+    ms = timed("density bwd private", false, [&] {
       field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
                               field::ScatterMode::Private);
     });
     add("density bwd private", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
-    ms = best_ms(repeats, [&] {
+    ms = timed("density bwd atomic", false, [&] {
       field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
                               field::ScatterMode::Atomic);
     });
@@ -160,24 +186,24 @@ int bench_field(const BenchOptions& opt) {
     field::VMGrid app = field::VMGrid::create({G, G, G}, {48, 12, 12}, 0.1f, 2);
     const double taps = double(Nm) * 6 * 72 * 4;
     Tensor feat;
-    ms = best_ms(repeats, [&] { feat = field::features_forward(app, sm.positions); });
+    ms = timed("app features fwd (rank 48,12,12)", want("head "), [&] { feat = field::features_forward(app, sm.positions); });
     add("app features fwd (rank 48,12,12)", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + taps);
     Tensor dfeat = Tensor::full({Nm, 72}, 1e-3f);
     Tensor dgrid = Tensor::zeros(app.params.shape());
-    ms = best_ms(repeats, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Private); });
+    ms = timed("app features bwd private", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Private); });
     add("app features bwd private", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
-    ms = best_ms(repeats, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Atomic); });
+    ms = timed("app features bwd atomic", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Atomic); });
     add("app features bwd atomic", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
-    ms = best_ms(repeats, [&] { field::tv_backward(app, 1.0f, dgrid); });
+    ms = timed("TV bwd (appearance planes)", false, [&] { field::tv_backward(app, 1.0f, dgrid); });
     add("TV bwd (appearance planes)", ms, double(app.numel()), "Mparam/s", app.numel() * 12.0);
 
     field::AppearanceHead head = field::AppearanceHead::create(field::AppearanceHeadConfig{}, 3);
     field::HeadCache cache;
-    ms = best_ms(repeats, [&] { field::appearance_forward(head, feat, Tensor(), &cache); });
+    ms = timed("head fwd (GFLOP/s in GB/s col)", want("head bwd"), [&] { field::appearance_forward(head, feat, Tensor(), &cache); });
     const double flop = 2.0 * Nm * (72 * 27 + 27 * 128 + 128 * 128 + 128 * 3);
     add("head fwd (GFLOP/s in GB/s col)", ms, double(Nm), "Mpts/s", flop / 1e0);
     Tensor drgb = Tensor::full({Nm, 3}, 1e-3f);
-    ms = best_ms(repeats, [&] { field::appearance_backward(head, cache, drgb); });
+    ms = timed("head bwd (GFLOP/s in GB/s col)", false, [&] { field::appearance_backward(head, cache, drgb); });
     add("head bwd (GFLOP/s in GB/s col)", ms, double(Nm), "Mpts/s", 2 * flop);
   }
 
@@ -187,12 +213,12 @@ int bench_field(const BenchOptions& opt) {
     Tensor rgb = Tensor::full({N, 3}, 0.5f);
     Tensor bg = Tensor::full({3}, 1.0f);
     render::Composited c;
-    ms = best_ms(repeats, [&] { c = render::composite_forward(s, sigma, rgb, bg); });
+    ms = timed("composite fwd", true, [&] { c = render::composite_forward(s, sigma, rgb, bg); });
     add("composite fwd", ms, double(N), "Msmp/s", N * (4.0 + 12 + 4 + 4 + 4) + R * 28.0);
     Tensor dv = Tensor::full({R, 3}, 1.0f), da = Tensor::full({R}, 1.0f);
-    ms = best_ms(repeats, [&] { render::composite_backward(s, sigma, rgb, bg, dv, da, Tensor()); });
+    ms = timed("composite bwd", false, [&] { render::composite_backward(s, sigma, rgb, bg, dv, da, Tensor()); });
     add("composite bwd", ms, double(N), "Msmp/s", N * 2 * (4.0 + 12 + 4 + 4) + N * 16.0);
-    ms = best_ms(repeats, [&] { render::compact(s, render::keep_by_weight(s, c.weights, 1e-4f)); });
+    ms = timed("keep_by_weight + compact", false, [&] { render::compact(s, render::keep_by_weight(s, c.weights, 1e-4f)); });
     add("keep_by_weight + compact", ms, double(N), "Msmp/s", N * 4.0 * 2 + N * 32.0);
   }
 

@@ -53,17 +53,39 @@ inline bool inside_box(float3 p) {
   return p.x >= -1.0f && p.x <= 1.0f && p.y >= -1.0f && p.y <= 1.0f && p.z >= -1.0f && p.z <= 1.0f;
 }
 
-inline float coord(float3 p, int axis) { return axis == 0 ? p.x : (axis == 1 ? p.y : p.z); }
+// Everything on the per-point path is forced inline: PoCL otherwise keeps mode_taps/density_at as calls,
+// and only after inlining do the mode index (0,1,2 literal at each call) and the rank (RANK0..2) become
+// constants, so the axis choice folds away and the rank loops unroll into straight vector loads.
+#define ALWAYS_INLINE inline __attribute__((always_inline))
 
-// Align-corners coordinate -> lower tap index in [0, n-2] and fraction in [0,1] (p = +1 gives n-2, 1).
-inline int corner_index(float p, int n, float* frac) {
-  const float f = (p + 1.0f) * 0.5f * (float)(n - 1);
-  const int i = clamp((int)floor(f), 0, n - 2);
-  *frac = clamp(f - (float)i, 0.0f, 1.0f);
-  return i;
+#ifdef RANK0
+#define RANK_OF(L, m) ((m) == 0 ? RANK0 : ((m) == 1 ? RANK1 : RANK2))
+#else
+#define RANK_OF(L, m) ((L)->rank[m])
+#endif
+
+// Lower tap index and fraction along each axis at point p: computed once per point and shared by the
+// three modes (each axis is used by all three: twice as a plane axis, once as a line axis).
+typedef struct {
+  int i[3];
+  float f[3];
+} PointCell;
+
+// Align-corners coordinate -> lower tap index in [0, n-2] and fraction in [0,1] (p = +1 gives n-2, 1),
+// the three axes at once. Only for p inside [-1,1]^3 (callers check inside_box or clamp): then f >= 0 and
+// truncation is floor (PoCL's floor() is a dozen branchy instructions per call).
+ALWAYS_INLINE PointCell point_cell(const VMLayout* L, float3 p) {
+  const int4 n = (int4)(L->res[0], L->res[1], L->res[2], 2);
+  const float4 f = ((float4)(p, -1.0f) + 1.0f) * 0.5f * convert_float4(n - 1);
+  const int4 i = min(convert_int4(f), n - 2);
+  const float4 fr = clamp(f - convert_float4(i), 0.0f, 1.0f);
+  PointCell c;
+  c.i[0] = i.x; c.i[1] = i.y; c.i[2] = i.z;
+  c.f[0] = fr.x; c.f[1] = fr.y; c.f[2] = fr.z;
+  return c;
 }
 
-// Taps of one mode at point p: 4 plane taps and 2 line taps (element offsets of rank 0) and weights.
+// Taps of one mode: 4 plane taps and 2 line taps (element offsets of rank 0) and their weights.
 typedef struct {
   int pt[4];
   float pw[4];
@@ -72,39 +94,52 @@ typedef struct {
   int R;
 } ModeTaps;
 
-inline ModeTaps mode_taps(const VMLayout* L, int m, float3 p) {
+ALWAYS_INLINE ModeTaps cell_taps(const VMLayout* L, const PointCell* c, int m) {
   ModeTaps T;
   const int u = mode_u(m), v = mode_v(m), w = mode_w(m);
-  const int nu = L->res[u], nv = L->res[v], nw = L->res[w], R = L->rank[m];
-  float fu, fv, fw;
-  const int iu = corner_index(coord(p, u), nu, &fu);
-  const int iv = corner_index(coord(p, v), nv, &fv);
-  const int iw = corner_index(coord(p, w), nw, &fw);
-  const int base = L->plane_off[m] + (iv * nu + iu) * R;
-  T.pt[0] = base;           T.pw[0] = (1.0f - fu) * (1.0f - fv);
-  T.pt[1] = base + R;       T.pw[1] = fu * (1.0f - fv);
-  T.pt[2] = base + nu * R;  T.pw[2] = (1.0f - fu) * fv;
-  T.pt[3] = base + nu * R + R; T.pw[3] = fu * fv;
-  T.lt[0] = L->line_off[m] + iw * R; T.lw[0] = 1.0f - fw;
-  T.lt[1] = T.lt[0] + R;             T.lw[1] = fw;
+  const int nu = L->res[u], R = RANK_OF(L, m);
+  const float fu = c->f[u], fv = c->f[v], fw = c->f[w];
+  const int base = L->plane_off[m] + (c->i[v] * nu + c->i[u]) * R;
+  T.pt[0] = base;               T.pw[0] = (1.0f - fu) * (1.0f - fv);
+  T.pt[1] = base + R;           T.pw[1] = fu * (1.0f - fv);
+  T.pt[2] = base + nu * R;      T.pw[2] = (1.0f - fu) * fv;
+  T.pt[3] = base + nu * R + R;  T.pw[3] = fu * fv;
+  T.lt[0] = L->line_off[m] + c->i[w] * R; T.lw[0] = 1.0f - fw;
+  T.lt[1] = T.lt[0] + R;                  T.lw[1] = fw;
   T.R = R;
   return T;
 }
 
-inline float4 plane4(const global float* g, const ModeTaps* T, int r) {
+// Taps of mode m at point p (resampling evaluates one mode at a time).
+inline ModeTaps mode_taps(const VMLayout* L, int m, float3 p) {
+  const PointCell c = point_cell(L, p);
+  return cell_taps(L, &c, m);
+}
+
+// Bilinear plane value and linear line value for ranks [r, r+8), [r, r+4) and r.
+ALWAYS_INLINE float8 plane8(const global float* g, const ModeTaps* T, int r) {
+  float8 a = T->pw[0] * vload8(0, g + T->pt[0] + r);
+  a = fma((float8)(T->pw[1]), vload8(0, g + T->pt[1] + r), a);
+  a = fma((float8)(T->pw[2]), vload8(0, g + T->pt[2] + r), a);
+  return fma((float8)(T->pw[3]), vload8(0, g + T->pt[3] + r), a);
+}
+ALWAYS_INLINE float8 line8(const global float* g, const ModeTaps* T, int r) {
+  return fma((float8)(T->lw[1]), vload8(0, g + T->lt[1] + r), T->lw[0] * vload8(0, g + T->lt[0] + r));
+}
+ALWAYS_INLINE float4 plane4(const global float* g, const ModeTaps* T, int r) {
   float4 a = T->pw[0] * vload4(0, g + T->pt[0] + r);
   a = fma((float4)(T->pw[1]), vload4(0, g + T->pt[1] + r), a);
   a = fma((float4)(T->pw[2]), vload4(0, g + T->pt[2] + r), a);
   return fma((float4)(T->pw[3]), vload4(0, g + T->pt[3] + r), a);
 }
-inline float4 line4(const global float* g, const ModeTaps* T, int r) {
+ALWAYS_INLINE float4 line4(const global float* g, const ModeTaps* T, int r) {
   return fma((float4)(T->lw[1]), vload4(0, g + T->lt[1] + r), T->lw[0] * vload4(0, g + T->lt[0] + r));
 }
-inline float plane1(const global float* g, const ModeTaps* T, int r) {
+ALWAYS_INLINE float plane1(const global float* g, const ModeTaps* T, int r) {
   return T->pw[0] * g[T->pt[0] + r] + T->pw[1] * g[T->pt[1] + r] + T->pw[2] * g[T->pt[2] + r] +
          T->pw[3] * g[T->pt[3] + r];
 }
-inline float line1(const global float* g, const ModeTaps* T, int r) {
+ALWAYS_INLINE float line1(const global float* g, const ModeTaps* T, int r) {
   return T->lw[0] * g[T->lt[0] + r] + T->lw[1] * g[T->lt[1] + r];
 }
 
@@ -121,19 +156,24 @@ inline float density_act_grad(float sigma, int act) {
   return -expm1(-sigma);
 }
 
-inline float density_at(const global float* g, const VMLayout* L, float3 p) {
-  float acc = 0.0f;
-  for (int m = 0; m < 3; ++m) {
-    const ModeTaps T = mode_taps(L, m, p);
-    float4 s = (float4)(0.0f);
-    int r = 0;
-    for (; r + 4 <= T.R; r += 4) {
-      s = fma(plane4(g, &T, r), line4(g, &T, r), s);
-    }
-    acc += s.x + s.y + s.z + s.w;
-    for (; r < T.R; ++r) acc += plane1(g, &T, r) * line1(g, &T, r);
-  }
-  return acc;
+// sum_r plane_m[r] * line_m[r]: 8 ranks at a time (one AVX register), then 4, then a scalar tail; with a
+// compile-time rank the dead steps vanish.
+ALWAYS_INLINE float mode_dot(const global float* g, const ModeTaps* T) {
+  const int R = T->R;
+  int r = 0;
+  float8 s8 = (float8)(0.0f);
+  for (; r + 8 <= R; r += 8) s8 = fma(plane8(g, T, r), line8(g, T, r), s8);
+  float4 s4 = s8.lo + s8.hi;
+  for (; r + 4 <= R; r += 4) s4 = fma(plane4(g, T, r), line4(g, T, r), s4);
+  float s = (s4.x + s4.y) + (s4.z + s4.w);
+  for (; r < R; ++r) s = fma(plane1(g, T, r), line1(g, T, r), s);
+  return s;
+}
+
+ALWAYS_INLINE float density_at(const global float* g, const VMLayout* L, float3 p) {
+  const PointCell c = point_cell(L, p);
+  const ModeTaps T0 = cell_taps(L, &c, 0), T1 = cell_taps(L, &c, 1), T2 = cell_taps(L, &c, 2);
+  return mode_dot(g, &T0) + mode_dot(g, &T1) + mode_dot(g, &T2);
 }
 
 // ---- sampling forward ------------------------------------------------------------------------------
@@ -151,6 +191,15 @@ kernel void vm_density_forward(global const float* pts, global const float* grid
   sigma[i] = density_act(density_at(grid, &L, p), act);
 }
 
+// Mode m's features plane_m[r] * line_m[r] into o[0, R).
+ALWAYS_INLINE void mode_features(const global float* g, const ModeTaps* T, global float* o) {
+  const int R = T->R;
+  int r = 0;
+  for (; r + 8 <= R; r += 8) vstore8(plane8(g, T, r) * line8(g, T, r), 0, o + r);
+  for (; r + 4 <= R; r += 4) vstore4(plane4(g, T, r) * line4(g, T, r), 0, o + r);
+  for (; r < R; ++r) o[r] = plane1(g, T, r) * line1(g, T, r);
+}
+
 // pts [n,3] -> feat [n, r0+r1+r2] = concat_m(plane_m[r] * line_m[r]).
 kernel void vm_features_forward(global const float* pts, global const float* grid, global float* feat, int n, int rx,
                                 int ry, int rz, int r0, int r1, int r2) {
@@ -163,18 +212,18 @@ kernel void vm_features_forward(global const float* pts, global const float* gri
     for (int k = 0; k < L.nfeat; ++k) out[k] = 0.0f;
     return;
   }
-  for (int m = 0; m < 3; ++m) {
-    const ModeTaps T = mode_taps(&L, m, p);
-    global float* o = out + L.feat_off[m];
-    int r = 0;
-    for (; r + 4 <= T.R; r += 4) {
-      vstore4(plane4(grid, &T, r) * line4(grid, &T, r), 0, o + r);
-    }
-    for (; r < T.R; ++r) o[r] = plane1(grid, &T, r) * line1(grid, &T, r);
-  }
+  const PointCell c = point_cell(&L, p);
+  const ModeTaps T0 = cell_taps(&L, &c, 0), T1 = cell_taps(&L, &c, 1), T2 = cell_taps(&L, &c, 2);
+  mode_features(grid, &T0, out + L.feat_off[0]);
+  mode_features(grid, &T1, out + L.feat_off[1]);
+  mode_features(grid, &T2, out + L.feat_off[2]);
 }
 
 // ---- sampling backward (scatter) --------------------------------------------------------------------------
+// d(plane_m[r] line_m[r]) = line_m[r] d(plane) + plane_m[r] d(line): tap k of the plane receives
+// g_r * line_m[r] * pw[k], tap k of the line g_r * plane_m[r] * lw[k]. Taps of zero weight are skipped
+// (they change nothing, and skipping keeps a non-finite neighbour from spreading NaN).
+
 // OpenCL 1.2 has no float atomics: compare-and-swap on the int bits.
 inline void atomic_add_f(volatile global float* addr, float val) {
   union {
@@ -187,46 +236,98 @@ inline void atomic_add_f(volatile global float* addr, float val) {
   } while (atomic_cmpxchg((volatile global unsigned int*)addr, old.u, nxt.u) != old.u);
 }
 
-inline void add_to(global float* g, int idx, float v, int use_atomic) {
-  if (use_atomic)
-    atomic_add_f(g + idx, v);
-  else
-    g[idx] += v;
+// dst[0..n) += a * w for n = 8, 4, 1 (one tap of one rank chunk). The 8-wide add is two 4-wide
+// read-modify-writes on purpose: LLVM splits an unaligned 32-byte store into two 16-byte halves, and the
+// next point's 32-byte load of the same tap (neighbouring samples share cells) then cannot be forwarded
+// from the store buffer and stalls; 16-byte stores and loads pair up.
+ALWAYS_INLINE void add8(global float* d, float8 a, float w) {
+  vstore4(fma(a.lo, (float4)(w), vload4(0, d)), 0, d);
+  vstore4(fma(a.hi, (float4)(w), vload4(1, d)), 1, d);
 }
+ALWAYS_INLINE void add4(global float* d, float4 a, float w) { vstore4(fma(a, (float4)(w), vload4(0, d)), 0, d); }
+ALWAYS_INLINE void add1(global float* d, float a, float w) { *d = fma(a, w, *d); }
 
-// Scatters one point's gradient. gfeat points at the point's d(feature) values: component (m, r) has
-// gradient gfeat[(feat_off[m] + r) * gstep] (gstep 0: one value for every component, the density case).
-inline void scatter_point(const global float* grid, global float* dgrid, const VMLayout* L, float3 p,
-                          const global float* gfeat, int gstep, float gscale, int use_atomic) {
-  for (int m = 0; m < 3; ++m) {
-    const ModeTaps T = mode_taps(L, m, p);
-    for (int r = 0; r < T.R; ++r) {
-      const float g = gscale * gfeat[(L->feat_off[m] + r) * gstep];
-      if (g == 0.0f) continue;
-      const float pv = plane1(grid, &T, r), lv = line1(grid, &T, r);
-      const float gp = g * lv, gl = g * pv;
-      for (int k = 0; k < 4; ++k)
-        if (T.pw[k] != 0.0f) add_to(dgrid, T.pt[k] + r, gp * T.pw[k], use_atomic);
-      for (int k = 0; k < 2; ++k)
-        if (T.lw[k] != 0.0f) add_to(dgrid, T.lt[k] + r, gl * T.lw[k], use_atomic);
-    }
+// One rank chunk [r, r+W) of one mode: the 4 plane taps get gp * pw[k], the 2 line taps gl * lw[k].
+// Written out tap by tap (no loop over a tap array, which PoCL keeps in memory).
+#define SCATTER_CHUNK(ADD, T, dst, r, gp, gl)                         \
+  do {                                                                \
+    if ((T)->pw[0] != 0.0f) ADD((dst) + (T)->pt[0] + (r), gp, (T)->pw[0]); \
+    if ((T)->pw[1] != 0.0f) ADD((dst) + (T)->pt[1] + (r), gp, (T)->pw[1]); \
+    if ((T)->pw[2] != 0.0f) ADD((dst) + (T)->pt[2] + (r), gp, (T)->pw[2]); \
+    if ((T)->pw[3] != 0.0f) ADD((dst) + (T)->pt[3] + (r), gp, (T)->pw[3]); \
+    if ((T)->lw[0] != 0.0f) ADD((dst) + (T)->lt[0] + (r), gl, (T)->lw[0]); \
+    if ((T)->lw[1] != 0.0f) ADD((dst) + (T)->lt[1] + (r), gl, (T)->lw[1]); \
+  } while (0)
+
+// Plain-add scatter of one mode into a private gradient copy, 8/4/1 ranks at a time. gf points at the
+// mode's d(feature) values when per_rank (features), else g0 is the one gradient of every rank (density).
+// dst must not alias grid (the kernels declare both restrict), so the grid loads need not wait for the
+// stores of the previous chunk.
+ALWAYS_INLINE void scatter_mode_private(const global float* restrict grid, global float* restrict dst,
+                                        const ModeTaps* T, const global float* gf, float g0, int per_rank) {
+  const int R = T->R;
+  int r = 0;
+  for (; r + 8 <= R; r += 8) {
+    const float8 g = per_rank ? vload8(0, gf + r) : (float8)(g0);
+    if (per_rank && !any(g != 0.0f)) continue;
+    const float8 gp = g * line8(grid, T, r), gl = g * plane8(grid, T, r);
+    SCATTER_CHUNK(add8, T, dst, r, gp, gl);
+  }
+  for (; r + 4 <= R; r += 4) {
+    const float4 g = per_rank ? vload4(0, gf + r) : (float4)(g0);
+    if (per_rank && !any(g != 0.0f)) continue;
+    const float4 gp = g * line4(grid, T, r), gl = g * plane4(grid, T, r);
+    SCATTER_CHUNK(add4, T, dst, r, gp, gl);
+  }
+  for (; r < R; ++r) {
+    const float g = per_rank ? gf[r] : g0;
+    if (g == 0.0f) continue;
+    const float gp = g * line1(grid, T, r), gl = g * plane1(grid, T, r);
+    SCATTER_CHUNK(add1, T, dst, r, gp, gl);
   }
 }
 
-// The gradient source of point i: density (dsigma and sigma: activation derivative folded into gscale)
-// or features (dfeat rows).
-inline int point_grad(int i, int mode, const global float* dsigma_or_dfeat, const global float* sigma, int nfeat,
-                      int act, const global float** gfeat, int* gstep, float* gscale) {
-  if (mode == 0) {
-    *gfeat = dsigma_or_dfeat + i;
-    *gstep = 0;
-    *gscale = density_act_grad(sigma[i], act);
+// Atomic scatter of one mode (one float CAS per element: vectors do not help here).
+ALWAYS_INLINE void scatter_mode_atomic(const global float* grid, global float* dst, const ModeTaps* T,
+                                       const global float* gf, float g0, int per_rank) {
+  for (int r = 0; r < T->R; ++r) {
+    const float g = per_rank ? gf[r] : g0;
+    if (g == 0.0f) continue;
+    const float gp = g * line1(grid, T, r), gl = g * plane1(grid, T, r);
+    for (int k = 0; k < 4; ++k)
+      if (T->pw[k] != 0.0f) atomic_add_f(dst + T->pt[k] + r, gp * T->pw[k]);
+    for (int k = 0; k < 2; ++k)
+      if (T->lw[k] != 0.0f) atomic_add_f(dst + T->lt[k] + r, gl * T->lw[k]);
+  }
+}
+
+// Scatters point i's gradient into dst. mode 0: density, g = dsig[i] * act'(sigma[i]) for every rank;
+// mode 1: features, row i of dfeat [n, nfeat] (passed as dsig). per_rank/use_atomic are literals at the
+// call sites, so each combination compiles to its own straight-line code.
+ALWAYS_INLINE void scatter_point(const global float* restrict grid, global float* restrict dst, const VMLayout* L,
+                                 float3 p, int i,
+                                 const global float* dsig, const global float* sigma, int act, int per_rank,
+                                 int use_atomic) {
+  float g0 = 0.0f;
+  const global float* gf = dsig;
+  if (per_rank) {
+    gf = dsig + (long)i * L->nfeat;
   } else {
-    *gfeat = dsigma_or_dfeat + (long)i * nfeat;
-    *gstep = 1;
-    *gscale = 1.0f;
+    g0 = dsig[i] * density_act_grad(sigma[i], act);
+    if (g0 == 0.0f) return;
   }
-  return 0;
+  const PointCell c = point_cell(L, p);
+  // The modes written out (not a loop) so that each call sees a literal mode index and rank.
+  const ModeTaps T0 = cell_taps(L, &c, 0), T1 = cell_taps(L, &c, 1), T2 = cell_taps(L, &c, 2);
+  if (use_atomic) {
+    scatter_mode_atomic(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
+    scatter_mode_atomic(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
+    scatter_mode_atomic(grid, dst, &T2, gf + L->feat_off[2], g0, per_rank);
+  } else {
+    scatter_mode_private(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
+    scatter_mode_private(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
+    scatter_mode_private(grid, dst, &T2, gf + L->feat_off[2], g0, per_rank);
+  }
 }
 
 // One work-item per point, atomic adds into dgrid (accumulates). mode 0: density (dsig [n], sigma [n]);
@@ -239,35 +340,38 @@ kernel void vm_scatter_atomic(global const float* pts, global const float* grid,
   const float3 p = vload3(i, pts);
   if (!inside_box(p)) return;
   const VMLayout L = vm_layout(rx, ry, rz, r0, r1, r2);
-  const global float* gf;
-  int gstep;
-  float gscale;
-  point_grad(i, mode, dsig, sigma, L.nfeat, act, &gf, &gstep, &gscale);
-  if (gscale == 0.0f) return;
-  scatter_point(grid, dgrid, &L, p, gf, gstep, gscale, 1);
+  if (mode == 0)
+    scatter_point(grid, dgrid, &L, p, i, dsig, sigma, act, 0, 1);
+  else
+    scatter_point(grid, dgrid, &L, p, i, dsig, sigma, act, 1, 1);
 }
 
 // Deterministic privatised scatter: work-item c (of `copies`) handles points [c*chunk, (c+1)*chunk) in
 // order with plain adds into its own copy: copy 0 is dgrid itself (accumulates), copies 1.. live in
 // scratch ((copies-1) * numel floats, zeroed here) and are summed into dgrid by vm_reduce_copies.
-kernel void vm_scatter_private(global const float* pts, global const float* grid, global const float* dsig,
-                               global const float* sigma, global float* dgrid, global float* scratch, int n, int chunk,
+kernel void vm_scatter_private(global const float* pts, global const float* restrict grid, global const float* dsig,
+                               global const float* sigma, global float* restrict dgrid, global float* restrict scratch,
+                               int n, int chunk,
                                int rx, int ry, int rz, int r0, int r1, int r2, int mode, int act) {
   const int c = get_global_id(0);
   const VMLayout L = vm_layout(rx, ry, rz, r0, r1, r2);
   global float* dst = c == 0 ? dgrid : scratch + (long)(c - 1) * L.numel;
-  if (c > 0)
-    for (int k = 0; k < L.numel; ++k) dst[k] = 0.0f;
+  if (c > 0) {
+    int k = 0;
+    for (; k + 8 <= L.numel; k += 8) vstore8((float8)(0.0f), 0, dst + k);
+    for (; k < L.numel; ++k) dst[k] = 0.0f;
+  }
   const int begin = c * chunk, end = min(n, begin + chunk);
-  for (int i = begin; i < end; ++i) {
-    const float3 p = vload3(i, pts);
-    if (!inside_box(p)) continue;
-    const global float* gf;
-    int gstep;
-    float gscale;
-    point_grad(i, mode, dsig, sigma, L.nfeat, act, &gf, &gstep, &gscale);
-    if (gscale == 0.0f) continue;
-    scatter_point(grid, dst, &L, p, gf, gstep, gscale, 0);
+  if (mode == 0) {
+    for (int i = begin; i < end; ++i) {
+      const float3 p = vload3(i, pts);
+      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 0, 0);
+    }
+  } else {
+    for (int i = begin; i < end; ++i) {
+      const float3 p = vload3(i, pts);
+      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 1, 0);
+    }
   }
 }
 

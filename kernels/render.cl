@@ -54,11 +54,31 @@ inline float3 normalised_at(const MarchParams* P, float3 o, float3 d, float t) {
   return clamp((p - P->lo) / (P->hi - P->lo) * 2.0f - 1.0f, -1.0f, 1.0f);
 }
 
-inline bool occupied(global const uchar* mask, int mx, int my, int mz, float3 q) {
-  const int x = clamp((int)floor((q.x + 1.0f) * 0.5f * (float)mx), 0, mx - 1);
-  const int y = clamp((int)floor((q.y + 1.0f) * 0.5f * (float)my), 0, my - 1);
-  const int z = clamp((int)floor((q.z + 1.0f) * 0.5f * (float)mz), 0, mz - 1);
-  return mask[(z * my + y) * mx + x] != 0;
+// Mask voxel coordinates along a ray are linear in t: f_a(t) = (o_a + t d_a - lo_a) * m_a / (hi_a - lo_a)
+// = a_a + t b_a. Precomputing a and b per ray makes the per-sample test two fmas, a clamp, a truncation and
+// one byte load (the normalised position is only computed for samples that are kept). Clamping f to
+// [0, m-1] before truncating gives floor for f >= 0 and the border voxel outside, as the clamped
+// normalised position would. Count and write passes share this code, so they decide identically.
+typedef struct {
+  float4 a, b, fmax_;
+  int mx, mxy;
+} MaskWalk;
+
+inline MaskWalk mask_walk(const MarchParams* P, float3 o, float3 d, int mx, int my, int mz) {
+  MaskWalk W;
+  const float3 s = (float3)((float)mx, (float)my, (float)mz) / (P->hi - P->lo);
+  W.a = (float4)((o - P->lo) * s, 0.0f);
+  W.b = (float4)(d * s, 0.0f);
+  W.fmax_ = (float4)((float)(mx - 1), (float)(my - 1), (float)(mz - 1), 0.0f);
+  W.mx = mx;
+  W.mxy = mx * my;
+  return W;
+}
+
+inline bool occupied_at(global const uchar* mask, const MaskWalk* W, float t) {
+  const float4 f = clamp(fma((float4)(t), W->b, W->a), (float4)(0.0f), W->fmax_);
+  const int4 v = convert_int4(f);  // truncation: f >= 0
+  return mask[v.z * W->mxy + v.y * W->mx + v.x] != 0;
 }
 
 #define MARCH_ARGS                                                                                            \
@@ -87,11 +107,13 @@ kernel void march_count(MARCH_ARGS, global int* counts) {
   const float jitter = jitter_on ? hash_uniform(seed, (uint)r) : 0.0f;
   float t0;
   const int n = ray_candidates(&P, o, d, jitter, &t0);
-  int c = 0;
-  for (int i = 0; i < n; ++i) {
-    if (has_mask && !occupied(mask, mx, my, mz, normalised_at(&P, o, d, t0 + P.step * ((float)i + jitter)))) continue;
-    ++c;
+  if (!has_mask) {
+    counts[r] = n;
+    return;
   }
+  const MaskWalk W = mask_walk(&P, o, d, mx, my, mz);
+  int c = 0;
+  for (int i = 0; i < n; ++i) c += occupied_at(mask, &W, t0 + P.step * ((float)i + jitter)) ? 1 : 0;
   counts[r] = c;
 }
 
@@ -107,10 +129,11 @@ kernel void march_write(MARCH_ARGS, global const int* offsets, global float* pos
   float t0;
   const int n = ray_candidates(&P, o, d, jitter, &t0);
   int k = offsets[r];
+  const MaskWalk W = mask_walk(&P, o, d, mx, my, mz);
   for (int i = 0; i < n; ++i) {
     const float t = t0 + P.step * ((float)i + jitter);
+    if (has_mask && !occupied_at(mask, &W, t)) continue;
     const float3 q = normalised_at(&P, o, d, t);
-    if (has_mask && !occupied(mask, mx, my, mz, q)) continue;
     vstore3(q, k, pos);
     tvals[k] = t;
     deltas[k] = delta;

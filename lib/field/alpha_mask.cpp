@@ -30,7 +30,8 @@ AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::ar
   m.voxels = std::make_shared<host::Buffer>(n, "alpha mask");
   const std::string opts = "-DRANK0=" + std::to_string(density.rank[0]) + " -DRANK1=" +
                            std::to_string(density.rank[1]) + " -DRANK2=" + std::to_string(density.rank[2]);
-  host::launch_with_local("grid", "alpha_mask_eval", opts, {n}, host::Range(0), density.params, raw->mem(), int(res[0]), int(res[1]), int(res[2]),
+  // Groups of 64 voxels (an explicit size: PoCL picks awkward divisors of odd voxel counts).
+  host::launch_with_local("grid", "alpha_mask_eval", opts, {n}, {64}, density.params, raw->mem(), int(res[0]), int(res[1]), int(res[2]),
          density.res[0], density.res[1], density.res[2], density.rank[0], density.rank[1], density.rank[2], int(act),
          step, threshold);
   launch("grid", "alpha_mask_dilate", {n}, raw->mem(), m.voxels->mem(), int(res[0]), int(res[1]), int(res[2]));

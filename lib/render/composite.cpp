@@ -9,7 +9,13 @@
 namespace stylerf::render {
 
 using host::Error;
-using host::launch;
+using host::launch_with_local;
+
+// Work-group size for per-ray and per-row kernels. Left to PoCL, a ray count like 4096 becomes two groups
+// of 2048 (one per core: the slower core, or one descheduled by other load, sets the time) and an odd
+// count like a sample total becomes groups of a few items (per-group overhead); 64 gives the pthread
+// device many groups to balance. Global sizes are rounded up; the kernels guard their index.
+constexpr size_t kGroup = 64;
 
 // Stand-in for an absent optional float input (kernels get a valid buffer and a has_* flag).
 static const Tensor& absent() {
@@ -34,7 +40,7 @@ Composited composite_forward(const Samples& s, const Tensor& sigma, const Tensor
   out.acc = Tensor({R}, "accumulated opacity");
   out.depth = Tensor({R}, "depth");
   out.weights = Tensor({s.count}, "sample weights");
-  launch("render", "composite_forward", {size_t(R)}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
+  launch_with_local("render", "composite_forward", "", {size_t(R)}, {kGroup}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
          background.defined() ? background : absent(), int(background.defined()), out.value, out.acc, out.depth,
          out.weights);
   return out;
@@ -53,7 +59,7 @@ CompositeGrads composite_backward(const Samples& s, const Tensor& sigma, const T
   g.dsigma = Tensor({s.count}, "dsigma");
   g.dvalues = Tensor({s.count, C}, "dvalues");
   auto opt = [](const Tensor& t) -> const Tensor& { return t.defined() ? t : absent(); };
-  launch("render", "composite_backward", {size_t(R)}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
+  launch_with_local("render", "composite_backward", "", {size_t(R)}, {kGroup}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
          opt(background), int(background.defined()), opt(dvalue), int(dvalue.defined()), opt(dacc),
          int(dacc.defined()), opt(ddepth), int(ddepth.defined()), g.dsigma, g.dvalues);
   return g;
@@ -64,12 +70,12 @@ Kept keep_by_weight(const Samples& s, const Tensor& weights, float threshold) {
   const int R = static_cast<int>(s.ray_count.numel());
   Kept k;
   k.ray_count = Tensor({R}, "kept counts");
-  launch("render", "keep_count", {size_t(R)}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_count);
+  launch_with_local("render", "keep_count", "", {size_t(R)}, {kGroup}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_count);
   std::vector<int32_t> offsets;
   k.count = exclusive_scan(int_tensor_to_host(k.ray_count), offsets);
   k.ray_offset = int_tensor_from_host(offsets, "kept offsets");
   k.index = Tensor({k.count}, "kept sample index");
-  launch("render", "keep_write", {size_t(R)}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_offset,
+  launch_with_local("render", "keep_write", "", {size_t(R)}, {kGroup}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_offset,
          k.index);
   return k;
 }
@@ -80,7 +86,7 @@ Tensor gather_rows(const Tensor& src, const Tensor& index, int64_t count) {
   host::Shape shape = src.shape();
   shape[0] = count;
   Tensor out(shape, "gathered rows");
-  launch("render", "gather_rows", {size_t(count)}, src, index, out, int(count), int(C));
+  launch_with_local("render", "gather_rows", "", {size_t(count)}, {kGroup}, src, index, out, int(count), int(C));
   return out;
 }
 
@@ -90,7 +96,7 @@ Tensor scatter_rows(const Tensor& rows, const Tensor& index, int64_t total) {
   host::Shape shape = rows.shape();
   shape[0] = total;
   Tensor out = Tensor::zeros(shape, "scattered rows");
-  launch("render", "scatter_rows", {size_t(K)}, rows, index, out, int(K), int(C));
+  launch_with_local("render", "scatter_rows", "", {size_t(K)}, {kGroup}, rows, index, out, int(K), int(C));
   return out;
 }
 

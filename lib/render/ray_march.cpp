@@ -9,7 +9,13 @@
 namespace stylerf::render {
 
 using host::Error;
-using host::launch;
+using host::launch_with_local;
+
+// Work-group size for per-ray and per-row kernels. Left to PoCL, a ray count like 4096 becomes two groups
+// of 2048 (one per core: the slower core, or one descheduled by other load, sets the time) and an odd
+// count like a sample total becomes groups of a few items (per-group overhead); 64 gives the pthread
+// device many groups to balance. Global sizes are rounded up; the kernels guard their index.
+constexpr size_t kGroup = 64;
 
 float step_for_grid(const std::array<float, 3>& lo, const std::array<float, 3>& hi, const std::array<int, 3>& res,
                     float step_ratio) {
@@ -47,7 +53,7 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
 
   Samples s;
   Tensor counts({R}, "ray sample counts");
-  launch("render", "march_count", {size_t(R)}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
+  launch_with_local("render", "march_count", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
          cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz, counts);
   std::vector<int32_t> offsets;
   const std::vector<int32_t> hc = int_tensor_to_host(counts);
@@ -59,7 +65,7 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
   s.t = Tensor({S}, "sample t");
   s.deltas = Tensor({S}, "sample deltas");
   s.ray_index = Tensor({S}, "sample ray index");
-  launch("render", "march_write", {size_t(R)}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
+  launch_with_local("render", "march_write", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
          cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz,
          s.ray_offset, s.positions, s.t, s.deltas, s.ray_index, cfg.delta_scale);
   return s;
