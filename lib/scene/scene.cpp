@@ -1,0 +1,101 @@
+#include "lib/scene/scene.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/scene/blender_loader.hpp"
+#include "lib/scene/llff_loader.hpp"
+
+namespace stylerf::scene {
+
+using host::Error;
+
+Camera Camera::resized(int new_width, int new_height) const {
+  Camera c = *this;
+  const float sx = float(new_width) / width, sy = float(new_height) / height;
+  c.fx *= sx;
+  c.cx *= sx;
+  c.fy *= sy;
+  c.cy *= sy;
+  c.width = new_width;
+  c.height = new_height;
+  return c;
+}
+
+bool Camera::project(const std::array<float, 3>& p, float& px, float& py) const {
+  // cam = R^T (p - t); R's columns are the camera axes in world space.
+  float d[3] = {p[0] - c2w[0][3], p[1] - c2w[1][3], p[2] - c2w[2][3]};
+  float cam[3];
+  for (int a = 0; a < 3; ++a) cam[a] = c2w[0][a] * d[0] + c2w[1][a] * d[1] + c2w[2][a] * d[2];
+  if (cam[2] >= 0) return false;
+  px = cx + fx * cam[0] / -cam[2];
+  py = cy - fy * cam[1] / -cam[2];
+  return true;
+}
+
+void check_pose_finite(const float c2w[3][4], const std::string& what) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c)
+      if (!std::isfinite(c2w[r][c]))
+        throw Error(what + ": camera pose has a non-finite entry (row " + std::to_string(r) + ", column " +
+                    std::to_string(c) + " is " + std::to_string(c2w[r][c]) + ")");
+}
+
+std::string Scene::describe() const {
+  std::ostringstream s;
+  s << std::setprecision(4);
+  s << "scene " << name << " (" << format << ") from " << root << "\n";
+  s << "  views: " << train.size() << " train, " << test.size() << " test, " << width() << "x" << height();
+  if (!train.empty()) {
+    const Camera& c = train[0].camera;
+    s << ", fx " << c.fx << " fy " << c.fy << " cx " << c.cx << " cy " << c.cy;
+  }
+  s << "\n  rays: near " << near << " far " << far << (effects.ndc ? " (NDC parameter)" : " (world units)")
+    << "; box [" << aabb[0][0] << ", " << aabb[0][1] << ", " << aabb[0][2] << "] .. [" << aabb[1][0] << ", "
+    << aabb[1][1] << ", " << aabb[1][2] << "]" << (effects.ndc ? " in NDC" : "") << "\n";
+  s << "  effects on:";
+  bool any = false;
+  if (effects.ndc) {
+    s << " NDC rays (forward-facing; NDC near plane z = -" << ndc_near << ")";
+    any = true;
+  }
+  if (effects.background) {
+    s << (any ? "," : "") << " background colour (" << effects.background_rgb[0] << ", " << effects.background_rgb[1]
+      << ", " << effects.background_rgb[2] << ") (images have alpha)";
+    any = true;
+  }
+  if (effects.view_dependence) {
+    s << (any ? "," : "") << " view-dependent colour";
+    any = true;
+  }
+  if (!any) s << " none";
+  s << "\n";
+  for (const auto& n : notes) s << "  note: " << n << "\n";
+  return s.str();
+}
+
+Scene load_scene(const std::string& dir, const LoadOptions& opts) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw Error("scene directory " + dir + " does not exist");
+  if (opts.downsample < 1) throw Error("--downsample must be at least 1 (got " + std::to_string(opts.downsample) + ")");
+  Scene s;
+  if (fs::exists(fs::path(dir) / "transforms_train.json", ec)) {
+    s = load_blender(dir, opts);
+  } else if (fs::exists(fs::path(dir) / "poses_bounds.npy", ec)) {
+    s = load_llff(dir, opts);
+  } else if (fs::exists(fs::path(dir) / "transforms_test.json", ec) || fs::exists(fs::path(dir) / "transforms_val.json", ec)) {
+    throw Error("Blender scene: " + (fs::path(dir) / "transforms_train.json").string() + " is missing");
+  } else {
+    throw Error("scene directory " + dir +
+                " has neither transforms_train.json (Blender format) nor poses_bounds.npy (LLFF format)");
+  }
+  if (opts.log) *opts.log << s.describe() << std::flush;
+  return s;
+}
+
+}  // namespace stylerf::scene
