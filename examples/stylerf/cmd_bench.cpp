@@ -1,8 +1,9 @@
-// stylerf bench <gemm|conv|ops> [--json FILE] [--repeats N] [--quick] [--device D]
+// stylerf bench <gemm|conv|ops|field|density> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "bench/bench_density.hpp"
 #include "bench/bench_field.hpp"
 #include "examples/stylerf/commands.hpp"
 
@@ -12,7 +13,7 @@ namespace {
 int run_bench(int argc, char** argv) {
   std::string which, device;
   stylerf::bench::BenchOptions opt;
-  po::options_description desc("stylerf bench <gemm|conv|ops> [options]");
+  po::options_description desc("stylerf bench <gemm|conv|ops|field|density> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
@@ -30,7 +31,8 @@ int run_bench(int argc, char** argv) {
     std::cout << desc << "\n  gemm  GEMM GFLOP/s: CLBlast defaults, CLBlast tuned, own kernel, OpenBLAS\n"
               << "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
               << "  ops   perf mode of every NN op kernel (GB/s)\n"
-              << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n";
+              << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n"
+              << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
@@ -39,7 +41,8 @@ int run_bench(int argc, char** argv) {
   if (which == "conv") return stylerf::bench::bench_conv(opt);
   if (which == "ops") return stylerf::bench::bench_ops(opt);
   if (which == "field") return stylerf::bench::bench_field(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field)\n";
+  if (which == "density") return stylerf::bench::bench_density(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);

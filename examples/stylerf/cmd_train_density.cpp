@@ -1,0 +1,163 @@
+// stylerf train-density --scene DIR [--downsample N] [--iters N] ... -o CKPT: the density stage (TensoRF
+// VM grids on RGB). Prints the scene and the effects switched on, the schedule, progress lines, and the
+// held-out PSNR at the end; checkpoints are written atomically every --ckpt-every steps and at the end.
+#include <boost/program_options.hpp>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "host/error.hpp"
+#include "host/runtime.hpp"
+#include "lib/scene/scene.hpp"
+#include "lib/train/density_trainer.hpp"
+
+namespace po = boost::program_options;
+
+namespace stylerf::cli {
+scene::Switch parse_switch(const std::string& v, const std::string& flag);  // cmd_scene_info.cpp
+}
+
+namespace {
+
+using stylerf::host::Error;
+
+// "27000000", "300^3" -> voxel count.
+int64_t parse_voxels(const std::string& s, const std::string& flag) {
+  try {
+    size_t used = 0;
+    const auto caret = s.find('^');
+    if (caret != std::string::npos) {
+      if (s.substr(caret) != "^3") throw std::invalid_argument(s);
+      const long long side = std::stoll(s.substr(0, caret), &used);
+      if (used != caret || side < 2) throw std::invalid_argument(s);
+      return side * side * side;
+    }
+    const long long v = std::stoll(s, &used);
+    if (used != s.size() || v < 8) throw std::invalid_argument(s);
+    return v;
+  } catch (const std::exception&) {
+    throw Error(flag + ": '" + s + "' is not a voxel count (e.g. 27000000 or 300^3)");
+  }
+}
+
+std::array<int, 3> parse_rank(const std::string& s, const std::string& flag) {
+  const auto v = stylerf::train::parse_int_list(s, flag);
+  if (v.size() != 3 || v[0] < 1 || v[1] < 1 || v[2] < 1) throw Error(flag + ": expected three positive ranks, e.g. 16,4,4");
+  return {v[0], v[1], v[2]};
+}
+
+int run_train_density(int argc, char** argv) {
+  namespace train = stylerf::train;
+  std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
+                        app_rank;
+  int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
+  uint64_t seed = 0;
+  float lr_grid = -1, lr_net = -1;
+  bool view_dep = false, resume = false, no_mask = false, profile = false;
+  po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
+  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
+      "output,o", po::value(&out), "checkpoint file to write (safetensors)")(
+      "downsample", po::value(&downsample)->default_value(1), "image downsample factor")(
+      "iters", po::value(&iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
+      "batch", po::value(&batch)->default_value(4096), "rays per step")(
+      "ndc", po::value(&ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
+      "view-dependence", po::bool_switch(&view_dep), "view-dependent colour (off unless asked for)")(
+      "density-activation", po::value(&act), "relu | softplus (default: TensoRF's config for the format)")(
+      "final-voxels", po::value(&final_voxels), "final grid voxels, e.g. 300^3 (Blender default) or 640^3 (LLFF)")(
+      "init-voxels", po::value(&init_voxels), "initial grid voxels (default 128^3)")(
+      "upsample-at", po::value(&upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
+      "mask-at", po::value(&mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
+      "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
+      "density-rank", po::value(&density_rank), "density ranks per mode, e.g. 16,4,4")(
+      "app-rank", po::value(&app_rank), "appearance ranks per mode, e.g. 48,12,12")(
+      "lr-grid", po::value(&lr_grid), "grid learning rate (default 0.02)")(
+      "lr-net", po::value(&lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
+      "seed", po::value(&seed)->default_value(0), "random seed (init, rays, jitter)")(
+      "resume", po::bool_switch(&resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
+      "log-every", po::value(&log_every)->default_value(100), "iterations between progress lines")(
+      "ckpt-every", po::value(&ckpt_every)->default_value(1000), "iterations between checkpoints")(
+      "eval-views", po::value(&eval_views)->default_value(0), "held-out views for the final PSNR (0: all)")(
+      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "profile", po::bool_switch(&profile), "print per-kernel times at the end");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || dir.empty() || out.empty()) {
+    std::cout << desc;
+    return (dir.empty() || out.empty()) && !vm.count("help") ? 2 : 0;
+  }
+  if (iters < 0 || batch < 1 || log_every < 0) throw Error("--iters, --batch and --log-every must be positive");
+  stylerf::cli::init_runtime(device, profile);
+
+  stylerf::scene::LoadOptions lo;
+  lo.downsample = downsample;
+  lo.ndc = stylerf::cli::parse_switch(ndc, "--ndc");
+  lo.view_dependence = view_dep;
+  lo.log = &std::cout;
+  const auto scene = stylerf::scene::load_scene(dir, lo);
+
+  std::unique_ptr<train::DensityTrainer> trainer;
+  if (resume) {
+    const auto ck = stylerf::io::load_checkpoint(out, "density");
+    if (ck.meta.contains("scene") && ck.meta["scene"].value("name", scene.name) != scene.name)
+      throw Error("--resume: checkpoint " + out + " was trained on scene '" + ck.meta["scene"].value("name", "") +
+                  "', not '" + scene.name + "'");
+    trainer = std::make_unique<train::DensityTrainer>(scene, ck);
+    std::cout << "resuming from " << out << " at iteration " << trainer->iteration() << "\n";
+    if (iters > 0) {
+      // Extending (or shortening) a resumed run: only the horizon changes.
+      const int had = trainer->config().schedule.iters;
+      if (iters != had) std::cout << "  --iters " << iters << " replaces the checkpoint's " << had << " (lr decay horizon)\n";
+      trainer->set_total_iters(iters);
+    }
+  } else {
+    auto cfg = train::default_density_config(scene);
+    if (iters > 0) cfg.schedule.iters = iters;
+    cfg.batch = batch;
+    cfg.seed = seed;
+    if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);
+    if (!final_voxels.empty()) cfg.schedule.voxels_final = parse_voxels(final_voxels, "--final-voxels");
+    if (!init_voxels.empty()) cfg.schedule.voxels_init = parse_voxels(init_voxels, "--init-voxels");
+    if (vm.count("upsample-at")) cfg.schedule.upsample_at = train::parse_int_list(upsample_at, "--upsample-at");
+    if (vm.count("mask-at")) cfg.schedule.mask_at = train::parse_int_list(mask_at, "--mask-at");
+    if (no_mask) cfg.alpha_mask = false;
+    if (!density_rank.empty()) cfg.model.density_rank = parse_rank(density_rank, "--density-rank");
+    if (!app_rank.empty()) cfg.model.app_rank = parse_rank(app_rank, "--app-rank");
+    if (lr_grid > 0) cfg.lr_grid = lr_grid;
+    if (lr_net > 0) cfg.lr_net = lr_net;
+    trainer = std::make_unique<train::DensityTrainer>(scene, cfg);
+  }
+  const auto& cfg = trainer->config();
+  std::cout << "density stage: " << trainer->model().describe() << "\n"
+            << "  activation " << (cfg.model.act == stylerf::field::DensityActivation::Relu ? "relu" : "softplus")
+            << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", background "
+            << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
+            << "  " << cfg.schedule.describe() << "\n"
+            << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
+            << " betas (" << cfg.beta1 << ", " << cfg.beta2 << "), L1 " << cfg.l1_initial << " -> " << cfg.l1_rest
+            << ", TV density " << cfg.tv_density << " app " << cfg.tv_app << std::endl;
+
+  train::RunOptions ro;
+  ro.log = &std::cout;
+  ro.log_every = log_every;
+  ro.checkpoint = out;
+  ro.checkpoint_every = ckpt_every;
+  ro.scene_meta = train::scene_meta(dir, lo, scene);
+  const auto sum = train::run_density_training(*trainer, ro);
+  std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
+            << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9) << " it/s); checkpoint "
+            << out << "\n";
+  if (!scene.test.empty()) {
+    const auto scores = train::evaluate_views(trainer->model(), scene, eval_views, false);
+    std::cout << "test PSNR " << std::setprecision(2) << train::mean_psnr(scores) << " dB over " << scores.size()
+              << " held-out views" << std::endl;
+  }
+  if (profile) std::cout << stylerf::host::Runtime::instance().timing_report();
+  return 0;
+}
+
+stylerf::cli::Register reg("train-density", "density stage: train TensoRF VM grids on a scene's RGB images",
+                           run_train_density);
+}  // namespace

@@ -1,0 +1,419 @@
+#include "lib/train/density_trainer.hpp"
+
+#include <chrono>
+#include <filesystem>
+#include <iomanip>
+#include <ostream>
+#include <cmath>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/eval/metrics.hpp"
+#include "lib/nn/ops.hpp"
+
+namespace stylerf::train {
+
+using host::Error;
+using nlohmann::json;
+
+// ---- config ------------------------------------------------------------------------------------------------
+json DensityTrainConfig::to_json() const {
+  const Schedule& s = schedule;
+  return json{{"model", model.to_json()},
+              {"schedule",
+               {{"iters", s.iters},
+                {"upsample_at", s.upsample_at},
+                {"voxels_init", s.voxels_init},
+                {"voxels_final", s.voxels_final},
+                {"mask_at", s.mask_at},
+                {"lr_decay_ratio", s.lr_decay_ratio},
+                {"lr_reset_on_upsample", s.lr_reset_on_upsample}}},
+              {"batch", batch},
+              {"lr_grid", lr_grid},
+              {"lr_net", lr_net},
+              {"beta1", beta1},
+              {"beta2", beta2},
+              {"l1_initial", l1_initial},
+              {"l1_rest", l1_rest},
+              {"tv_density", tv_density},
+              {"tv_app", tv_app},
+              {"alpha_mask", alpha_mask},
+              {"reset_optimizer_on_upsample", reset_optimizer_on_upsample},
+              {"seed", seed}};
+}
+
+DensityTrainConfig DensityTrainConfig::from_json(const json& j) {
+  DensityTrainConfig c;
+  c.model = DensityModelConfig::from_json(j.at("model"));
+  const json& s = j.at("schedule");
+  c.schedule.iters = s.at("iters").get<int>();
+  c.schedule.upsample_at = s.at("upsample_at").get<std::vector<int>>();
+  c.schedule.voxels_init = s.at("voxels_init").get<int64_t>();
+  c.schedule.voxels_final = s.at("voxels_final").get<int64_t>();
+  c.schedule.mask_at = s.at("mask_at").get<std::vector<int>>();
+  c.schedule.lr_decay_ratio = s.at("lr_decay_ratio").get<float>();
+  c.schedule.lr_reset_on_upsample = s.at("lr_reset_on_upsample").get<bool>();
+  c.batch = j.at("batch").get<int>();
+  c.lr_grid = j.at("lr_grid").get<float>();
+  c.lr_net = j.at("lr_net").get<float>();
+  c.beta1 = j.at("beta1").get<float>();
+  c.beta2 = j.at("beta2").get<float>();
+  c.l1_initial = j.at("l1_initial").get<float>();
+  c.l1_rest = j.at("l1_rest").get<float>();
+  c.tv_density = j.at("tv_density").get<float>();
+  c.tv_app = j.at("tv_app").get<float>();
+  c.alpha_mask = j.at("alpha_mask").get<bool>();
+  c.reset_optimizer_on_upsample = j.at("reset_optimizer_on_upsample").get<bool>();
+  c.seed = j.at("seed").get<uint64_t>();
+  return c;
+}
+
+DensityTrainConfig default_density_config(const scene::Scene& scene) {
+  DensityTrainConfig c;
+  if (scene.format == "blender") {
+    c.model.density_rank = {16, 16, 16};
+    c.model.app_rank = {48, 48, 48};
+    c.model.act = field::DensityActivation::Softplus;
+    c.schedule.iters = 30000;
+    c.schedule.voxels_final = 300LL * 300 * 300;
+    c.schedule.mask_at = {2000, 4000};
+    c.l1_initial = 8e-5f;
+    c.l1_rest = 4e-5f;
+  } else {
+    c.model.density_rank = {16, 4, 4};
+    c.model.app_rank = {48, 12, 12};
+    c.model.act = field::DensityActivation::Relu;
+    c.schedule.iters = 25000;
+    c.schedule.voxels_final = 640LL * 640 * 640;
+    c.schedule.mask_at = {2500};
+    c.l1_initial = c.l1_rest = 0.0f;
+    c.tv_density = 1.0f;
+    c.tv_app = 1.0f;
+  }
+  c.model.view_dependent = scene.effects.view_dependence;
+  c.schedule.upsample_at = {2000, 3000, 4000, 5500};
+  c.schedule.voxels_init = 128LL * 128 * 128;
+  return c;
+}
+
+// ---- trainer -----------------------------------------------------------------------------------------------
+static std::array<int, 3> res_for(const DensityModel& m, int64_t voxels) {
+  return field::grid_res_for_voxels(m.box_size(), voxels);
+}
+
+// The ray sampler's stream for a run resumed at `iteration` (std::mt19937_64 state is not checkpointed:
+// a resumed run draws a fresh, still deterministic, stream).
+static uint64_t sampler_seed(uint64_t seed, int iteration) { return seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration); }
+
+DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConfig& cfg) : scene_(&scene), cfg_(cfg) {
+  cfg_.schedule.validate();
+  if (cfg_.batch < 1) throw Error("train-density: batch must be >= 1");
+  DensityModel probe;
+  for (int a = 0; a < 3; ++a) probe.box_lo[a] = scene.aabb[0][a], probe.box_hi[a] = scene.aabb[1][a];
+  model_ = DensityModel::create(scene, cfg_.model, res_for(probe, cfg_.schedule.voxels_init), cfg_.seed);
+  l1_weight_ = cfg_.l1_initial;
+  init_optimizer();
+  sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, 0));
+}
+
+DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& ck) : scene_(&scene) {
+  try {
+    const json& t = ck.meta.at("trainer");
+    cfg_ = DensityTrainConfig::from_json(t.at("config"));
+    iteration_ = t.at("iteration").get<int>();
+    adam_step_ = t.at("adam_step").get<int>();
+    l1_weight_ = t.at("l1_weight").get<float>();
+  } catch (const json::exception& e) {
+    throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
+  }
+  model_ = load_model(ck);
+  grads_ = DensityGrads::zeros_like(model_);
+  m_.clear();
+  v_.clear();
+  for (const auto& p : named_params(model_)) {
+    m_.push_back(ck.device("adam.m." + p.name, p.param->shape()));
+    v_.push_back(ck.device("adam.v." + p.name, p.param->shape()));
+  }
+  sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, iteration_));
+}
+
+void DensityTrainer::init_optimizer() {
+  grads_ = DensityGrads::zeros_like(model_);
+  m_.clear();
+  v_.clear();
+  for (const auto& p : named_params(model_)) {
+    m_.push_back(Tensor::zeros(p.param->shape(), "Adam m"));
+    v_.push_back(Tensor::zeros(p.param->shape(), "Adam v"));
+  }
+  adam_step_ = 0;
+}
+
+StepStats DensityTrainer::step(bool with_reg) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StepStats st;
+  const int k = iteration_ + 1;
+  const scene::Rays rays = sampler_->next(cfg_.batch);
+  const int64_t R = cfg_.batch;
+  Tensor o = Tensor::from_host(rays.origins, {R, 3}, "batch origins");
+  Tensor d = Tensor::from_host(rays.directions, {R, 3}, "batch directions");
+  Tensor target = Tensor::from_host(rays.rgb, {R, 3}, "batch colours");
+
+  RenderCache cache;
+  RayOutputs out = render_rays(model_, o, d, true, static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k)), &cache);
+  st.samples = out.samples;
+  st.kept = out.kept;
+  const float mse = nn::mse_forward(out.rgb, target).to_host()[0];
+  if (!std::isfinite(mse))
+    throw Error("train-density: the loss is " + std::to_string(mse) + " at iteration " + std::to_string(k) +
+                " (diverged; try a lower --lr-grid or another --seed)");
+  st.mse = mse;
+  st.psnr = -10.0 * std::log10(std::max(double(mse), 1e-12));
+
+  // Gradients: data term through the renderer, then the regularisers straight into the grid gradients.
+  Tensor drgb = nn::mse_backward(out.rgb, target, 1.0f);
+  grads_.density.zero();
+  grads_.app.zero();
+  render_rays_backward(model_, cache, drgb, grads_);
+  const float reg_scale = cfg_.schedule.reg_scale(k);
+  // TensoRF: TV_loss_* = sum_planes TVLoss(plane) * 1e-2 with TVLoss = 2 (mean_h + mean_w).
+  const float tvd = cfg_.tv_density * reg_scale * 2e-2f, tva = cfg_.tv_app * reg_scale * 2e-2f;
+  if (l1_weight_ > 0) field::l1_backward(model_.density, l1_weight_, grads_.density);
+  if (tvd > 0) field::tv_backward(model_.density, tvd, grads_.density);
+  if (tva > 0) field::tv_backward(model_.app, tva, grads_.app);
+  if (with_reg) {
+    st.reg = 0;
+    if (l1_weight_ > 0) st.reg += l1_weight_ * field::l1_forward(model_.density);
+    if (tvd > 0) st.reg += tvd * field::tv_forward(model_.density);
+    if (tva > 0) st.reg += tva * field::tv_forward(model_.app);
+  }
+
+  ++adam_step_;
+  const float lr_scale = cfg_.schedule.lr_scale(k);
+  auto params = named_params(model_);
+  auto grads = grad_list(grads_);
+  for (size_t i = 0; i < params.size(); ++i) {
+    nn::AdamConfig ac;
+    ac.lr = (params[i].group == 0 ? cfg_.lr_grid : cfg_.lr_net) * lr_scale;
+    ac.beta1 = cfg_.beta1;
+    ac.beta2 = cfg_.beta2;
+    nn::adam_step(*params[i].param, *grads[i], m_[i], v_[i], adam_step_, ac);
+  }
+  iteration_ = k;
+  st.iteration = k;
+  on_step_done(st);
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return st;
+}
+
+void DensityTrainer::on_step_done(StepStats& st) {
+  const int k = iteration_;
+  const Schedule& s = cfg_.schedule;
+  if (cfg_.alpha_mask && s.mask_at_step(k)) {
+    // TensoRF: the mask at the grid resolution while that stays under 256^3 voxels.
+    const auto r = model_.res();
+    const int64_t voxels = int64_t(r[0]) * r[1] * r[2];
+    const auto mres = voxels < 256LL * 256 * 256 ? r : res_for(model_, 256LL * 256 * 256);
+    model_.update_alpha_mask(mres);
+    std::ostringstream e;
+    e << "alpha mask " << mres[0] << "x" << mres[1] << "x" << mres[2] << ": "
+      << 100.0 * double(model_.mask.occupied) / (double(mres[0]) * mres[1] * mres[2]) << "% occupied";
+    if (s.first_mask_step(k)) {
+      l1_weight_ = cfg_.l1_rest;
+      if (model_.mask.empty()) {
+        e << " (empty: box kept, mask not used)";
+        model_.mask = field::AlphaMask{};
+      } else {
+        // Shrink the box to the occupied region; the Adam moments follow the grids by the same crop.
+        const GridCrop c = model_.occupied_crop();
+        const field::VMGrid old_density = model_.density, old_app = model_.app;
+        model_.apply_crop(c);
+        m_[0] = crop_like_grid(old_density, m_[0], c);
+        v_[0] = crop_like_grid(old_density, v_[0], c);
+        m_[1] = crop_like_grid(old_app, m_[1], c);
+        v_[1] = crop_like_grid(old_app, v_[1], c);
+        grads_ = DensityGrads::zeros_like(model_);
+        const auto nr = model_.res();
+        e << "; box shrunk to [" << model_.box_lo[0] << ", " << model_.box_lo[1] << ", " << model_.box_lo[2] << "] .. ["
+          << model_.box_hi[0] << ", " << model_.box_hi[1] << ", " << model_.box_hi[2] << "], grid " << nr[0] << "x"
+          << nr[1] << "x" << nr[2];
+        // The mask was built over the old box: rebuild it over the new one.
+        const int64_t nv = int64_t(nr[0]) * nr[1] * nr[2];
+        model_.update_alpha_mask(nv < 256LL * 256 * 256 ? nr : res_for(model_, 256LL * 256 * 256));
+      }
+    } else if (model_.mask.empty()) {
+      e << " (empty: not used)";
+      model_.mask = field::AlphaMask{};
+    }
+    st.events.push_back(e.str());
+  }
+  if (s.upsample_at_step(k)) {
+    const auto list = s.voxel_list();
+    size_t idx = 0;
+    while (s.upsample_at[idx] != k) ++idx;
+    const auto nr = res_for(model_, list[idx]);
+    const field::VMGrid old_density = model_.density, old_app = model_.app;
+    model_.upsample(nr);
+    if (cfg_.reset_optimizer_on_upsample) {
+      init_optimizer();  // TensoRF builds a new Adam here
+    } else {
+      GridCrop c;
+      c.res = nr;
+      m_[0] = crop_like_grid(old_density, m_[0], c);
+      v_[0] = crop_like_grid(old_density, v_[0], c);
+      m_[1] = crop_like_grid(old_app, m_[1], c);
+      v_[1] = crop_like_grid(old_app, v_[1], c);
+      grads_ = DensityGrads::zeros_like(model_);
+    }
+    std::ostringstream e;
+    e << "upsampled to " << nr[0] << "x" << nr[1] << "x" << nr[2] << " (" << model_.max_samples << " samples/ray max)"
+      << (cfg_.reset_optimizer_on_upsample ? ", optimiser reset" : "");
+    st.events.push_back(e.str());
+  }
+}
+
+void DensityTrainer::save(const std::string& path, const json& scene_meta) const {
+  io::Checkpoint ck;
+  ck.kind = "density";
+  save_model(ck, model_);
+  ck.meta["scene"] = scene_meta;
+  ck.meta["trainer"] = {{"config", cfg_.to_json()},
+                        {"iteration", iteration_},
+                        {"adam_step", adam_step_},
+                        {"l1_weight", l1_weight_}};
+  auto params = named_params(const_cast<DensityModel&>(model_));
+  for (size_t i = 0; i < params.size(); ++i) {
+    ck.put("adam.m." + params[i].name, m_[i]);
+    ck.put("adam.v." + params[i].name, v_[i]);
+  }
+  io::save_checkpoint(path, ck);
+}
+
+// ---- evaluation --------------------------------------------------------------------------------------------
+static std::vector<float> to_planar(const std::vector<float>& hwc, int w, int h) {
+  std::vector<float> out(hwc.size());
+  const size_t plane = size_t(w) * h;
+  for (size_t i = 0; i < plane; ++i)
+    for (int c = 0; c < 3; ++c) out[c * plane + i] = hwc[3 * i + c];
+  return out;
+}
+
+std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene& scene, int max_views, bool ssim) {
+  const int n = static_cast<int>(scene.test.size());
+  std::vector<int> ids;
+  if (max_views <= 0 || max_views >= n) {
+    for (int i = 0; i < n; ++i) ids.push_back(i);
+  } else {
+    for (int i = 0; i < max_views; ++i) ids.push_back(static_cast<int>(int64_t(i) * n / max_views));
+  }
+  std::vector<ViewScore> out;
+  for (int id : ids) {
+    const scene::View& v = scene.test[size_t(id)];
+    if (v.rgb.empty()) throw Error("evaluate: test view " + v.image_path + " has no image loaded");
+    const ViewRender r = render_camera(m, scene, v.camera);
+    ViewScore s;
+    s.view = id;
+    s.psnr = eval::psnr(r.rgb, v.rgb);
+    if (ssim)
+      s.ssim = eval::ssim(to_planar(r.rgb, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
+    out.push_back(s);
+  }
+  return out;
+}
+
+double mean_psnr(const std::vector<ViewScore>& v) {
+  double s = 0;
+  for (const auto& x : v) s += x.psnr;
+  return v.empty() ? 0.0 : s / double(v.size());
+}
+
+}  // namespace stylerf::train
+
+namespace stylerf::train {
+
+json scene_meta(const std::string& dir, const scene::LoadOptions& opt, const scene::Scene& s) {
+  std::error_code ec;
+  const auto abs = std::filesystem::absolute(dir, ec);
+  return json{{"dir", ec ? dir : abs.string()},
+              {"name", s.name},
+              {"format", s.format},
+              {"downsample", opt.downsample},
+              {"ndc", s.effects.ndc},
+              {"view_dependence", s.effects.view_dependence}};
+}
+
+std::string scene_dir_from_meta(const json& meta) {
+  if (!meta.contains("dir")) throw Error("checkpoint has no scene directory; pass --scene DIR");
+  return meta.at("dir").get<std::string>();
+}
+
+scene::LoadOptions load_options_from_meta(const json& meta) {
+  scene::LoadOptions o;
+  o.downsample = meta.value("downsample", 1);
+  o.ndc = meta.value("ndc", false) ? scene::Switch::on : scene::Switch::off;
+  o.view_dependence = meta.value("view_dependence", false);
+  return o;
+}
+
+static std::string hms(double s) {
+  if (!std::isfinite(s) || s < 0) return "?";
+  const long t = std::lround(s);
+  std::ostringstream o;
+  if (t >= 3600) o << t / 3600 << "h";
+  if (t >= 60) o << (t / 60) % 60 << "m";
+  o << t % 60 << "s";
+  return o.str();
+}
+
+RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
+  RunSummary sum;
+  const int total = trainer.config().schedule.iters;
+  const int batch = trainer.config().batch;
+  double window_s = 0, window_psnr = 0, window_mse = 0;
+  int64_t window_samples = 0, window_kept = 0;
+  int window_n = 0;
+  auto save = [&] {
+    if (opt.checkpoint.empty()) return;
+    trainer.save(opt.checkpoint, opt.scene_meta);
+  };
+  while (!trainer.done()) {
+    const bool report = opt.log && opt.log_every > 0 &&
+                        ((trainer.iteration() + 1) % opt.log_every == 0 || trainer.iteration() + 1 == total);
+    const StepStats st = trainer.step(report);
+    ++sum.iterations;
+    sum.seconds += st.seconds;
+    window_s += st.seconds;
+    window_psnr += st.psnr;
+    window_mse += st.mse;
+    window_samples += st.samples;
+    window_kept += st.kept;
+    ++window_n;
+    if (opt.log)
+      for (const auto& e : st.events) *opt.log << "  [" << st.iteration << "] " << e << std::endl;
+    if (report) {
+      const double per_it = window_s / window_n;
+      std::ostringstream l;
+      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << "  loss "
+        << window_mse / window_n + std::max(0.0, st.reg) << " (mse " << window_mse / window_n << ")"
+        << std::setprecision(2) << "  psnr " << window_psnr / window_n << "  samples/ray "
+        << std::setprecision(1) << double(window_samples) / (double(window_n) * batch) << " (kept "
+        << 100.0 * double(window_kept) / std::max<double>(1.0, double(window_samples)) << "%)  "
+        << std::setprecision(0) << batch / per_it << " rays/s  " << std::setprecision(2) << per_it
+        << " s/it  ETA " << hms(per_it * (total - st.iteration));
+      *opt.log << l.str() << std::endl;
+      sum.last_psnr = window_psnr / window_n;
+      window_s = window_psnr = window_mse = 0;
+      window_samples = window_kept = 0;
+      window_n = 0;
+    }
+    if (!opt.checkpoint.empty() && opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 &&
+        !trainer.done())
+      save();
+    if (opt.after_step && !opt.after_step(st)) break;
+    if (opt.time_budget_s > 0 && sum.seconds >= opt.time_budget_s) break;
+  }
+  if (window_n) sum.last_psnr = window_psnr / window_n;
+  save();
+  return sum;
+}
+
+}  // namespace stylerf::train

@@ -1,0 +1,122 @@
+// The density stage (TensoRF on RGB): the training loop, its configuration with TensoRF's defaults, and
+// checkpoints with the optimiser state for --resume.
+//
+// One step: 4096 random rays over every training pixel -> render_rays (jittered marching) -> loss =
+// MSE(rgb, target) + L1 * density-grid L1 + TV terms -> render_rays_backward -> Adam (betas 0.9, 0.99) with
+// grid lr 0.02 and network lr 1e-3 (TensoRF's lr_basis; DESIGN.md quotes 1e-4 for StyleRF's later network
+// stages, the density stage follows TensoRF), both scaled by Schedule::lr_scale.
+// Events after step k: alpha-mask update (the first one also shrinks the box to the occupied region,
+// carrying the Adam moments by the same crop, and switches L1 to its "rest" weight), then grid upsampling
+// (TensoRF rebuilds its optimiser there: the moments and Adam's step count restart from zero; with
+// reset_optimizer_on_upsample off the moments are resampled with the grid instead).
+// A non-finite loss stops training with an Error naming the iteration.
+#pragma once
+#include <functional>
+#include <memory>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "lib/scene/rays.hpp"
+#include "lib/scene/scene.hpp"
+#include "lib/train/density_model.hpp"
+#include "lib/train/schedule.hpp"
+
+namespace stylerf::train {
+
+struct DensityTrainConfig {
+  DensityModelConfig model;
+  Schedule schedule;
+  int batch = 4096;
+  float lr_grid = 0.02f, lr_net = 1e-3f, beta1 = 0.9f, beta2 = 0.99f;
+  float l1_initial = 8e-5f, l1_rest = 4e-5f;  // TensoRF Blender; LLFF 0
+  float tv_density = 0.0f, tv_app = 0.0f;     // TensoRF LLFF: 1.0 and 1.0 (times its 1e-2 and TVLoss's 2)
+  bool alpha_mask = true;
+  bool reset_optimizer_on_upsample = true;
+  uint64_t seed = 0;
+
+  nlohmann::json to_json() const;
+  static DensityTrainConfig from_json(const nlohmann::json& j);
+};
+
+// TensoRF's configs: lego.txt for Blender-format scenes (ours from make-scene included), flower.txt
+// (forward-facing LLFF) for LLFF scenes: ranks, activation, final voxels, mask iterations, L1/TV weights.
+DensityTrainConfig default_density_config(const scene::Scene& scene);
+
+struct StepStats {
+  int iteration = 0;         // completed steps
+  double mse = 0, psnr = 0;  // of the batch
+  double reg = -1;           // regulariser value (computed only when asked for; -1 otherwise)
+  int64_t samples = 0, kept = 0;
+  double seconds = 0;        // wall time of the step (events included)
+  std::vector<std::string> events;  // "alpha mask ...", "upsampled to ..."
+};
+
+class DensityTrainer {
+ public:
+  DensityTrainer(const scene::Scene& scene, const DensityTrainConfig& cfg);
+  // Restores model, optimiser state and iteration from a checkpoint written by save().
+  DensityTrainer(const scene::Scene& scene, const io::Checkpoint& ck);
+
+  // One step; with_reg also evaluates the regulariser value for reporting.
+  StepStats step(bool with_reg = false);
+  int iteration() const { return iteration_; }
+  bool done() const { return iteration_ >= cfg_.schedule.iters; }
+  const DensityModel& model() const { return model_; }
+  DensityModel& model() { return model_; }
+  const DensityTrainConfig& config() const { return cfg_; }
+  // Changes the run's length (a resumed run extended or shortened; the lr decay horizon moves with it).
+  void set_total_iters(int iters) {
+    cfg_.schedule.iters = iters;
+    cfg_.schedule.validate();
+  }
+  // `scene_meta` (how to reload the scene) is stored beside the model and optimiser state.
+  void save(const std::string& path, const nlohmann::json& scene_meta) const;
+
+ private:
+  void init_optimizer();
+  void on_step_done(StepStats& st);
+
+  const scene::Scene* scene_;
+  DensityTrainConfig cfg_;
+  DensityModel model_;
+  DensityGrads grads_;
+  std::vector<Tensor> m_, v_;  // Adam moments, named_params order
+  int adam_step_ = 0;          // Adam's step count (restarts when the optimiser is rebuilt)
+  int iteration_ = 0;
+  float l1_weight_ = 0;
+  std::unique_ptr<scene::RaySampler> sampler_;
+};
+
+// PSNR (and optionally SSIM) of rendered held-out views; `max_views` > 0 takes that many evenly spaced.
+struct ViewScore {
+  int view = 0;
+  double psnr = 0, ssim = -1;
+};
+std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene& scene, int max_views, bool ssim);
+double mean_psnr(const std::vector<ViewScore>& v);  // mean of per-view PSNR (as the NeRF papers report)
+
+// How a checkpoint finds its scene again: the directory (absolute) and the load options that matter.
+nlohmann::json scene_meta(const std::string& dir, const scene::LoadOptions& opt, const scene::Scene& s);
+std::string scene_dir_from_meta(const nlohmann::json& meta);
+scene::LoadOptions load_options_from_meta(const nlohmann::json& meta);
+
+// The loop around step(): progress lines (iteration, loss, batch PSNR, rays/s, ETA), events, periodic
+// atomic checkpoints, and an optional callback after every step (return false to stop early).
+struct RunOptions {
+  std::ostream* log = nullptr;
+  int log_every = 100;
+  std::string checkpoint;       // empty: none
+  int checkpoint_every = 1000;  // and always at the end
+  nlohmann::json scene_meta;
+  double time_budget_s = 0;     // > 0: stop after this much training time
+  std::function<bool(const StepStats&)> after_step;
+};
+struct RunSummary {
+  int iterations = 0;     // steps taken in this run
+  double seconds = 0;     // training time (checkpoint writes excluded)
+  double last_psnr = 0;   // mean batch PSNR over the last log window
+};
+RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt);
+
+}  // namespace stylerf::train
