@@ -11,6 +11,7 @@
 // keep the L and R panels of one launch in cache; for NT they bound the scratch buffer.
 #include <algorithm>
 #include <climits>
+#include <cstdint>
 #include <string>
 
 #include "host/error.hpp"
@@ -60,7 +61,14 @@ void gemm_own_with(const OwnGemmParams& params, Trans ta, Trans tb, int M, int N
                    size_t c_offset, int ldc) {
   params.validate();
   if (M <= 0 || N <= 0) return;
-  const int kc = (params.kc > 0 && params.kc < K) ? params.kc : std::max(K, 0);
+  int kc = (params.kc > 0 && params.kc < K) ? params.kc : std::max(K, 0);
+  // A small output has few tiles, so there is little panel reuse across work-items for K chunks to
+  // protect, while every chunk costs a launch (~0.3 ms on PoCL). Weight gradients of small layers
+  // (M, N <= 256, K = number of samples, up to millions) would otherwise take thousands of launches:
+  // give them at most kMaxChunksSmallOutput chunks.
+  constexpr int kMaxChunksSmallOutput = 8;
+  if (static_cast<int64_t>(M) * N <= 256 * 256 && K > kMaxChunksSmallOutput * kc)
+    kc = (K + kMaxChunksSmallOutput - 1) / kMaxChunksSmallOutput;
   const View a{A, a_offset}, b{B, b_offset}, c{C, c_offset};
   auto chunk_beta = [&](int k0) { return k0 == 0 ? beta : 1.0f; };
 
