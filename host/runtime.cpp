@@ -16,9 +16,15 @@
 namespace stylerf::host {
 namespace {
 
-std::unique_ptr<Runtime>& runtime_slot() {
-  static std::unique_ptr<Runtime> slot;
-  return slot;
+// The process-wide runtime. Not a function-local static: its destructor must run before the driver's
+// own static destructors (PoCL's LLVM), and a static registered before the driver is loaded would run
+// after them. So it is destroyed by an atexit handler registered once the driver is loaded, which runs
+// first (handlers run in reverse order of registration).
+Runtime* g_runtime = nullptr;
+
+void destroy_runtime() {
+  delete g_runtime;
+  g_runtime = nullptr;
 }
 
 uint64_t fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) {
@@ -54,24 +60,31 @@ void configure_driver_caches() {
 }
 
 Runtime& Runtime::init(const std::string& device_spec) {
-  auto& slot = runtime_slot();
-  if (slot) {
+  if (g_runtime) {
     if (!device_spec.empty()) {
       DeviceInfo want = choose_device(device_spec);
-      if (want.id != slot->device_.id)
-        throw Error("the OpenCL runtime is already running on '" + slot->device_.name +
+      if (want.id != g_runtime->device_.id)
+        throw Error("the OpenCL runtime is already running on '" + g_runtime->device_.name +
                     "'; it cannot switch to '" + want.name + "' within one process");
     }
-    return *slot;
+    return *g_runtime;
   }
   configure_driver_caches();
-  slot.reset(new Runtime(choose_device(device_spec)));
-  return *slot;
+  DeviceInfo device = choose_device(device_spec);  // loads the OpenCL driver
+  g_runtime = new Runtime(device);
+  std::atexit(destroy_runtime);
+  return *g_runtime;
 }
 
-Runtime& Runtime::instance() { return runtime_slot() ? *runtime_slot() : init(""); }
+Runtime& Runtime::instance() { return g_runtime ? *g_runtime : init(""); }
 
-bool Runtime::initialised() { return static_cast<bool>(runtime_slot()); }
+bool Runtime::initialised() { return g_runtime != nullptr; }
+
+void Runtime::shutdown() {
+  if (!g_runtime) return;
+  g_runtime->finish();
+  destroy_runtime();
+}
 
 Runtime::Runtime(const DeviceInfo& device) : device_(device) {
   cl_int err = CL_SUCCESS;
@@ -94,6 +107,8 @@ Runtime::Runtime(const DeviceInfo& device) : device_(device) {
 }
 
 Runtime::~Runtime() {
+  // Let queued work (and any kernel compile it triggers) finish before anything is released.
+  if (queue_) clFinish(queue_);
   trim_buffer_pool();
   for (auto& e : pending_events_) clReleaseEvent(e.second);
   for (auto& k : kernels_) clReleaseKernel(k.second);

@@ -33,6 +33,11 @@ class Runtime {
   static Runtime& init(const std::string& device_spec = "");
   static Runtime& instance();
   static bool initialised();
+  // Drains the queue and releases everything. Call it before main returns (the CLI, the tests and the
+  // embedding example do): PoCL compiles kernels lazily on its worker threads, and a compile still
+  // running while the process exits can touch LLVM objects that exit has already destroyed. Without a
+  // call, an atexit handler does the same, which is safe only if the queue is already drained.
+  static void shutdown();
 
   const DeviceInfo& device() const { return device_; }
   cl_context context() const { return context_; }

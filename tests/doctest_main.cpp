@@ -10,5 +10,7 @@ int main(int argc, char** argv) {
   auto& rt = stylerf::host::Runtime::init();
   std::cout << "device: " << rt.device().describe() << std::endl;
   doctest::Context ctx(argc, argv);
-  return ctx.run();
+  int rc = ctx.run();
+  stylerf::host::Runtime::shutdown();
+  return rc;
 }

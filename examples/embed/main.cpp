@@ -16,7 +16,9 @@ int main() {
     matmul(a, Trans::No, b, Trans::No, c);
     auto v = c.to_host();
     std::cout << "[[" << v[0] << ", " << v[1] << "], [" << v[2] << ", " << v[3] << "]]\n";  // [[4, 5], [10, 11]]
-    return (v[0] == 4 && v[1] == 5 && v[2] == 10 && v[3] == 11) ? 0 : 1;
+    const bool ok = v[0] == 4 && v[1] == 5 && v[2] == 10 && v[3] == 11;
+    Runtime::shutdown();  // drain the queue before exit (see host/runtime.hpp)
+    return ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

@@ -38,12 +38,18 @@ int main(int argc, char** argv) {
   }
   for (const auto& c : stylerf::cli::commands()) {
     if (c.name == argv[1]) {
+      int rc = 1;
       try {
-        return c.run(argc - 1, argv + 1);
+        rc = c.run(argc - 1, argv + 1);
+        stylerf::host::Runtime::shutdown();
       } catch (const std::exception& e) {
         std::cerr << "stylerf " << c.name << ": error: " << e.what() << std::endl;
-        return 1;
+        try {
+          stylerf::host::Runtime::shutdown();
+        } catch (const std::exception&) {
+        }
       }
+      return rc;
     }
   }
   std::cerr << "stylerf: unknown command '" << argv[1] << "'\n";
