@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up and run the main job on built-in defaults (nothing from ../shared is needed):
-# list OpenCL devices, make a content and a style image, stylize with AdaIN, print the GEMM summary.
+# list OpenCL devices, make a content and a style image, stylize with AdaIN, train and render the density
+# stage on a generated scene, print the GEMM summary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -15,6 +16,12 @@ echo "== demo images (procedural content and style, made by stylerf)"
 echo "== 2D AdaIN with the real VGG-19 encoder and AdaIN decoder"
 "$S" adain --content "$OUT/content.png" --style "$OUT/style.png" --size 256 -o "$OUT/adain.png"
 "$S" adain --content "$OUT/content.png" --style "$OUT/style.png" --size 256 --alpha 0.5 -o "$OUT/adain_alpha0.5.png"
+echo "== density stage on a generated scene (make-scene -> train-density -> render)"
+"$S" make-scene -o "$OUT/scene" --size 64 --views 30
+"$S" train-density --scene "$OUT/scene" --iters 200 --init-voxels 32^3 --final-voxels 64^3 \
+    --upsample-at 70,140 --mask-at 70,140 --log-every 50 -o "$OUT/density.ckpt"
+"$S" render --ckpt "$OUT/density.ckpt" --views test -o "$OUT/render_test"
+"$S" render --ckpt "$OUT/density.ckpt" --views path --frames 24 -o "$OUT/render_path"
 echo "== GEMM summary (quick shapes; full table: $S bench gemm)"
 "$S" bench gemm --quick --repeats 2
 echo "== outputs in $OUT"
