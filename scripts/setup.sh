@@ -30,5 +30,6 @@ bash scripts/fetch_weights.sh
 BUILD_DIR=${BUILD_DIR:-build}
 JOBS=${JOBS:-$(nproc)}
 echo "== building in $BUILD_DIR with $JOBS jobs"
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release > "$BUILD_DIR.cmake.log" 2>&1 || { cat "$BUILD_DIR.cmake.log"; exit 1; }
+mkdir -p "$BUILD_DIR"
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release > "$BUILD_DIR/cmake-configure.log" 2>&1 || { cat "$BUILD_DIR/cmake-configure.log"; exit 1; }
 cmake --build "$BUILD_DIR" -j "$JOBS"
