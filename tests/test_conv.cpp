@@ -13,6 +13,7 @@
 #include "tests/testing.hpp"
 
 using namespace stylerf;
+using testing::error_of;
 using nn::Padding;
 using host::Tensor;
 using testing::check_close;
@@ -138,15 +139,6 @@ struct ScratchLimit {
   ~ScratchLimit() { unsetenv("STYLERF_CONV_SCRATCH_BYTES"); }
 };
 
-template <class F>
-std::string error_of(F f) {
-  try {
-    f();
-  } catch (const host::Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 

@@ -19,6 +19,7 @@
 
 namespace fs = std::filesystem;
 using namespace stylerf;
+using testing::error_of;
 using stylerf::host::Error;
 
 namespace {
@@ -55,16 +56,6 @@ std::string safetensors_bytes(const std::string& header, const std::string& data
   return safetensors_bytes(header, data, header.size());
 }
 
-// The error message of f(), or "" if it did not throw.
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 

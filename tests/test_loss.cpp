@@ -13,6 +13,7 @@
 #include "tests/testing.hpp"
 
 using namespace stylerf;
+using testing::expect_error;
 using host::Shape;
 using host::Tensor;
 using testing::check_close;
@@ -61,15 +62,6 @@ void check_style(const std::vector<float>& a, const Shape& sa, const std::vector
   check_close(da.to_host(), want, 1e-3, 1e-4 * testing::ref::max_abs(want), what + " style loss da");
 }
 
-template <class F>
-void expect_error(F&& f, const std::string& needle) {
-  try {
-    f();
-    FAIL("expected an Error mentioning '" << needle << "'");
-  } catch (const host::Error& e) {
-    CHECK_MESSAGE(std::string(e.what()).find(needle) != std::string::npos, e.what());
-  }
-}
 
 }  // namespace
 

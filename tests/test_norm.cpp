@@ -13,6 +13,7 @@
 #include "tests/testing.hpp"
 
 using namespace stylerf;
+using testing::expect_error;
 using host::Shape;
 using host::Tensor;
 using testing::check_close;
@@ -98,15 +99,6 @@ void check_adain(const Input& c, const Input& st, double eps, double atol_y, dou
   check_grad(gr.dstyle.to_host(), finite_difference(fs, sd, hs), what + " adain dstyle");
 }
 
-template <class F>
-void expect_error(F&& f, const std::string& needle) {
-  try {
-    f();
-    FAIL("expected an Error mentioning '" << needle << "'");
-  } catch (const host::Error& e) {
-    CHECK_MESSAGE(std::string(e.what()).find(needle) != std::string::npos, e.what());
-  }
-}
 
 }  // namespace
 

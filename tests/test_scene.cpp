@@ -23,6 +23,7 @@
 #include "tests/testing.hpp"
 
 using namespace stylerf;
+using testing::error_of;
 using namespace stylerf::scene;
 namespace fs = std::filesystem;
 
@@ -43,15 +44,6 @@ struct TempDir {
   std::string str(const std::string& sub = "") const { return (sub.empty() ? path : path / sub).string(); }
 };
 
-// The message of the host::Error thrown by f ("" if none was thrown: the CHECKs then fail).
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const host::Error& e) {
-    return e.what();
-  }
-  return "";
-}
 bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 std::string data_dir() {

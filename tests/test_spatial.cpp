@@ -16,6 +16,7 @@
 #include "tests/testing.hpp"
 
 using namespace stylerf;
+using testing::error_of;
 using host::Shape;
 using host::Tensor;
 using testing::check_close;
@@ -61,15 +62,6 @@ std::vector<double> ref_upsample(const std::vector<double>& x, int NC, int H, in
   return y;
 }
 
-template <class F>
-std::string error_of(F f) {
-  try {
-    f();
-  } catch (const host::Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 

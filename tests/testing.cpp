@@ -8,6 +8,8 @@
 #include <random>
 #include <sstream>
 
+#include "host/error.hpp"
+
 namespace stylerf::testing {
 
 std::vector<float> random_normal(size_t n, uint64_t seed, float stddev, float mean) {
@@ -82,6 +84,21 @@ bool all_finite(const std::vector<float>& v) {
   for (float x : v)
     if (!std::isfinite(x)) return false;
   return true;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const host::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void expect_error(const std::function<void()>& f, const std::string& needle) {
+  const std::string msg = error_of(f);
+  CHECK_MESSAGE(msg.find(needle) != std::string::npos,
+                "expected an Error mentioning '" << needle << "', got: " << (msg.empty() ? "no error" : msg));
 }
 
 std::string shared_data_dir() {

@@ -31,6 +31,12 @@ double dot(const std::vector<double>& a, const std::vector<double>& b);
 
 bool all_finite(const std::vector<float>& v);
 
+// The message of the host::Error that f() throws, or "" when it throws none. Bad-input tests then check
+// that the message names the file / op and what is wrong.
+std::string error_of(const std::function<void()>& f);
+// Checks (doctest CHECK) that f() throws a host::Error whose message contains `needle`.
+void expect_error(const std::function<void()>& f, const std::string& needle);
+
 // Directory of ../shared/data, or "" if absent (tests needing it say so and fail loudly, not skip).
 std::string shared_data_dir();
 

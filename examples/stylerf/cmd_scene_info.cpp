@@ -10,16 +10,6 @@
 
 namespace po = boost::program_options;
 
-namespace stylerf::cli {
-// Shared by every command that loads a scene: "auto" | "on" | "off".
-scene::Switch parse_switch(const std::string& v, const std::string& flag) {
-  if (v == "auto") return scene::Switch::automatic;
-  if (v == "on") return scene::Switch::on;
-  if (v == "off") return scene::Switch::off;
-  throw std::runtime_error(flag + " must be auto, on or off (got '" + v + "')");
-}
-}  // namespace stylerf::cli
-
 namespace {
 int run_scene_info(int argc, char** argv) {
   std::string dir, ndc = "auto";
@@ -38,7 +28,7 @@ int run_scene_info(int argc, char** argv) {
     std::cout << desc;
     return dir.empty() && !vm.count("help") ? 2 : 0;
   }
-  opt.ndc = stylerf::cli::parse_switch(ndc, "--ndc");
+  opt.ndc = stylerf::scene::parse_switch(ndc, "--ndc");
   opt.load_images = !cameras_only;
   const auto t0 = std::chrono::steady_clock::now();
   auto s = stylerf::scene::load_scene(dir, opt);

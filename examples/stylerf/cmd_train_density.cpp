@@ -15,10 +15,6 @@
 
 namespace po = boost::program_options;
 
-namespace stylerf::cli {
-scene::Switch parse_switch(const std::string& v, const std::string& flag);  // cmd_scene_info.cpp
-}
-
 namespace {
 
 using stylerf::host::Error;
@@ -93,7 +89,7 @@ int run_train_density(int argc, char** argv) {
 
   stylerf::scene::LoadOptions lo;
   lo.downsample = downsample;
-  lo.ndc = stylerf::cli::parse_switch(ndc, "--ndc");
+  lo.ndc = stylerf::scene::parse_switch(ndc, "--ndc");
   lo.view_dependence = view_dep;
   lo.log = &std::cout;
   const auto scene = stylerf::scene::load_scene(dir, lo);

@@ -98,4 +98,11 @@ Scene load_scene(const std::string& dir, const LoadOptions& opts) {
   return s;
 }
 
+Switch parse_switch(const std::string& value, const std::string& flag) {
+  if (value == "auto") return Switch::automatic;
+  if (value == "on") return Switch::on;
+  if (value == "off") return Switch::off;
+  throw host::Error(flag + " must be auto, on or off (got '" + value + "')");
+}
+
 }  // namespace stylerf::scene

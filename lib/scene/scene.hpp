@@ -65,6 +65,8 @@ struct Scene {
 };
 
 enum class Switch { automatic, on, off };
+// "auto" | "on" | "off" -> Switch; anything else throws an Error naming the flag and the value.
+Switch parse_switch(const std::string& value, const std::string& flag);
 
 struct LoadOptions {
   int downsample = 1;                 // Blender: resize by 1/N; LLFF: images_N (or resize images/)
