@@ -15,7 +15,7 @@ namespace stylerf::io {
 
 using host::Error;
 
-Image load_image(const std::string& path, const std::array<float, 3>* background) {
+Image load_image(const std::string& path, const std::array<float, 3>* background, std::vector<float>* alpha) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::exists(path, ec)) throw Error("image " + path + " does not exist");
@@ -42,6 +42,7 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
   img.data.resize(size_t(3) * w * h);
   const float scale = sixteen ? 1.0f / 65535.0f : 1.0f / 255.0f;
   const bool has_alpha = comp == 2 || comp == 4;
+  if (alpha) alpha->assign(has_alpha ? size_t(w) * h : 0, 1.0f);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       size_t p = (size_t(y) * w + x) * 4;
@@ -49,6 +50,7 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
         return sixteen ? static_cast<const uint16_t*>(pixels)[p + c] * scale
                        : static_cast<const unsigned char*>(pixels)[p + c] * scale;
       };
+      if (has_alpha && alpha) (*alpha)[size_t(y) * w + x] = value(3);
       float a = has_alpha && background ? value(3) : 1.0f;
       for (int c = 0; c < 3; ++c) img.at(c, y, x) = a * value(c) + (background ? (1.0f - a) * (*background)[c] : 0.0f);
     }

@@ -19,8 +19,11 @@ struct Image {
 
 // Loads an 8-bit or 16-bit PNG/JPEG/BMP/TGA... as RGB in [0,1]. Grey images are replicated to RGB. An alpha
 // channel is composited over `background` when one is given (Blender scenes: white), else dropped.
+// When `alpha` is given it receives the alpha channel, [height * width] in [0,1], or is left empty when
+// the file has none (scenes need both the composited colour and the mask).
 // Errors name the file: missing, not an image / unreadable, zero size.
-Image load_image(const std::string& path, const std::array<float, 3>* background = nullptr);
+Image load_image(const std::string& path, const std::array<float, 3>* background = nullptr,
+                 std::vector<float>* alpha = nullptr);
 
 // Resamples to width x height, each axis separately: shrinking averages the source area each output
 // pixel covers (fractional coverage at the edges; no aliasing), enlarging is bilinear with pixel centres

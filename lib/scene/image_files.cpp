@@ -30,37 +30,8 @@ std::vector<std::string> list_images(const std::string& dir) {
 }
 
 RgbaImage load_rgba(const std::string& path, const std::array<float, 3>& background) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw Error("image " + path + " does not exist");
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info(path.c_str(), &w, &h, &comp)) {
-    const char* why = stbi_failure_reason();
-    throw Error("cannot read image " + path + ": " + (why ? why : "unknown format"));
-  }
   RgbaImage out;
-  if (comp != 2 && comp != 4) {  // no alpha: the plain loader is all we need
-    out.rgb = io::load_image(path);
-    return out;
-  }
-  // Alpha: decode once to 8-bit RGBA (Blender PNGs are 8-bit; a 16-bit alpha is rounded, which is
-  // finer than any training target needs) and composite here.
-  unsigned char* px = stbi_load(path.c_str(), &w, &h, &comp, 4);
-  if (!px) {
-    const char* why = stbi_failure_reason();
-    throw Error("cannot read image " + path + ": " + (why ? why : "unknown format"));
-  }
-  std::unique_ptr<unsigned char, void (*)(void*)> guard(px, stbi_image_free);
-  out.rgb.width = w;
-  out.rgb.height = h;
-  out.rgb.data.resize(size_t(3) * w * h);
-  out.alpha.resize(size_t(w) * h);
-  for (size_t i = 0; i < size_t(w) * h; ++i) {
-    const float a = px[4 * i + 3] / 255.0f;
-    out.alpha[i] = a;
-    for (int c = 0; c < 3; ++c)
-      out.rgb.data[size_t(c) * w * h + i] = a * (px[4 * i + c] / 255.0f) + (1.0f - a) * background[c];
-  }
+  out.rgb = io::load_image(path, &background, &out.alpha);
   return out;
 }
 

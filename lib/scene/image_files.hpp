@@ -1,6 +1,5 @@
 // Image files of a scene: listing an image folder in the order LLFF/COLMAP use (file names sorted
-// byte-wise), and loading RGB with the alpha channel kept apart. Built on lib/io/image; the RGBA
-// read is local because io::load_image composites or drops alpha and a scene needs both.
+// byte-wise), and loading RGB with the alpha channel kept apart. Built on lib/io/image.
 #pragma once
 #include <array>
 #include <string>
