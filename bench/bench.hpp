@@ -1,6 +1,7 @@
 // Benchmarks, run through `stylerf bench <name>`. Each prints a table and optionally writes JSON.
 #pragma once
 #include <string>
+#include <vector>
 
 namespace stylerf::bench {
 
@@ -8,6 +9,10 @@ struct BenchOptions {
   std::string json_path;  // empty: no JSON
   int repeats = 3;        // timed repetitions after one warm-up
   bool quick = false;     // smaller shapes, for smoke runs in the test suite / README demo
+  // bench density only: training seconds per scene curve and per knob row (0: the mode's default), and
+  // which parts to run ("lego", "fern", "knobs"; empty: all).
+  double budget_s = 0, knob_budget_s = 0;
+  std::vector<std::string> parts;
 };
 
 int bench_gemm(const BenchOptions& opt);  // bench/bench_gemm.cpp

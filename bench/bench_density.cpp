@@ -29,29 +29,6 @@ std::string data_dir() {
   throw host::Error("bench density: scene data not found; set STYLERF_DATA to the folder holding scenes/");
 }
 
-// TensoRF's event iterations scaled from its run length to `iters`, the first event no earlier than
-// `min_first` (a mask or upsample on a model a few dozen steps old would be built from noise).
-train::Schedule compress(const train::Schedule& base, int iters, int min_first = 100) {
-  train::Schedule s = base;
-  const double f = double(iters) / base.iters;
-  auto scale = [&](const std::vector<int>& v, int first_of_all) {
-    std::vector<int> out;
-    const int offset = std::max(0, min_first - int(std::lround(first_of_all * f)));
-    for (int e : v) {
-      int x = int(std::lround(e * f)) + offset;
-      if (!out.empty()) x = std::max(x, out.back() + 1);
-      if (x < iters) out.push_back(x);
-    }
-    return out;
-  };
-  const int first = std::min(base.upsample_at.empty() ? base.iters : base.upsample_at[0],
-                             base.mask_at.empty() ? base.iters : base.mask_at[0]);
-  s.iters = iters;
-  s.upsample_at = scale(base.upsample_at, first);
-  s.mask_at = scale(base.mask_at, first);
-  return s;
-}
-
 struct CurvePoint {
   int iteration;
   double seconds, psnr;
@@ -65,43 +42,37 @@ struct RunResult {
 };
 
 // Trains for `budget_s` seconds of training time (eval excluded), evaluating `eval_views` held-out views
-// `evals` times along the way.
-RunResult timed_run(const scene::Scene& sc, train::DensityTrainConfig cfg, double budget_s, int max_iters,
-                    int eval_views, int evals, const std::string& label) {
-  // Warm-up: estimate seconds per iteration to size the schedule (kernels compiled here too).
-  double warm_s = 0;
-  {
+// `evals` times along the way. The schedule is refitted to the budget as the step rate becomes known
+// (RunOptions::fit_schedule_to_budget), as `train-density --minutes` does.
+RunResult timed_run(const scene::Scene& sc, train::DensityTrainConfig cfg, double budget_s, int eval_views, int evals,
+                    const std::string& label) {
+  {  // compile every kernel outside the timed run
     auto wc = cfg;
-    wc.schedule.iters = 10;
-    wc.schedule.upsample_at.clear();
-    wc.schedule.mask_at.clear();
+    wc.schedule = cfg.schedule.fitted(2, 1);
     train::DensityTrainer w(sc, wc);
     w.step();
-    for (int i = 0; i < 5; ++i) warm_s += w.step().seconds;
-    warm_s /= 5;
   }
-  // Later steps get cheaper (alpha mask, fewer kept samples) and dearer (bigger grid): take the warm-up rate.
-  int iters = std::max(50, int(budget_s / std::max(warm_s, 1e-3)));
-  if (max_iters > 0) iters = std::min(iters, max_iters);
-  cfg.schedule = compress(cfg.schedule, iters);
+  cfg.schedule = cfg.schedule.fitted(1000);  // a first guess; refitted after 10 steps
   train::DensityTrainer tr(sc, cfg);
-  std::cout << "  " << label << ": " << std::fixed << std::setprecision(2) << warm_s << " s/it in warm-up -> " << iters
-            << " iterations; " << cfg.schedule.describe() << std::endl;
+  std::cout << "  " << label << ": " << budget_s << " s of training; schedule refitted to the budget as it runs"
+            << std::endl;
   RunResult r;
   double train_s = 0, next_eval = budget_s / evals;
   int64_t samples = 0;
   auto eval_now = [&](int it) {
     const double p = train::mean_psnr(train::evaluate_views(tr.model(), sc, eval_views, false));
     r.curve.push_back({it, train_s, p});
-    std::cout << "    it " << it << "  " << std::setprecision(1) << train_s << " s  PSNR " << std::setprecision(2) << p
-              << " dB" << std::endl;
+    std::cout << "    it " << it << "  " << std::fixed << std::setprecision(1) << train_s << " s  PSNR "
+              << std::setprecision(2) << p << " dB" << std::endl;
   };
   train::RunOptions ro;
   ro.time_budget_s = budget_s;
+  ro.fit_schedule_to_budget = true;
+  ro.log = &std::cout;
+  ro.log_every = 0;  // refits and events only
   ro.after_step = [&](const train::StepStats& st) {
     train_s += st.seconds;
     samples += st.samples;
-    for (const auto& e : st.events) std::cout << "    [" << st.iteration << "] " << e << std::endl;
     if (train_s >= next_eval && !tr.done() && train_s < budget_s) {
       eval_now(st.iteration);
       next_eval += budget_s / evals;
@@ -151,9 +122,10 @@ void plot(const std::string& path, const std::vector<std::pair<std::string, RunR
   line(img, L, T, L, B, black);
   const float colours[2][3] = {{0.85f, 0.15f, 0.1f}, {0.1f, 0.3f, 0.85f}};
   const double targets[2] = {28.0, 22.0};
-  for (size_t i = 0; i < runs.size() && i < 2; ++i) {
+  for (const auto& [name, run] : runs) {
+    const int i = name == "lego" ? 0 : 1;
     line(img, L, Y(targets[i]), R, Y(targets[i]), colours[i], 6);
-    const auto& c = runs[i].second.curve;
+    const auto& c = run.curve;
     for (size_t k = 1; k < c.size(); ++k)
       line(img, X(c[k - 1].seconds), Y(c[k - 1].psnr), X(c[k].seconds), Y(c[k].psnr), colours[i]);
   }
@@ -165,31 +137,47 @@ void plot(const std::string& path, const std::vector<std::pair<std::string, RunR
 int bench_density(const BenchOptions& opt) {
   std::cout << "device: " << host::Runtime::instance().device().describe() << "\n";
   const std::string data = data_dir();
-  const double budget = opt.quick ? 240.0 : 1800.0, knob_budget = opt.quick ? 60.0 : 300.0;
-  const int max_iters = opt.quick ? 300 : 0, eval_views = opt.quick ? 2 : 8, evals = opt.quick ? 3 : 12;
+  const double budget = opt.budget_s > 0 ? opt.budget_s : opt.quick ? 240.0 : 1800.0;
+  const double knob_budget = opt.knob_budget_s > 0 ? opt.knob_budget_s : opt.quick ? 60.0 : 300.0;
+  const int eval_views = opt.quick ? 2 : 8, evals = opt.quick ? 3 : 12;
+  auto wanted = [&](const std::string& part) {
+    return opt.parts.empty() || std::find(opt.parts.begin(), opt.parts.end(), part) != opt.parts.end();
+  };
   json doc{{"device", host::Runtime::instance().device().describe()},
            {"quick", opt.quick},
            {"budget_s", budget},
            {"knob_budget_s", knob_budget},
            {"eval_views", eval_views}};
+  const fs::path base = opt.json_path.empty() ? fs::path(".") : fs::path(opt.json_path).parent_path();
+  const std::string png = ((base.empty() ? fs::path(".") : base) / "density_psnr_vs_time.png").string();
+  // Written after every part, so a long run stopped part-way keeps what it measured.
+  auto save = [&] {
+    if (!opt.json_path.empty()) host::write_file_atomic(opt.json_path, doc.dump(2) + "\n");
+  };
 
   struct Spec {
     std::string name, dir;
     int downsample;
     double target;
+    int evals;  // held-out evaluations along the curve (fern's views take ~1 min each before the mask)
   };
-  const std::vector<Spec> specs = {{"lego", data + "/scenes/blender/lego", 4, 28.0},
-                                   {"fern", data + "/scenes/llff/fern", 8, 22.0}};
-  std::vector<std::pair<std::string, RunResult>> runs;
-  std::unique_ptr<scene::Scene> lego;
-  for (const auto& sp : specs) {
+  const std::vector<Spec> specs = {{"lego", data + "/scenes/blender/lego", 4, 28.0, evals},
+                                   {"fern", data + "/scenes/llff/fern", 8, 22.0, std::max(2, evals / 3)}};
+  auto load = [&](const Spec& sp) {
     scene::LoadOptions lo;
     lo.downsample = sp.downsample;
     auto sc = std::make_unique<scene::Scene>(scene::load_scene(sp.dir, lo));
     std::cout << sp.name << " 1/" << sp.downsample << ": " << sc->width() << "x" << sc->height() << ", "
               << sc->train.size() << " train / " << sc->test.size() << " test views\n";
+    return sc;
+  };
+  std::vector<std::pair<std::string, RunResult>> runs;
+  std::unique_ptr<scene::Scene> lego;
+  for (const auto& sp : specs) {
+    if (!wanted(sp.name)) continue;
+    auto sc = load(sp);
     const auto cfg = train::default_density_config(*sc);
-    const auto r = timed_run(*sc, cfg, budget, max_iters, eval_views, evals, sp.name);
+    const auto r = timed_run(*sc, cfg, budget, eval_views, sp.evals, sp.name);
     json curve = json::array();
     for (const auto& p : r.curve) curve.push_back({{"iteration", p.iteration}, {"seconds", p.seconds}, {"psnr", p.psnr}});
     doc["scenes"][sp.name] = {{"downsample", sp.downsample},
@@ -202,10 +190,18 @@ int bench_density(const BenchOptions& opt) {
                               {"curve", curve}};
     std::cout << "  " << sp.name << ": " << r.iterations << " it in " << std::setprecision(0) << r.seconds << " s ("
               << std::setprecision(2) << 1.0 / r.s_per_it << " it/s), PSNR " << r.final_psnr << " dB (target "
-              << sp.target << ")\n";
+              << sp.target << ")" << std::endl;
     runs.emplace_back(sp.name, r);
+    plot(png, runs, budget);
+    doc["plot"] = png;
+    save();
     if (sp.name == "lego") lego = std::move(sc);
   }
+  if (!runs.empty())
+    std::cout << "plot: " << png << " (x: training seconds 0.." << budget
+              << ", y: PSNR 10..35 dB; red lego, blue fern; dashed: targets)\n";
+  if (!wanted("knobs")) return 0;
+  if (!lego) lego = load(specs[0]);
 
   // Knobs on lego, each for the same training time.
   struct Knob {
@@ -230,29 +226,24 @@ int bench_density(const BenchOptions& opt) {
   for (const auto& k : knobs) {
     auto cfg = train::default_density_config(*lego);
     k.apply(cfg);
-    const auto r = timed_run(*lego, cfg, knob_budget, max_iters, eval_views, 1, k.name);
+    const auto r = timed_run(*lego, cfg, knob_budget, eval_views, 1, k.name);
     kt.push_back({{"knob", k.name},
                   {"s_per_iteration", r.s_per_it},
                   {"samples_per_ray", r.samples_per_ray},
                   {"iterations", r.iterations},
                   {"psnr", r.final_psnr}});
     rows.emplace_back(k.name, r.s_per_it, r.samples_per_ray, r.final_psnr);
+    doc["knobs"] = kt;
+    save();
   }
-  doc["knobs"] = kt;
-  std::cout << "\n" << std::left << std::setw(56) << "knob" << std::right << std::setw(10) << "s/it" << std::setw(14)
-            << "samples/ray" << std::setw(10) << "PSNR\n";
+  const double base_spi = std::get<1>(rows.front()), base_psnr = std::get<3>(rows.front());
+  std::cout << "\n" << std::left << std::setw(56) << "knob" << std::right << std::setw(10) << "s/it" << std::setw(12)
+            << "time/it" << std::setw(14) << "samples/ray" << std::setw(10) << "PSNR" << std::setw(10) << "dPSNR\n";
   for (const auto& [name, spi, spr, p] : rows)
     std::cout << std::left << std::setw(56) << name << std::right << std::fixed << std::setprecision(3)
-              << std::setw(10) << spi << std::setprecision(1) << std::setw(14) << spr << std::setprecision(2)
-              << std::setw(10) << p << "\n";
-
-  const fs::path base = opt.json_path.empty() ? fs::path(".") : fs::path(opt.json_path).parent_path();
-  const std::string png = ((base.empty() ? fs::path(".") : base) / "density_psnr_vs_time.png").string();
-  plot(png, runs, budget);
-  doc["plot"] = png;
-  std::cout << "plot: " << png << " (x: training seconds 0.." << budget << ", y: PSNR 10..35 dB; red lego, blue fern; "
-            << "dashed: targets)\n";
-  if (!opt.json_path.empty()) host::write_file_atomic(opt.json_path, doc.dump(2) + "\n");
+              << std::setw(10) << spi << std::setprecision(2) << std::setw(11) << spi / base_spi << "x"
+              << std::setprecision(1) << std::setw(14) << spr << std::setprecision(2) << std::setw(10) << p
+              << std::showpos << std::setw(10) << p - base_psnr << std::noshowpos << "\n";
   return 0;
 }
 

@@ -140,6 +140,75 @@ TEST_CASE("schedule: TensoRF's voxel list, lr decay with reset, event steps") {
   CHECK_THROWS_AS(s.validate(), host::Error);
 }
 
+TEST_CASE("schedule: fitted to a shorter run scales every event and keeps the voxel list") {
+  train::Schedule s;  // 30000 iterations, upsample 2000..5500, mask 2000, 4000
+  const auto f = s.fitted(6000);
+  CHECK(f.iters == 6000);
+  CHECK(f.upsample_at == std::vector<int>{400, 600, 800, 1100});
+  CHECK(f.mask_at == std::vector<int>{400, 800});
+  CHECK(f.voxel_list() == s.voxel_list());
+  // 300 iterations: 2000 -> 20 is too early, so the factor becomes 100 / 2000 and the events keep their
+  // proportions (5500 -> 275).
+  const auto g = s.fitted(300);
+  CHECK(g.upsample_at == std::vector<int>{100, 150, 200, 275});
+  CHECK(g.mask_at == std::vector<int>{100, 200});
+  // So short that events collide or land past the end: still increasing, all kept (past the end never fires).
+  const auto h = s.fitted(3, 2);
+  CHECK(h.upsample_at.size() == 4);
+  CHECK_NOTHROW(h.validate());
+  CHECK_THROWS_AS(s.fitted(0), host::Error);
+}
+
+TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never into the past") {
+  auto cfg = small_config(200);
+  cfg.schedule.upsample_at = {60, 120};
+  cfg.schedule.mask_at = {60};
+  train::DensityTrainer t(small_scene(), cfg);
+  t.refit_schedule(100);  // before anything fired: fitted(100) of the 200-step plan, first event at 100
+  CHECK(t.config().schedule.iters == 100);
+  CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
+  t.refit_schedule(400);  // longer: events scale up to 120, 240 (first 120 >= 100, no shift)
+  CHECK(t.config().schedule.upsample_at == std::vector<int>{120, 240});
+  CHECK(t.config().schedule.mask_at == std::vector<int>{120});
+  for (int i = 0; i < 3; ++i) t.step();
+  // After 3 steps nothing fired; a refit shorter than the steps taken runs at least one more step.
+  t.refit_schedule(2);
+  CHECK(t.config().schedule.iters == 4);
+  CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
+
+  // Once an event has fired it stays where it was; the later one moves with the refit.
+  auto cfg2 = small_config(200);
+  cfg2.schedule.upsample_at = {100, 150};
+  cfg2.schedule.mask_at = {100};
+  train::DensityTrainer u(small_scene(), cfg2);
+  const auto res_before = u.model().res();
+  for (int i = 0; i < 101; ++i) u.step();
+  CHECK(u.model().res() != res_before);  // the upsample at 100 happened
+  u.refit_schedule(400);                 // fitted(400): 200, 300; mask 200
+  CHECK(u.config().schedule.upsample_at == std::vector<int>{100, 300});
+  CHECK(u.config().schedule.mask_at == std::vector<int>{100});
+  CHECK(u.config().schedule.voxels_after(101) == cfg2.schedule.voxels_after(101));
+}
+
+TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run stops on time") {
+  auto cfg = small_config(100000);  // far too long for the budget: the refit must shorten it
+  cfg.schedule.upsample_at = {20000};
+  cfg.schedule.mask_at = {20000};
+  train::DensityTrainer t(small_scene(), cfg);
+  train::RunOptions ro;
+  ro.time_budget_s = 4.0;
+  ro.fit_schedule_to_budget = true;
+  const auto sum = train::run_density_training(t, ro);
+  CHECK(sum.seconds >= 4.0);
+  CHECK(sum.seconds < 4.0 + 2.0);  // stops within a step or two of the budget
+  const auto& sch = t.config().schedule;
+  INFO("ran " << sum.iterations << " steps; " << sch.describe());
+  CHECK(sch.iters < 100000);
+  // The refit horizon is within a factor of ~2 of the steps actually taken (the rate varies as it trains).
+  CHECK(sch.iters < 2 * sum.iterations + 20);
+  CHECK(sch.iters > sum.iterations / 2);
+}
+
 TEST_CASE("train-density smoke: loss falls and the learned depth matches the generated scene") {
   Trained& t = trained();
   // Bound: the mean batch MSE of the last 5 steps is below a quarter of the first 5 (measured ~1/30).

@@ -1,5 +1,6 @@
 // stylerf bench <gemm|conv|ops|field|density> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
+#include <algorithm>
 #include <iostream>
 
 #include "bench/bench.hpp"
@@ -11,12 +12,15 @@ namespace po = boost::program_options;
 
 namespace {
 int run_bench(int argc, char** argv) {
-  std::string which, device;
+  std::string which, device, parts;
   stylerf::bench::BenchOptions opt;
   po::options_description desc("stylerf bench <gemm|conv|ops|field|density> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
+      "budget", po::value(&opt.budget_s), "density: training seconds per scene (default 1800, --quick 240)")(
+      "knob-budget", po::value(&opt.knob_budget_s), "density: training seconds per knob row (default 300, --quick 60)")(
+      "parts", po::value(&parts), "density: comma list of lego, fern, knobs (default all)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
   po::options_description hidden;
   hidden.add_options()("which", po::value(&which));
@@ -36,6 +40,15 @@ int run_bench(int argc, char** argv) {
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
+  if (opt.budget_s < 0 || opt.knob_budget_s < 0) throw std::runtime_error("--budget and --knob-budget must be >= 0");
+  for (size_t a = 0; !parts.empty() && a <= parts.size();) {
+    const size_t b = std::min(parts.find(',', a), parts.size());
+    const std::string p = parts.substr(a, b - a);
+    if (p != "lego" && p != "fern" && p != "knobs")
+      throw std::runtime_error("--parts: unknown part '" + p + "' (lego, fern, knobs)");
+    opt.parts.push_back(p);
+    a = b + 1;
+  }
   stylerf::cli::init_runtime(device, false);
   if (which == "gemm") return stylerf::bench::bench_gemm(opt);
   if (which == "conv") return stylerf::bench::bench_conv(opt);

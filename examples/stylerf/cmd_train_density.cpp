@@ -51,12 +51,15 @@ int run_train_density(int argc, char** argv) {
   int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1;
+  double minutes = 0;
   bool view_dep = false, resume = false, no_mask = false, profile = false;
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
       "output,o", po::value(&out), "checkpoint file to write (safetensors)")(
       "downsample", po::value(&downsample)->default_value(1), "image downsample factor")(
       "iters", po::value(&iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
+      "minutes", po::value(&minutes), "train for this much time: the schedule (events, lr decay) is fitted to it "
+                                      "from the measured step rate (replaces --iters)")(
       "batch", po::value(&batch)->default_value(4096), "rays per step")(
       "ndc", po::value(&ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
       "view-dependence", po::bool_switch(&view_dep), "view-dependent colour (off unless asked for)")(
@@ -85,6 +88,8 @@ int run_train_density(int argc, char** argv) {
     return (dir.empty() || out.empty()) && !vm.count("help") ? 2 : 0;
   }
   if (iters < 0 || batch < 1 || log_every < 0) throw Error("--iters, --batch and --log-every must be positive");
+  if (minutes < 0 || (minutes > 0 && (iters > 0 || resume)))
+    throw Error("--minutes must be positive and goes without --iters and --resume");
   stylerf::cli::init_runtime(device, profile);
 
   stylerf::scene::LoadOptions lo;
@@ -111,6 +116,7 @@ int run_train_density(int argc, char** argv) {
   } else {
     auto cfg = train::default_density_config(scene);
     if (iters > 0) cfg.schedule.iters = iters;
+    if (minutes > 0) cfg.schedule = cfg.schedule.fitted(1000);  // a first guess; refitted after 10 steps
     cfg.batch = batch;
     cfg.seed = seed;
     if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);
@@ -140,6 +146,8 @@ int run_train_density(int argc, char** argv) {
   ro.log_every = log_every;
   ro.checkpoint = out;
   ro.checkpoint_every = ckpt_every;
+  ro.time_budget_s = minutes * 60.0;
+  ro.fit_schedule_to_budget = minutes > 0;
   ro.scene_meta = train::scene_meta(dir, lo, scene);
   const auto sum = train::run_density_training(*trainer, ro);
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds

@@ -107,6 +107,7 @@ static uint64_t sampler_seed(uint64_t seed, int iteration) { return seed * 0x9E3
 
 DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConfig& cfg) : scene_(&scene), cfg_(cfg) {
   cfg_.schedule.validate();
+  planned_ = cfg_.schedule;
   if (cfg_.batch < 1) throw Error("train-density: batch must be >= 1");
   DensityModel probe;
   for (int a = 0; a < 3; ++a) probe.box_lo[a] = scene.aabb[0][a], probe.box_hi[a] = scene.aabb[1][a];
@@ -126,6 +127,7 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& 
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
   }
+  planned_ = cfg_.schedule;
   model_ = load_model(ck);
   grads_ = DensityGrads::zeros_like(model_);
   m_.clear();
@@ -135,6 +137,26 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& 
     v_.push_back(ck.device("adam.v." + p.name, p.param->shape()));
   }
   sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, iteration_));
+}
+
+void DensityTrainer::refit_schedule(int total_iters) {
+  const Schedule fit = planned_.fitted(std::max(total_iters, iteration_ + 1));
+  Schedule next = fit;
+  auto merge = [&](const std::vector<int>& done_list, const std::vector<int>& fit_list) {
+    std::vector<int> out;
+    for (size_t i = 0; i < fit_list.size(); ++i) {
+      const int prev = out.empty() ? 0 : out.back();
+      if (i < done_list.size() && done_list[i] <= iteration_)
+        out.push_back(done_list[i]);  // already fired: history stays as it was
+      else
+        out.push_back(std::max({fit_list[i], iteration_ + 1, prev + 1}));
+    }
+    return out;
+  };
+  next.upsample_at = merge(cfg_.schedule.upsample_at, fit.upsample_at);
+  next.mask_at = merge(cfg_.schedule.mask_at, fit.mask_at);
+  next.validate();
+  cfg_.schedule = next;
 }
 
 void DensityTrainer::init_optimizer() {
@@ -366,8 +388,10 @@ static std::string hms(double s) {
 
 RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
   RunSummary sum;
-  const int total = trainer.config().schedule.iters;
   const int batch = trainer.config().batch;
+  const bool refit = opt.fit_schedule_to_budget && opt.time_budget_s > 0;
+  double refit_s = 0, next_refit_s = 0;  // training time since / of the next refit
+  int refit_steps = 0;
   double window_s = 0, window_psnr = 0, window_mse = 0;
   int64_t window_samples = 0, window_kept = 0;
   int window_n = 0;
@@ -376,6 +400,7 @@ RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) 
     trainer.save(opt.checkpoint, opt.scene_meta);
   };
   while (!trainer.done()) {
+    const int total = trainer.config().schedule.iters;
     const bool report = opt.log && opt.log_every > 0 &&
                         ((trainer.iteration() + 1) % opt.log_every == 0 || trainer.iteration() + 1 == total);
     const StepStats st = trainer.step(report);
@@ -410,6 +435,24 @@ RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) 
       save();
     if (opt.after_step && !opt.after_step(st)) break;
     if (opt.time_budget_s > 0 && sum.seconds >= opt.time_budget_s) break;
+    if (refit) {
+      refit_s += st.seconds;
+      ++refit_steps;
+      if (refit_steps >= 10 && sum.seconds >= next_refit_s) {
+        const double per_it = refit_s / refit_steps;
+        const int fit = trainer.iteration() + std::max(1, int((opt.time_budget_s - sum.seconds) / per_it));
+        if (fit != trainer.config().schedule.iters) {
+          trainer.refit_schedule(fit);
+          if (opt.log)
+            *opt.log << "  [" << trainer.iteration() << "] " << std::fixed << std::setprecision(2) << per_it
+                     << " s/it -> " << fit << " iterations fit the budget: " << trainer.config().schedule.describe()
+                     << std::endl;
+        }
+        refit_s = 0;
+        refit_steps = 0;
+        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
+      }
+    }
   }
   if (window_n) sum.last_psnr = window_psnr / window_n;
   save();

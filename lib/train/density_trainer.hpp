@@ -70,6 +70,10 @@ class DensityTrainer {
     cfg_.schedule.iters = iters;
     cfg_.schedule.validate();
   }
+  // Re-sizes the rest of the run to `total_iters` steps: the schedule the trainer was built with, fitted
+  // to that length (Schedule::fitted); events that already fired keep their iterations, later ones move
+  // (never to a step already taken). Used by time-budgeted runs as the step rate becomes known.
+  void refit_schedule(int total_iters);
   // `scene_meta` (how to reload the scene) is stored beside the model and optimiser state.
   void save(const std::string& path, const nlohmann::json& scene_meta) const;
 
@@ -79,6 +83,7 @@ class DensityTrainer {
 
   const scene::Scene* scene_;
   DensityTrainConfig cfg_;
+  Schedule planned_;  // the schedule as configured, before any refit
   DensityModel model_;
   DensityGrads grads_;
   std::vector<Tensor> m_, v_;  // Adam moments, named_params order
@@ -110,6 +115,9 @@ struct RunOptions {
   int checkpoint_every = 1000;  // and always at the end
   nlohmann::json scene_meta;
   double time_budget_s = 0;     // > 0: stop after this much training time
+  // With time_budget_s: refit the schedule (DensityTrainer::refit_schedule) after 10 steps and then every
+  // 5% of the budget, from the step rate since the last refit, so events and lr decay land inside it.
+  bool fit_schedule_to_budget = false;
   std::function<bool(const StepStats&)> after_step;
 };
 struct RunSummary {

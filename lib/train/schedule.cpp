@@ -61,6 +61,26 @@ bool Schedule::upsample_at_step(int done) const {
 
 bool Schedule::mask_at_step(int done) const { return std::find(mask_at.begin(), mask_at.end(), done) != mask_at.end(); }
 
+Schedule Schedule::fitted(int new_iters, int min_first) const {
+  if (new_iters < 1) throw Error("schedule: fitted run must have >= 1 iteration, got " + std::to_string(new_iters));
+  Schedule s = *this;
+  s.iters = new_iters;
+  int first = iters;
+  if (!upsample_at.empty()) first = std::min(first, upsample_at.front());
+  if (!mask_at.empty()) first = std::min(first, mask_at.front());
+  // Scale by the run's length, or more where that would put the first event before min_first (the spacing
+  // of the events keeps its proportions; the last ones may then fall past the end and never fire).
+  const double f = std::max(double(new_iters) / double(iters), double(min_first) / double(std::max(first, 1)));
+  auto scale = [&](const std::vector<int>& v) {
+    std::vector<int> out;
+    for (int e : v) out.push_back(std::max(int(std::lround(e * f)), out.empty() ? 1 : out.back() + 1));
+    return out;
+  };
+  s.upsample_at = scale(upsample_at);
+  s.mask_at = scale(mask_at);
+  return s;
+}
+
 std::string Schedule::describe() const {
   std::ostringstream o;
   const auto list = voxel_list();

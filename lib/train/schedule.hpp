@@ -37,6 +37,11 @@ struct Schedule {
   bool upsample_at_step(int done) const;
   bool mask_at_step(int done) const;
   bool first_mask_step(int done) const { return !mask_at.empty() && done == mask_at.front(); }
+  // The same schedule for a run of `iters` steps: every event's iteration scaled by iters / this->iters,
+  // or by more where that would put the first event before `min_first` (a mask or upsample on a model a
+  // few dozen steps old would be built from noise). Every event is kept, in proportion; one that lands
+  // past the end never fires, and the voxel list is unchanged.
+  Schedule fitted(int iters, int min_first = 100) const;
   // "upsample at 2000 3000 ... to 2.1M 4.6M ... voxels; alpha mask at 2000 4000; lr 0.1x over 30000".
   std::string describe() const;
 };
