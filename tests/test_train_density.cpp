@@ -140,15 +140,21 @@ TEST_CASE("schedule: TensoRF's voxel list, lr decay with reset, event steps") {
   CHECK_THROWS_AS(s.validate(), host::Error);
 }
 
-TEST_CASE("schedule: fitted to a shorter run scales every event and keeps the voxel list") {
+TEST_CASE("schedule: fitted to another length keeps events that fit, pulls in those that do not") {
   train::Schedule s;  // 30000 iterations, upsample 2000..5500, mask 2000, 4000
+  // 8000 steps: the last event (5500) is within 80% (6400): nothing moves, only the lr horizon.
+  const auto k = s.fitted(8000);
+  CHECK(k.iters == 8000);
+  CHECK(k.upsample_at == s.upsample_at);
+  CHECK(k.mask_at == s.mask_at);
+  CHECK(s.fitted(60000).upsample_at == s.upsample_at);
+  // 6000 steps: 5500 > 4800, so every event is scaled by 4800 / 5500.
   const auto f = s.fitted(6000);
-  CHECK(f.iters == 6000);
-  CHECK(f.upsample_at == std::vector<int>{400, 600, 800, 1100});
-  CHECK(f.mask_at == std::vector<int>{400, 800});
+  CHECK(f.upsample_at == std::vector<int>{1745, 2618, 3491, 4800});
+  CHECK(f.mask_at == std::vector<int>{1745, 3491});
   CHECK(f.voxel_list() == s.voxel_list());
-  // 300 iterations: 2000 -> 20 is too early, so the factor becomes 100 / 2000 and the events keep their
-  // proportions (5500 -> 275).
+  // 300 steps: 240 / 5500 would put the first event at 87, before 100: the factor is 100 / 2000 instead
+  // and the events keep their proportions (5500 -> 275).
   const auto g = s.fitted(300);
   CHECK(g.upsample_at == std::vector<int>{100, 150, 200, 275});
   CHECK(g.mask_at == std::vector<int>{100, 200});
@@ -167,9 +173,10 @@ TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never
   t.refit_schedule(100);  // before anything fired: fitted(100) of the 200-step plan, first event at 100
   CHECK(t.config().schedule.iters == 100);
   CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
-  t.refit_schedule(400);  // longer: events scale up to 120, 240 (first 120 >= 100, no shift)
-  CHECK(t.config().schedule.upsample_at == std::vector<int>{120, 240});
-  CHECK(t.config().schedule.mask_at == std::vector<int>{120});
+  t.refit_schedule(400);  // longer: the events would fit unmoved, but 60 < 100: scaled by 100 / 60
+  CHECK(t.config().schedule.iters == 400);
+  CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
+  CHECK(t.config().schedule.mask_at == std::vector<int>{100});
   for (int i = 0; i < 3; ++i) t.step();
   // After 3 steps nothing fired; a refit shorter than the steps taken runs at least one more step.
   t.refit_schedule(2);
@@ -177,17 +184,17 @@ TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never
   CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
 
   // Once an event has fired it stays where it was; the later one moves with the refit.
-  auto cfg2 = small_config(200);
-  cfg2.schedule.upsample_at = {100, 150};
-  cfg2.schedule.mask_at = {100};
+  auto cfg2 = small_config(400);
+  cfg2.schedule.upsample_at = {150, 300};
+  cfg2.schedule.mask_at = {150};
   train::DensityTrainer u(small_scene(), cfg2);
   const auto res_before = u.model().res();
-  for (int i = 0; i < 101; ++i) u.step();
-  CHECK(u.model().res() != res_before);  // the upsample at 100 happened
-  u.refit_schedule(400);                 // fitted(400): 200, 300; mask 200
-  CHECK(u.config().schedule.upsample_at == std::vector<int>{100, 300});
-  CHECK(u.config().schedule.mask_at == std::vector<int>{100});
-  CHECK(u.config().schedule.voxels_after(101) == cfg2.schedule.voxels_after(101));
+  for (int i = 0; i < 151; ++i) u.step();
+  CHECK(u.model().res() != res_before);  // the upsample at 150 happened
+  u.refit_schedule(200);                 // fitted(200): factor 100 / 150 -> 100, 200; mask 100
+  CHECK(u.config().schedule.upsample_at == std::vector<int>{150, 200});
+  CHECK(u.config().schedule.mask_at == std::vector<int>{150});
+  CHECK(u.config().schedule.voxels_after(151) == cfg2.schedule.voxels_after(151));
 }
 
 TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run stops on time") {
@@ -228,7 +235,7 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   // Held-out views: PSNR and depth against the generator's ground truth.
   const auto& scene = small_scene();
   double psnr = train::mean_psnr(train::evaluate_views(m, scene, 0, false));
-  double err = 0;
+  double err = 0, signed_err = 0, normalised_err = 0;  // normalised: depth / acc (a ray's expected hit)
   int64_t n = 0;
   std::vector<double> errs;
   for (const auto& v : scene.test) {
@@ -241,6 +248,8 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
       const bool fg = !v.alpha.empty() ? v.alpha[i] > 0.5f : gt.data[i] > 0;
       if (r.acc[i] > 0.5f && fg && gt.data[i] > 0) {
         err += std::abs(r.depth[i] - gt.data[i]);
+        signed_err += r.depth[i] - gt.data[i];
+        normalised_err += std::abs(r.depth[i] / r.acc[i] - gt.data[i]);
         errs.push_back(std::abs(r.depth[i] - gt.data[i]));
         ++n;
       }
@@ -249,8 +258,9 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   err /= std::max<int64_t>(n, 1);
   std::sort(errs.begin(), errs.end());
   const double median = errs.empty() ? 1e9 : errs[errs.size() / 2];
-  std::cout << "smoke: test PSNR " << psnr << " dB, |depth error| mean " << err << " median " << median << " over "
-            << n << " pixels" << std::endl;
+  std::cout << "smoke: test PSNR " << psnr << " dB, |depth error| mean " << err << " median " << median
+            << " signed mean " << signed_err / std::max<int64_t>(n, 1) << ", |depth/acc error| mean "
+            << normalised_err / std::max<int64_t>(n, 1) << " over " << n << " pixels" << std::endl;
   // Bounds (measured 25.0 dB, mean 0.092, median 0.082 at this size and length): 21 dB, and a mean error
   // of 0.15 world units (2 voxels of the final ~40^3 grid over the 3-unit box; the camera sits 4 units from
   // the centre, the objects span ~2.5 units).
@@ -384,5 +394,29 @@ TEST_CASE("train-density: a non-finite loss stops with an error naming the itera
   } catch (const host::Error& e) {
     const std::string msg = e.what();
     CHECK_MESSAGE(msg.find("iteration 3") != std::string::npos, msg);
+  }
+}
+
+TEST_CASE("train-density: a NaN in the grid (invisible in the loss) is caught and never checkpointed") {
+  auto cfg = small_config(10);
+  cfg.finite_check_every = 2;
+  train::DensityTrainer tr(small_scene(), cfg);
+  tr.step();
+  // One NaN density coefficient: the compositing treats its samples as empty, so the loss stays finite.
+  auto& grid = tr.model().density.params;
+  std::vector<float> values = grid.to_host();
+  values[values.size() / 2] = std::nanf("");
+  grid.upload(values);
+  const std::string path = (work_dir() / "nan.ckpt").string();
+  fs::remove(path);
+  CHECK_THROWS_WITH_AS(tr.save(path, {}), doctest::Contains("checkpoint"), host::Error);
+  CHECK_FALSE(fs::exists(path));
+  try {
+    tr.step();  // iteration 2: checked
+    FAIL("no error for a NaN grid");
+  } catch (const host::Error& e) {
+    const std::string msg = e.what();
+    CHECK_MESSAGE(msg.find("parameter 'density'") != std::string::npos, msg);
+    CHECK_MESSAGE(msg.find("after iteration 2") != std::string::npos, msg);
   }
 }

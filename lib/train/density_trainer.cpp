@@ -9,6 +9,7 @@
 
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
+#include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
 
 namespace stylerf::train {
@@ -222,6 +223,7 @@ StepStats DensityTrainer::step(bool with_reg) {
   }
   iteration_ = k;
   st.iteration = k;
+  if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) check_finite("after iteration " + std::to_string(k));
   on_step_done(st);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
@@ -293,7 +295,15 @@ void DensityTrainer::on_step_done(StepStats& st) {
   }
 }
 
+void DensityTrainer::check_finite(const std::string& when) const {
+  for (const auto& p : named_params(const_cast<DensityModel&>(model_)))
+    if (nn::has_nonfinite(*p.param))
+      throw Error("train-density: parameter '" + p.name + "' holds NaN or infinite values " + when +
+                  " (diverged; try a lower --lr-grid or another --seed)");
+}
+
 void DensityTrainer::save(const std::string& path, const json& scene_meta) const {
+  check_finite("at iteration " + std::to_string(iteration_) + "; checkpoint " + path + " not written");
   io::Checkpoint ck;
   ck.kind = "density";
   save_model(ck, model_);

@@ -68,9 +68,14 @@ Schedule Schedule::fitted(int new_iters, int min_first) const {
   int first = iters;
   if (!upsample_at.empty()) first = std::min(first, upsample_at.front());
   if (!mask_at.empty()) first = std::min(first, mask_at.front());
-  // Scale by the run's length, or more where that would put the first event before min_first (the spacing
-  // of the events keeps its proportions; the last ones may then fall past the end and never fire).
-  const double f = std::max(double(new_iters) / double(iters), double(min_first) / double(std::max(first, 1)));
+  int last = 0;
+  if (!upsample_at.empty()) last = std::max(last, upsample_at.back());
+  if (!mask_at.empty()) last = std::max(last, mask_at.back());
+  // Keep the events where they are when they fit in the first 80% of the run (TensoRF's lego events end at
+  // 5500 of 30000; a 6000-step run keeps them); otherwise pull them in just enough. Never so far that the
+  // first event comes before min_first.
+  double f = last > 0 ? std::min(1.0, 0.8 * double(new_iters) / double(last)) : 1.0;
+  f = std::max(f, double(min_first) / double(std::max(first, 1)));
   auto scale = [&](const std::vector<int>& v) {
     std::vector<int> out;
     for (int e : v) out.push_back(std::max(int(std::lround(e * f)), out.empty() ? 1 : out.back() + 1));

@@ -37,10 +37,13 @@ struct Schedule {
   bool upsample_at_step(int done) const;
   bool mask_at_step(int done) const;
   bool first_mask_step(int done) const { return !mask_at.empty() && done == mask_at.front(); }
-  // The same schedule for a run of `iters` steps: every event's iteration scaled by iters / this->iters,
-  // or by more where that would put the first event before `min_first` (a mask or upsample on a model a
-  // few dozen steps old would be built from noise). Every event is kept, in proportion; one that lands
-  // past the end never fires, and the voxel list is unchanged.
+  // The same schedule for a run of `iters` steps: events stay at their iterations when they all fall in
+  // the first 80% of the run; otherwise every event is scaled by the same factor so the last lands at 80%,
+  // but never so far that the first comes before `min_first` (a mask or an upsample of a model a few dozen
+  // steps old would be built from noise). Every event is kept (one past the end never fires), so the voxel
+  // list is unchanged. Measured on lego 1/4 in 30 min: scaling TensoRF's events by the run's length alone
+  // (mask at 112, 300^3 by 1349 of ~4500) reached 30.6 dB at 1050 s, against 32.4 dB at 30 min for its
+  // events unmoved.
   Schedule fitted(int iters, int min_first = 100) const;
   // "upsample at 2000 3000 ... to 2.1M 4.6M ... voxels; alpha mask at 2000 4000; lr 0.1x over 30000".
   std::string describe() const;
