@@ -52,7 +52,6 @@ RunResult timed_run(const scene::Scene& sc, train::DensityTrainConfig cfg, doubl
     train::DensityTrainer w(sc, wc);
     w.step();
   }
-  cfg.schedule = cfg.schedule.fitted(1000);  // a first guess; refitted after 10 steps
   train::DensityTrainer tr(sc, cfg);
   std::cout << "  " << label << ": " << budget_s << " s of training; schedule refitted to the budget as it runs"
             << std::endl;

@@ -206,11 +206,16 @@ TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run
   ro.time_budget_s = 4.0;
   ro.fit_schedule_to_budget = true;
   const auto sum = train::run_density_training(t, ro);
-  CHECK(sum.seconds >= 4.0);
-  CHECK(sum.seconds < 4.0 + 2.0);  // stops within a step or two of the budget
+  // It stops at the budget or, when the steps got faster after the last refit, at the fitted end a little
+  // before it (refits come every 5% of the budget).
+  CHECK(sum.seconds > 0.8 * 4.0);
+  CHECK(sum.seconds < 4.0 + 2.0);
   const auto& sch = t.config().schedule;
   INFO("ran " << sum.iterations << " steps; " << sch.describe());
   CHECK(sch.iters < 100000);
+  // The event planned at 20000 of 100000 was pulled in to the fitted run (to 100, the earliest allowed).
+  CHECK(sch.upsample_at[0] == 100);
+  CHECK(sch.mask_at[0] == 100);
   // The refit horizon is within a factor of ~2 of the steps actually taken (the rate varies as it trains).
   CHECK(sch.iters < 2 * sum.iterations + 20);
   CHECK(sch.iters > sum.iterations / 2);

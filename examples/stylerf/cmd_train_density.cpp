@@ -116,7 +116,6 @@ int run_train_density(int argc, char** argv) {
   } else {
     auto cfg = train::default_density_config(scene);
     if (iters > 0) cfg.schedule.iters = iters;
-    if (minutes > 0) cfg.schedule = cfg.schedule.fitted(1000);  // a first guess; refitted after 10 steps
     cfg.batch = batch;
     cfg.seed = seed;
     if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);

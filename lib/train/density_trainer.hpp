@@ -124,6 +124,7 @@ struct RunOptions {
   double time_budget_s = 0;     // > 0: stop after this much training time
   // With time_budget_s: refit the schedule (DensityTrainer::refit_schedule) after 10 steps and then every
   // 5% of the budget, from the step rate since the last refit, so events and lr decay land inside it.
+  // Give the trainer the full-length plan (TensoRF's): each refit fits that plan, never a fitted one.
   bool fit_schedule_to_budget = false;
   std::function<bool(const StepStats&)> after_step;
 };
