@@ -23,6 +23,8 @@
 #include "lib/field/appearance_head.hpp"
 #include "lib/field/vm_grid.hpp"
 #include "lib/render/composite.hpp"
+#include "lib/render/composite_values.hpp"
+#include "lib/render/weights.hpp"
 #include "lib/render/ray_march.hpp"
 
 namespace stylerf::bench {
@@ -212,14 +214,33 @@ int bench_field(const BenchOptions& opt) {
     Tensor sigma = Tensor::from_host(normal(size_t(N), 4, 2.0f), {N});
     Tensor rgb = Tensor::full({N, 3}, 0.5f);
     Tensor bg = Tensor::full({3}, 1.0f);
-    render::Composited c;
-    ms = timed("composite fwd", true, [&] { c = render::composite_forward(s, sigma, rgb, bg); });
-    add("composite fwd", ms, double(N), "Msmp/s", N * (4.0 + 12 + 4 + 4 + 4) + R * 28.0);
-    Tensor dv = Tensor::full({R, 3}, 1.0f), da = Tensor::full({R}, 1.0f);
-    ms = timed("composite bwd", false, [&] { render::composite_backward(s, sigma, rgb, bg, dv, da, Tensor()); });
-    add("composite bwd", ms, double(N), "Msmp/s", N * 2 * (4.0 + 12 + 4 + 4) + N * 16.0);
-    ms = timed("keep_by_weight + compact", false, [&] { render::compact(s, render::keep_by_weight(s, c.weights, 1e-4f)); });
-    add("keep_by_weight + compact", ms, double(N), "Msmp/s", N * 4.0 * 2 + N * 32.0);
+    render::Weights wt;
+    ms = timed("weights fwd (sigma -> w)", true, [&] { wt = render::weights_forward(s, sigma); });
+    add("weights fwd (sigma -> w)", ms, double(N), "Msmp/s", N * (4.0 + 4 + 4 + 4) + R * 16.0);
+    Tensor dw = Tensor::full({N}, 1e-3f), da = Tensor::full({R}, 1.0f);
+    ms = timed("weights bwd (dw -> dsigma)", false, [&] { render::weights_backward(s, sigma, dw, da, Tensor()); });
+    add("weights bwd (dw -> dsigma)", ms, double(N), "Msmp/s", N * 2 * (4.0 + 4 + 4 + 4) + N * 4.0);
+    render::Kept k;
+    ms = timed("keep_by_weight", false, [&] { k = render::keep_by_weight(s, wt.w, 1e-4f); });
+    add("keep_by_weight", ms, double(N), "Msmp/s", N * 4.0 * 2 + k.count * 4.0);
+    render::KeptLayout layout;
+    layout.count = k.count;
+    layout.ray_offset = k.ray_offset;
+    layout.ray_count = k.ray_count;
+    layout.ray_index = render::gather_rows(s.ray_index, k.index, k.count);
+    Tensor kw = render::gather_rows(wt.w, k.index, k.count);
+    const double K = double(k.count);
+    // The weighted sum over kept samples at the stage-1 (3) and stage-2/3 (256, 144) channel counts.
+    for (int C : {3, 144, 256}) {
+      Tensor vals = Tensor::full({k.count, C}, 0.5f);
+      const std::string fwd = "values fwd C=" + std::to_string(C), bwd = "values bwd C=" + std::to_string(C);
+      render::CompositedValues cv;
+      ms = timed(fwd, false, [&] { cv = render::composite_values_forward(layout, kw, vals); });
+      add(fwd, ms, K, "Msmp/s", K * (4.0 + 4.0 * C) + R * 4.0 * (C + 1));
+      Tensor dout = Tensor::full({R, C}, 1e-3f);
+      ms = timed(bwd, false, [&] { render::composite_values_backward(layout, kw, vals, dout, Tensor()); });
+      add(bwd, ms, K, "Msmp/s", K * (4.0 + 3 * 4.0 * C + 8) + R * 4.0 * C);
+    }
   }
 
   if (!opt.json_path.empty()) {

@@ -1,5 +1,5 @@
-// Ray marching (box intersection, samples, alpha-mask skip, compaction), compositing forward/backward, and
-// dropping low-weight samples. Host side: lib/render/ray_march.cpp, lib/render/composite.cpp.
+// Ray marching (box intersection, samples, alpha-mask skip, compaction) and dropping low-weight samples
+// (compositing: kernels/composite.cl). Host side: lib/render/ray_march.cpp, lib/render/composite.cpp.
 //
 // Integer arrays (ray index, per-ray offset/count, kept indices) are int32 bit patterns stored in float
 // tensors; kernels declare them int/uint so the bits are never touched by float arithmetic.
@@ -139,94 +139,6 @@ kernel void march_write(MARCH_ARGS, global const int* offsets, global float* pos
     deltas[k] = delta;
     ray_index[k] = r;
     ++k;
-  }
-}
-
-// ---- compositing ---------------------------------------------------------------------------------------
-// Optical depth of one sample: sigma * delta, 0 when delta <= 0 (no inf * 0) and never negative (negative
-// or NaN sigma counts as empty; fmax returns the non-NaN operand).
-inline float optical_depth(float sigma, float delta) { return delta > 0.0f ? fmax(sigma * delta, 0.0f) : 0.0f; }
-// alpha = 1 - exp(-x) from e = exp(-x) (one exp per sample): for small x, 1 - e loses digits, so use the
-// series x (1 - x/2 (1 - x/3)) there (relative error < x^3/24 < 5e-8 at x < 1e-2).
-inline float alpha_of(float x, float e) { return x < 1e-2f ? x * (1.0f - 0.5f * x * (1.0f - x * (1.0f / 3.0f))) : 1.0f - e; }
-inline float dx_dsigma(float sigma, float delta) { return (delta > 0.0f && sigma >= 0.0f) ? delta : 0.0f; }
-
-// Per ray r over its samples [off, off+cnt): alpha_i = 1 - exp(-x_i), w_i = T_i alpha_i with
-// T_i = prod_{j<i} exp(-x_j) (a product of values in [0,1]: underflows to 0, never to NaN),
-// acc = sum w, depth = sum w_i t_i (no background depth), val = sum w_i c_i + (1 - acc) bg (bg if has_bg).
-kernel void composite_forward(global const float* sigma, global const float* vals, global const float* deltas,
-                              global const float* tvals, global const int* offsets, global const int* counts, int R,
-                              int C, global const float* bg, int has_bg, global float* out_val, global float* out_acc,
-                              global float* out_depth, global float* weights) {
-  const int r = get_global_id(0);
-  if (r >= R) return;
-  const int off = offsets[r], cnt = counts[r];
-  global float* ov = out_val + (long)r * C;
-  for (int c = 0; c < C; ++c) ov[c] = 0.0f;
-  float T = 1.0f, acc = 0.0f, depth = 0.0f;
-  for (int k = off; k < off + cnt; ++k) {
-    const float x = optical_depth(sigma[k], deltas[k]);
-    const float e = exp(-x);
-    const float w = T * alpha_of(x, e);
-    T *= e;
-    acc += w;
-    depth = fma(w, tvals[k], depth);
-    const global float* cv = vals + (long)k * C;
-    for (int c = 0; c < C; ++c) ov[c] = fma(w, cv[c], ov[c]);
-    weights[k] = w;
-  }
-  if (has_bg)
-    for (int c = 0; c < C; ++c) ov[c] = fma(1.0f - acc, bg[c], ov[c]);
-  out_acc[r] = acc;
-  out_depth[r] = depth;
-}
-
-// Backward: with v_i = dL/dw_i = <dval, c_i - bg> + dacc + ddepth t_i (bg term only with has_bg),
-// dL/dx_k = v_k T_{k+1} - sum_{i>k} v_i w_i (w_i = T_i - T_{i+1}); dsigma_k = dL/dx_k * dx_k/dsigma_k and
-// dc_k = w_k dval. Two forward passes: the first totals sum_i v_i w_i, the second subtracts the running
-// prefix, so no per-ray storage is needed.
-inline float sample_v(const global float* vals, int k, int C, const global float* dv, const global float* bg,
-                      int has_bg, float dacc, float ddepth, float t) {
-  float v = dacc + ddepth * t;
-  const global float* cv = vals + (long)k * C;
-  if (dv)
-    for (int c = 0; c < C; ++c) v = fma(dv[c], cv[c] - (has_bg ? bg[c] : 0.0f), v);
-  return v;
-}
-
-kernel void composite_backward(global const float* sigma, global const float* vals, global const float* deltas,
-                               global const float* tvals, global const int* offsets, global const int* counts, int R,
-                               int C, global const float* bg, int has_bg, global const float* dval, int has_dval,
-                               global const float* dacc, int has_dacc, global const float* ddepth, int has_ddepth,
-                               global float* dsigma, global float* dvals) {
-  const int r = get_global_id(0);
-  if (r >= R) return;
-  const int off = offsets[r], cnt = counts[r];
-  const global float* dv = has_dval ? dval + (long)r * C : 0;
-  const float da = has_dacc ? dacc[r] : 0.0f, dd = has_ddepth ? ddepth[r] : 0.0f;
-  float T = 1.0f, total = 0.0f;
-  for (int k = off; k < off + cnt; ++k) {
-    const float x = optical_depth(sigma[k], deltas[k]);
-    const float e = exp(-x);
-    const float w = T * alpha_of(x, e);
-    T *= e;
-    total = fma(sample_v(vals, k, C, dv, bg, has_bg, da, dd, tvals[k]), w, total);
-    global float* dc = dvals + (long)k * C;
-    for (int c = 0; c < C; ++c) dc[c] = dv ? w * dv[c] : 0.0f;
-  }
-  T = 1.0f;
-  float prefix = 0.0f;
-  for (int k = off; k < off + cnt; ++k) {
-    const float s = sigma[k], dl = deltas[k];
-    const float x = optical_depth(s, dl);
-    const float e = exp(-x);
-    const float w = T * alpha_of(x, e);
-    const float Tn = T * e;
-    const float v = sample_v(vals, k, C, dv, bg, has_bg, da, dd, tvals[k]);
-    prefix = fma(v, w, prefix);
-    const float dx = v * Tn - (total - prefix);
-    dsigma[k] = dx * dx_dsigma(s, dl);
-    T = Tn;
   }
 }
 

@@ -14,6 +14,8 @@
 #include "host/tensor.hpp"
 #include "lib/field/alpha_mask.hpp"
 #include "lib/render/composite.hpp"
+#include "lib/render/composite_values.hpp"
+#include "lib/render/weights.hpp"
 #include "lib/render/int_tensor.hpp"
 #include "lib/render/ray_march.hpp"
 #include "tests/testing.hpp"
@@ -285,6 +287,42 @@ Samples make_samples(const std::vector<int>& counts, const std::vector<float>& t
   s.deltas = Tensor::from_host(delta, {s.count});
   return s;
 }
+
+// Compositing through the two ops (lib/render/weights.hpp, lib/render/composite_values.hpp) with every
+// sample kept, plus the background: what the ray pipeline does, checked against ref_composite.
+render::KeptLayout all_kept(const Samples& s, const std::vector<int>& counts) {
+  render::KeptLayout l;
+  l.count = s.count;
+  l.ray_offset = s.ray_offset;
+  l.ray_count = s.ray_count;
+  std::vector<int32_t> ray;
+  for (int r = 0; r < int(counts.size()); ++r)
+    for (int k = 0; k < counts[r]; ++k) ray.push_back(r);
+  l.ray_index = int_tensor_from_host(ray);
+  return l;
+}
+struct OpsComposite {
+  Tensor value, acc, depth, weights;
+};
+OpsComposite composite_ops(const Samples& s, const std::vector<int>& counts, const Tensor& sigma, const Tensor& vals,
+                           const Tensor& bg) {
+  auto w = render::weights_forward(s, sigma);
+  auto cv = render::composite_values_forward(all_kept(s, counts), w.w, vals);
+  if (bg.defined()) render::background_forward(cv.value, w.acc, bg);
+  return {cv.value, w.acc, w.depth, w.w};
+}
+struct OpsGrads {
+  Tensor dsigma, dvalues;
+};
+OpsGrads composite_ops_backward(const Samples& s, const std::vector<int>& counts, const Tensor& sigma,
+                                const Tensor& vals, const Tensor& bg, const Tensor& dval, const Tensor& dacc,
+                                const Tensor& ddepth) {
+  auto w = render::weights_forward(s, sigma);
+  auto cg = render::composite_values_backward(all_kept(s, counts), w.w, vals, dval, Tensor());
+  Tensor da = dacc.defined() ? dacc.clone() : Tensor();
+  if (bg.defined() && dval.defined()) render::background_backward(dval, bg, da, da.defined());
+  return {render::weights_backward(s, sigma, cg.dw, da, ddepth), cg.dvalues};
+}
 }  // namespace
 
 TEST_CASE("compositing forward matches the double reference; backward matches its finite differences") {
@@ -306,7 +344,7 @@ TEST_CASE("compositing forward matches the double reference; backward matches it
       Samples s = make_samples(counts, t, delta);
       Tensor ts = Tensor::from_host(sigma, {S}), tv = Tensor::from_host(vals, {S, C});
       Tensor tbg = with_bg ? Tensor::from_host(bg, {C}) : Tensor();
-      auto out = render::composite_forward(s, ts, tv, tbg);
+      auto out = composite_ops(s, counts, ts, tv, tbg);
       auto ref = ref_composite(testing::to_double(sigma), testing::to_double(vals), delta, t, off, counts, C,
                                with_bg ? &bg : nullptr);
       // Products of <= 12 factors in float: rtol 1e-5, atol 1e-6.
@@ -325,7 +363,7 @@ TEST_CASE("compositing forward matches the double reference; backward matches it
       const auto sd = testing::to_double(sigma), vd = testing::to_double(vals);
       const auto fd_sigma = testing::finite_difference([&](const std::vector<double>& x) { return loss(x, vd); }, sd, 1e-6);
       const auto fd_vals = testing::finite_difference([&](const std::vector<double>& x) { return loss(sd, x); }, vd, 1e-6);
-      auto g = render::composite_backward(s, ts, tv, tbg, Tensor::from_host(std::vector<float>(gv.begin(), gv.end()), {R, C}),
+      auto g = composite_ops_backward(s, counts, ts, tv, tbg, Tensor::from_host(std::vector<float>(gv.begin(), gv.end()), {R, C}),
                                           Tensor::from_host(std::vector<float>(ga.begin(), ga.end()), {R}),
                                           Tensor::from_host(std::vector<float>(gd.begin(), gd.end()), {R}));
       // FD of a double function (h 1e-6: error ~1e-10); float kernel: rtol 1e-4, atol 1e-5.
@@ -360,7 +398,7 @@ TEST_CASE("compositing hard cases: sigma 0, sigma 1e6 first, delta 0, huge sigma
   Samples s = make_samples(counts, t, delta);
   auto vals = testing::random_uniform(size_t(S) * C, 9, 0.0f, 1.0f);
   Tensor ts = Tensor::from_host(sigma, {S}), tv = Tensor::from_host(vals, {S, C});
-  auto out = render::composite_forward(s, ts, tv, tbg);
+  auto out = composite_ops(s, counts, ts, tv, tbg);
   const auto val = out.value.to_host(), acc = out.acc.to_host(), w = out.weights.to_host();
   CHECK(testing::all_finite(val));
   CHECK(testing::all_finite(acc));
@@ -380,7 +418,7 @@ TEST_CASE("compositing hard cases: sigma 0, sigma 1e6 first, delta 0, huge sigma
   CHECK(w[15] == 0.0f);
 
   auto ones = [](int n) { return Tensor::full({n}, 1.0f); };
-  auto g = render::composite_backward(s, ts, tv, tbg, Tensor::full({R, C}, 1.0f), ones(R), ones(R));
+  auto g = composite_ops_backward(s, counts, ts, tv, tbg, Tensor::full({R, C}, 1.0f), ones(R), ones(R));
   const auto ds = g.dsigma.to_host(), dv = g.dvalues.to_host();
   CHECK(testing::all_finite(ds));
   CHECK(testing::all_finite(dv));
@@ -397,9 +435,9 @@ TEST_CASE("compositing hard cases: sigma 0, sigma 1e6 first, delta 0, huge sigma
 
   // No rays, no samples.
   Samples e = make_samples({}, {}, {});
-  auto eo = render::composite_forward(e, Tensor({0}), Tensor({0, 3}), tbg);
+  auto eo = composite_ops(e, {}, Tensor({0}), Tensor({0, 3}), tbg);
   CHECK(eo.value.numel() == 0);
-  auto eg = render::composite_backward(e, Tensor({0}), Tensor({0, 3}), tbg, Tensor({0, 3}), Tensor(), Tensor());
+  auto eg = composite_ops_backward(e, {}, Tensor({0}), Tensor({0, 3}), tbg, Tensor({0, 3}), Tensor(), Tensor());
   CHECK(eg.dsigma.numel() == 0);
 }
 
@@ -446,4 +484,81 @@ TEST_CASE("dropping samples below a weight threshold keeps the rest in order; ga
     const bool kept = w[i] >= 1e-4f;
     for (int a = 0; a < 3; ++a) CHECK(back[3 * i + a] == (kept ? pos[3 * i + a] : 0.0f));
   }
+}
+
+TEST_CASE("weighted sum over kept samples: every vector width, forward vs double reference, backward vs FD") {
+  const std::vector<int> counts = {3, 0, 1, 7, 2};  // an empty ray, a ray of one sample
+  const int R = int(counts.size());
+  int K = 0;
+  for (int c : counts) K += c;
+  std::vector<int32_t> off;
+  render::exclusive_scan(counts, off);
+  Samples s = make_samples(counts, std::vector<float>(K, 1.0f), std::vector<float>(K, 0.1f));
+  const render::KeptLayout layout = all_kept(s, counts);
+  for (int C : {256, 20, 8, 7, 3}) {  // vector widths 16, 4, 8, 1, 1
+    CAPTURE(C);
+    const auto w = testing::random_uniform(K, 21, 0.0f, 1.0f);
+    const auto v = testing::random_normal(size_t(K) * C, 22);
+    const auto gv = testing::to_double(testing::random_normal(size_t(R) * C, 23));
+    const auto ga = testing::to_double(testing::random_normal(R, 24));
+    auto ref = [&](const std::vector<double>& wd, const std::vector<double>& vd, std::vector<double>* acc) {
+      std::vector<double> out(size_t(R) * C, 0.0);
+      if (acc) acc->assign(R, 0.0);
+      for (int r = 0; r < R; ++r)
+        for (int k = off[r]; k < off[r] + counts[r]; ++k) {
+          if (acc) (*acc)[r] += wd[k];
+          for (int c = 0; c < C; ++c) out[size_t(r) * C + c] += wd[k] * vd[size_t(k) * C + c];
+        }
+      return out;
+    };
+    Tensor tw = Tensor::from_host(w, {K}), tv = Tensor::from_host(v, {K, C});
+    auto out = render::composite_values_forward(layout, tw, tv);
+    std::vector<double> acc;
+    const auto want = ref(testing::to_double(w), testing::to_double(v), &acc);
+    check_close(out.value.to_host(), want, 1e-5, 1e-6, "composited values");
+    check_close(out.acc.to_host(), acc, 1e-6, 1e-7, "kept acc");
+
+    auto loss = [&](const std::vector<double>& wd, const std::vector<double>& vd) {
+      std::vector<double> a;
+      return testing::dot(ref(wd, vd, &a), gv) + testing::dot(a, ga);
+    };
+    const auto wd = testing::to_double(w), vd = testing::to_double(v);
+    const auto fd_w = testing::finite_difference([&](const std::vector<double>& x) { return loss(x, vd); }, wd, 1e-6);
+    std::vector<size_t> probe;  // a sample of the value entries (all of them at small C)
+    for (size_t i = 0; i < vd.size(); i += (C > 20 ? 37 : 1)) probe.push_back(i);
+    const auto fd_v =
+        testing::finite_difference_at([&](const std::vector<double>& x) { return loss(wd, x); }, vd, probe, 1e-6);
+    auto g = render::composite_values_backward(layout, tw, tv,
+                                               Tensor::from_host(std::vector<float>(gv.begin(), gv.end()), {R, C}),
+                                               Tensor::from_host(std::vector<float>(ga.begin(), ga.end()), {R}));
+    check_close(g.dw.to_host(), fd_w, 1e-4, 1e-5, "dw");
+    const auto dv = g.dvalues.to_host();
+    std::vector<float> got;
+    std::vector<double> want_v;
+    for (size_t i = 0; i < probe.size(); ++i) got.push_back(dv[probe[i]]), want_v.push_back(fd_v[i]);
+    check_close(got, want_v, 1e-4, 1e-5, "dvalues");
+  }
+}
+
+TEST_CASE("weighted sum over kept samples: no kept samples, a ray of zero weights, shape errors") {
+  const std::vector<int> counts = {0, 0};
+  Samples s = make_samples(counts, {}, {});
+  const render::KeptLayout layout = all_kept(s, counts);
+  auto out = render::composite_values_forward(layout, Tensor({0}), Tensor({0, 256}));
+  CHECK(out.value.to_host() == std::vector<float>(2 * 256, 0.0f));
+  CHECK(out.acc.to_host() == std::vector<float>{0.0f, 0.0f});
+  // All weights zero (a background ray that kept samples anyway): value 0, acc 0, dvalues 0.
+  const std::vector<int> c2 = {4};
+  Samples s2 = make_samples(c2, std::vector<float>(4, 1.0f), std::vector<float>(4, 0.1f));
+  const auto l2 = all_kept(s2, c2);
+  auto o2 = render::composite_values_forward(l2, Tensor::zeros({4}), Tensor::full({4, 256}, 3.0f));
+  CHECK(o2.value.to_host() == std::vector<float>(256, 0.0f));
+  auto g2 = render::composite_values_backward(l2, Tensor::zeros({4}), Tensor::full({4, 256}, 3.0f),
+                                              Tensor::full({1, 256}, 1.0f), Tensor());
+  CHECK(g2.dvalues.to_host() == std::vector<float>(4 * 256, 0.0f));
+  CHECK(g2.dw.to_host() == std::vector<float>(4, 768.0f));
+  testing::expect_error([&] { render::composite_values_forward(l2, Tensor::zeros({3}), Tensor::zeros({4, 8})); },
+                        "weights");
+  testing::expect_error([&] { render::composite_values_forward(l2, Tensor::zeros({4}), Tensor::zeros({5, 8})); },
+                        "values have shape");
 }

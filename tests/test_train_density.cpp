@@ -234,7 +234,7 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   CHECK(shrunk);
   CHECK(upsampled);
   const auto& m = t.trainer->model();
-  CHECK(m.mask.voxels);
+  CHECK(m.geo.mask.voxels);
   CHECK(m.res()[0] > 24);
 
   // Held-out views: PSNR and depth against the generator's ground truth.
@@ -244,7 +244,7 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   int64_t n = 0;
   std::vector<double> errs;
   for (const auto& v : scene.test) {
-    const auto r = train::render_camera(m, scene, v.camera, 4096);
+    const auto r = model::render_view(m, scene, v.camera, 4096);
     std::string dpath = v.image_path;
     dpath = dpath.substr(0, dpath.size() - 4) + "_depth.exr";
     const auto gt = io::read_exr(dpath);
@@ -280,20 +280,20 @@ TEST_CASE("checkpoint: round trip keeps parameters, alpha mask, optimiser state 
   const std::string path = (work_dir() / "rt.ckpt").string();
   t.trainer->save(path, nlohmann::json{{"dir", "x"}});
   const auto ck = io::load_checkpoint(path, "density");
-  const auto m2 = train::load_model(ck);
+  const auto m2 = model::load_model(ck);
   const auto& m1 = t.trainer->model();
   CHECK(m2.res() == m1.res());
-  CHECK(m2.box_lo == m1.box_lo);
-  CHECK(m2.step == m1.step);
-  CHECK(host_of(m2.density.params) == host_of(m1.density.params));
-  CHECK(host_of(m2.app.params) == host_of(m1.app.params));
-  CHECK(host_of(m2.head.w2) == host_of(m1.head.w2));
-  CHECK(m2.mask.to_host() == m1.mask.to_host());
-  CHECK(m2.mask.occupied == m1.mask.occupied);
+  CHECK(m2.geo.box_lo == m1.geo.box_lo);
+  CHECK(m2.geo.step == m1.geo.step);
+  CHECK(host_of(m2.geo.density.params) == host_of(m1.geo.density.params));
+  CHECK(host_of(m2.rgb.app().params) == host_of(m1.rgb.app().params));
+  CHECK(host_of(m2.rgb.mlp().w2) == host_of(m1.rgb.mlp().w2));
+  CHECK(m2.geo.mask.to_host() == m1.geo.mask.to_host());
+  CHECK(m2.geo.mask.occupied == m1.geo.mask.occupied);
   // Rendering the same rays gives bit-identical output.
   const auto& cam = small_scene().test[0].camera;
-  const auto r1 = train::render_camera(m1, small_scene(), cam), r2 = train::render_camera(m2, small_scene(), cam);
-  CHECK(r1.rgb == r2.rgb);
+  const auto r1 = model::render_view(m1, small_scene(), cam), r2 = model::render_view(m2, small_scene(), cam);
+  CHECK(r1.value == r2.value);
   CHECK(r1.depth == r2.depth);
   // A trainer restored from it carries the iteration and the optimiser state: saving it again gives the
   // same tensors.
@@ -392,7 +392,7 @@ TEST_CASE("train-density: a non-finite loss stops with an error naming the itera
   tr.step();
   // A NaN background colour makes every ray's colour NaN (compositing and the head's sigmoid would swallow
   // NaN density or NaN logits; the background is added as it is).
-  tr.model().background = {std::nanf(""), 0.5f, 0.5f};
+  tr.model().geo.background = {std::nanf(""), 0.5f, 0.5f};
   try {
     tr.step();
     FAIL("no error for a NaN loss");
@@ -408,7 +408,7 @@ TEST_CASE("train-density: a NaN in the grid (invisible in the loss) is caught an
   train::DensityTrainer tr(small_scene(), cfg);
   tr.step();
   // One NaN density coefficient: the compositing treats its samples as empty, so the loss stays finite.
-  auto& grid = tr.model().density.params;
+  auto& grid = tr.model().geo.density.params;
   std::vector<float> values = grid.to_host();
   values[values.size() / 2] = std::nanf("");
   grid.upload(values);

@@ -20,7 +20,8 @@
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
 #include "lib/scene/camera_path.hpp"
-#include "lib/train/density_trainer.hpp"
+#include "lib/model/density_model.hpp"
+#include "lib/scene/scene_meta.hpp"
 
 namespace po = boost::program_options;
 namespace fs = std::filesystem;
@@ -28,7 +29,7 @@ namespace fs = std::filesystem;
 namespace {
 
 using stylerf::host::Error;
-namespace train = stylerf::train;
+namespace model = stylerf::model;
 
 stylerf::io::Image to_image(const std::vector<float>& hwc, int w, int h) {
   stylerf::io::Image img;
@@ -43,7 +44,7 @@ stylerf::io::Image to_image(const std::vector<float>& hwc, int w, int h) {
 
 // Depth as colour: near = yellow, far = dark purple (a few control points of a perceptual ramp, linearly
 // interpolated), range from the 2nd..98th percentile of pixels with acc > 0.5; empty pixels black.
-stylerf::io::Image colourise_depth(const train::ViewRender& r) {
+stylerf::io::Image colourise_depth(const model::ViewValues& r) {
   static const float ramp[5][3] = {{0.99f, 0.91f, 0.14f}, {0.98f, 0.55f, 0.04f}, {0.80f, 0.24f, 0.33f},
                                    {0.42f, 0.07f, 0.51f}, {0.05f, 0.03f, 0.20f}};
   std::vector<float> vals;
@@ -77,9 +78,9 @@ std::string numbered(const fs::path& dir, const std::string& stem, int i, int di
   return (dir / o.str()).string();
 }
 
-void save_outputs(const train::ViewRender& r, const std::string& png, const std::string& exr,
+void save_outputs(const model::ViewValues& r, const std::string& png, const std::string& exr,
                   const std::string& depth_png) {
-  stylerf::io::save_png(png, to_image(r.rgb, r.width, r.height));
+  stylerf::io::save_png(png, to_image(r.value, r.width, r.height));
   stylerf::io::write_exr(exr, r.depth, r.width, r.height, 1);
   stylerf::io::save_png(depth_png, colourise_depth(r));
 }
@@ -110,14 +111,14 @@ int run_render(int argc, char** argv) {
   stylerf::cli::init_runtime(device, false);
 
   const auto ck = stylerf::io::load_checkpoint(ckpt, "density");
-  const auto model = train::load_model(ck);
+  auto density = model::load_model(ck);
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
-  if (scene_dir.empty()) scene_dir = train::scene_dir_from_meta(smeta);
-  auto lo = train::load_options_from_meta(smeta);
+  if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
+  auto lo = stylerf::scene::load_options_from_meta(smeta);
   lo.load_images = views == "test";
   lo.log = &std::cout;
   const auto scene = stylerf::scene::load_scene(scene_dir, lo);
-  std::cout << "model: " << model.describe() << "\n";
+  std::cout << "model: " << density.describe() << "\n";
   if (out.empty()) out = ckpt + "_render_" + views;
   fs::create_directories(out);
   const auto t0 = std::chrono::steady_clock::now();
@@ -131,10 +132,10 @@ int run_render(int argc, char** argv) {
     for (int j = 0; j < m; ++j) {
       const int id = static_cast<int>(int64_t(j) * n / m);
       const auto& v = scene.test[size_t(id)];
-      const auto r = train::render_camera(model, scene, v.camera, chunk);
+      const auto r = model::render_view(density, scene, v.camera, chunk);
       const std::string png = numbered(out, "test_", id, 3, ".png");
       save_outputs(r, png, numbered(out, "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"));
-      const auto a = to_image(r.rgb, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
+      const auto a = to_image(r.value, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
       const double p = stylerf::eval::psnr(a.data, b.data), s = stylerf::eval::ssim(a, b);
       sp += p;
       ss += s;
@@ -158,7 +159,7 @@ int run_render(int argc, char** argv) {
     std::cout << (scene.effects.ndc || scene.format == "llff-forward" ? "spiral" : "orbit") << " path, "
               << path.size() << " frames\n";
     for (size_t i = 0; i < path.size(); ++i) {
-      const auto r = train::render_camera(model, scene, path[i], chunk);
+      const auto r = model::render_view(density, scene, path[i], chunk);
       save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(out, "depth_", int(i), 4, ".exr"),
                    numbered(out, "depth_", int(i), 4, ".png"));
       if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;

@@ -147,7 +147,7 @@ int run_train_density(int argc, char** argv) {
   ro.checkpoint_every = ckpt_every;
   ro.time_budget_s = minutes * 60.0;
   ro.fit_schedule_to_budget = minutes > 0;
-  ro.scene_meta = train::scene_meta(dir, lo, scene);
+  ro.scene_meta = stylerf::scene::scene_meta(dir, lo, scene);
   const auto sum = train::run_density_training(*trainer, ro);
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9) << " it/s); checkpoint "

@@ -17,54 +17,6 @@ using host::launch_with_local;
 // device many groups to balance. Global sizes are rounded up; the kernels guard their index.
 constexpr size_t kGroup = 64;
 
-// Stand-in for an absent optional float input (kernels get a valid buffer and a has_* flag).
-static const Tensor& absent() {
-  static Tensor t = Tensor::zeros({1}, "absent input");
-  return t;
-}
-
-static int channels_of(const Samples& s, const Tensor& sigma, const Tensor& values, const char* op) {
-  host::expect_shape(sigma, {s.count}, op, "sigma");
-  if (values.ndim() != 2 || values.dim(0) != s.count)
-    throw Error(std::string(op) + ": values have shape " + host::shape_str(values.shape()) + ", expected [" +
-                std::to_string(s.count) + ", C]");
-  return static_cast<int>(values.dim(1));
-}
-
-Composited composite_forward(const Samples& s, const Tensor& sigma, const Tensor& values, const Tensor& background) {
-  const int C = channels_of(s, sigma, values, "composite_forward");
-  const int R = static_cast<int>(s.ray_count.numel());
-  if (background.defined()) host::expect_shape(background, {C}, "composite_forward", "background");
-  Composited out;
-  out.value = Tensor({R, C}, "composited value");
-  out.acc = Tensor({R}, "accumulated opacity");
-  out.depth = Tensor({R}, "depth");
-  out.weights = Tensor({s.count}, "sample weights");
-  launch_with_local("render", "composite_forward", "", {size_t(R)}, {kGroup}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
-         background.defined() ? background : absent(), int(background.defined()), out.value, out.acc, out.depth,
-         out.weights);
-  return out;
-}
-
-CompositeGrads composite_backward(const Samples& s, const Tensor& sigma, const Tensor& values,
-                                  const Tensor& background, const Tensor& dvalue, const Tensor& dacc,
-                                  const Tensor& ddepth) {
-  const int C = channels_of(s, sigma, values, "composite_backward");
-  const int R = static_cast<int>(s.ray_count.numel());
-  if (background.defined()) host::expect_shape(background, {C}, "composite_backward", "background");
-  if (dvalue.defined()) host::expect_shape(dvalue, {R, C}, "composite_backward", "dvalue");
-  if (dacc.defined()) host::expect_shape(dacc, {R}, "composite_backward", "dacc");
-  if (ddepth.defined()) host::expect_shape(ddepth, {R}, "composite_backward", "ddepth");
-  CompositeGrads g;
-  g.dsigma = Tensor({s.count}, "dsigma");
-  g.dvalues = Tensor({s.count, C}, "dvalues");
-  auto opt = [](const Tensor& t) -> const Tensor& { return t.defined() ? t : absent(); };
-  launch_with_local("render", "composite_backward", "", {size_t(R)}, {kGroup}, sigma, values, s.deltas, s.t, s.ray_offset, s.ray_count, R, C,
-         opt(background), int(background.defined()), opt(dvalue), int(dvalue.defined()), opt(dacc),
-         int(dacc.defined()), opt(ddepth), int(ddepth.defined()), g.dsigma, g.dvalues);
-  return g;
-}
-
 Kept keep_by_weight(const Samples& s, const Tensor& weights, float threshold) {
   host::expect_shape(weights, {s.count}, "keep_by_weight", "weights");
   const int R = static_cast<int>(s.ray_count.numel());

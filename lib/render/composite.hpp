@@ -1,12 +1,7 @@
-// Volume compositing along rays over a compacted sample list (lib/render/ray_march.hpp), forward and
-// backward, and the op that drops samples of negligible weight.
-//
-// Per ray r with samples i in [offset_r, offset_r + count_r):
-//   x_i = sigma_i * delta_i (0 when delta_i <= 0; negative/NaN sigma counts as 0), alpha_i = 1 - exp(-x_i),
-//   T_i = prod_{j<i} exp(-x_j), w_i = T_i alpha_i,
-//   acc = sum w_i,  depth = sum w_i t_i (no background term: divide by acc, or add (1-acc) far, if wanted),
-//   value = sum w_i c_i + (1 - acc) * background   (background only when given).
-// Values have C channels (3 for RGB; the feature stage composites more with the same op).
+// Selecting and moving samples between the full list of a march (lib/render/ray_march.hpp) and the
+// compacted list of kept samples: dropping samples of negligible weight, gather/scatter of rows, compaction.
+// Compositing itself is two ops: lib/render/weights.hpp (sigma -> weights) and
+// lib/render/composite_values.hpp (a weighted sum of C-channel values over the kept samples).
 #pragma once
 #include <vector>
 
@@ -14,25 +9,6 @@
 #include "lib/render/ray_march.hpp"
 
 namespace stylerf::render {
-
-struct Composited {
-  Tensor value;    // [R,C]
-  Tensor acc;      // [R]
-  Tensor depth;    // [R]
-  Tensor weights;  // [S]
-};
-
-// sigma [S], values [S,C], background [C] or undefined (none).
-Composited composite_forward(const Samples& s, const Tensor& sigma, const Tensor& values, const Tensor& background);
-
-struct CompositeGrads {
-  Tensor dsigma;   // [S]
-  Tensor dvalues;  // [S,C]
-};
-// Upstream gradients dvalue [R,C], dacc [R], ddepth [R]; any may be undefined (zero).
-CompositeGrads composite_backward(const Samples& s, const Tensor& sigma, const Tensor& values,
-                                  const Tensor& background, const Tensor& dvalue, const Tensor& dacc,
-                                  const Tensor& ddepth);
 
 // Samples with w >= threshold, in order: indices into the sample list and the new per-ray offset/count.
 struct Kept {
@@ -46,9 +22,8 @@ Kept keep_by_weight(const Samples& s, const Tensor& weights, float threshold = 1
 // rows [K, C] = src[index[k], :] for a float or int32-bits src [S, C] (or [S]).
 Tensor gather_rows(const Tensor& src, const Tensor& index, int64_t count);
 
-// The inverse: out [total, C] zero-filled, out[index[k], :] = rows[k, :] (values of kept samples back in
-// the full list; TensoRF composites all samples with zero colour for the dropped ones). Its backward is
-// gather_rows.
+// The inverse: out [total, C] zero-filled, out[index[k], :] = rows[k, :] (per-sample gradients of kept
+// samples back in the full list, zero for the dropped ones). Its backward is gather_rows.
 Tensor scatter_rows(const Tensor& rows, const Tensor& index, int64_t total);
 
 // The compacted sample list of the kept samples (positions, t, deltas, ray index gathered; offsets/counts

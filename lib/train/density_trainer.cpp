@@ -98,8 +98,8 @@ DensityTrainConfig default_density_config(const scene::Scene& scene) {
 }
 
 // ---- trainer -----------------------------------------------------------------------------------------------
-static std::array<int, 3> res_for(const DensityModel& m, int64_t voxels) {
-  return field::grid_res_for_voxels(m.box_size(), voxels);
+static std::array<int, 3> res_for(const model::Geometry& g, int64_t voxels) {
+  return field::grid_res_for_voxels(g.box_size(), voxels);
 }
 
 // The ray sampler's stream for a run resumed at `iteration` (std::mt19937_64 state is not checkpointed:
@@ -110,7 +110,7 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConf
   cfg_.schedule.validate();
   planned_ = cfg_.schedule;
   if (cfg_.batch < 1) throw Error("train-density: batch must be >= 1");
-  DensityModel probe;
+  model::Geometry probe;
   for (int a = 0; a < 3; ++a) probe.box_lo[a] = scene.aabb[0][a], probe.box_hi[a] = scene.aabb[1][a];
   model_ = DensityModel::create(scene, cfg_.model, res_for(probe, cfg_.schedule.voxels_init), cfg_.seed);
   l1_weight_ = cfg_.l1_initial;
@@ -123,20 +123,14 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& 
     const json& t = ck.meta.at("trainer");
     cfg_ = DensityTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
-    adam_step_ = t.at("adam_step").get<int>();
     l1_weight_ = t.at("l1_weight").get<float>();
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
   }
   planned_ = cfg_.schedule;
-  model_ = load_model(ck);
-  grads_ = DensityGrads::zeros_like(model_);
-  m_.clear();
-  v_.clear();
-  for (const auto& p : named_params(model_)) {
-    m_.push_back(ck.device("adam.m." + p.name, p.param->shape()));
-    v_.push_back(ck.device("adam.v." + p.name, p.param->shape()));
-  }
+  model_ = model::load_model(ck);
+  init_optimizer();
+  adam_.load(ck, "", model_.params());
   sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, iteration_));
 }
 
@@ -161,14 +155,7 @@ void DensityTrainer::refit_schedule(int total_iters) {
 }
 
 void DensityTrainer::init_optimizer() {
-  grads_ = DensityGrads::zeros_like(model_);
-  m_.clear();
-  v_.clear();
-  for (const auto& p : named_params(model_)) {
-    m_.push_back(Tensor::zeros(p.param->shape(), "Adam m"));
-    v_.push_back(Tensor::zeros(p.param->shape(), "Adam v"));
-  }
-  adam_step_ = 0;
+  adam_ = nn::Adam({{"grid", cfg_.lr_grid}, {"network", cfg_.lr_net}}, cfg_.beta1, cfg_.beta2);
 }
 
 StepStats DensityTrainer::step(bool with_reg) {
@@ -181,11 +168,11 @@ StepStats DensityTrainer::step(bool with_reg) {
   Tensor d = Tensor::from_host(rays.directions, {R, 3}, "batch directions");
   Tensor target = Tensor::from_host(rays.rgb, {R, 3}, "batch colours");
 
-  RenderCache cache;
-  RayOutputs out = render_rays(model_, o, d, true, static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k)), &cache);
+  model::RayContext cache;
+  model::RayResult out = model_.render(o, d, true, static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k)), &cache);
   st.samples = out.samples;
   st.kept = out.kept;
-  const float mse = nn::mse_forward(out.rgb, target).to_host()[0];
+  const float mse = nn::mse_forward(out.value, target).to_host()[0];
   if (!std::isfinite(mse))
     throw Error("train-density: the loss is " + std::to_string(mse) + " at iteration " + std::to_string(k) +
                 " (diverged; try a lower --lr-grid or another --seed)");
@@ -193,34 +180,27 @@ StepStats DensityTrainer::step(bool with_reg) {
   st.psnr = -10.0 * std::log10(std::max(double(mse), 1e-12));
 
   // Gradients: data term through the renderer, then the regularisers straight into the grid gradients.
-  Tensor drgb = nn::mse_backward(out.rgb, target, 1.0f);
-  grads_.density.zero();
-  grads_.app.zero();
-  render_rays_backward(model_, cache, drgb, grads_);
+  Tensor drgb = nn::mse_backward(out.value, target, 1.0f);
+  model_.zero_grad();
+  model_.render_backward(cache, drgb);
+  Tensor& ddensity = model_.density_param().grad_buffer();
+  Tensor& dapp = model_.rgb.app_param().grad_buffer();
+  const field::VMGrid app = model_.rgb.app();
   const float reg_scale = cfg_.schedule.reg_scale(k);
   // TensoRF: TV_loss_* = sum_planes TVLoss(plane) * 1e-2 with TVLoss = 2 (mean_h + mean_w).
   const float tvd = cfg_.tv_density * reg_scale * 2e-2f, tva = cfg_.tv_app * reg_scale * 2e-2f;
-  if (l1_weight_ > 0) field::l1_backward(model_.density, l1_weight_, grads_.density);
-  if (tvd > 0) field::tv_backward(model_.density, tvd, grads_.density);
-  if (tva > 0) field::tv_backward(model_.app, tva, grads_.app);
+  const field::VMGrid& density = model_.geo.density;
+  if (l1_weight_ > 0) field::l1_backward(density, l1_weight_, ddensity);
+  if (tvd > 0) field::tv_backward(density, tvd, ddensity);
+  if (tva > 0) field::tv_backward(app, tva, dapp);
   if (with_reg) {
     st.reg = 0;
-    if (l1_weight_ > 0) st.reg += l1_weight_ * field::l1_forward(model_.density);
-    if (tvd > 0) st.reg += tvd * field::tv_forward(model_.density);
-    if (tva > 0) st.reg += tva * field::tv_forward(model_.app);
+    if (l1_weight_ > 0) st.reg += l1_weight_ * field::l1_forward(density);
+    if (tvd > 0) st.reg += tvd * field::tv_forward(density);
+    if (tva > 0) st.reg += tva * field::tv_forward(app);
   }
 
-  ++adam_step_;
-  const float lr_scale = cfg_.schedule.lr_scale(k);
-  auto params = named_params(model_);
-  auto grads = grad_list(grads_);
-  for (size_t i = 0; i < params.size(); ++i) {
-    nn::AdamConfig ac;
-    ac.lr = (params[i].group == 0 ? cfg_.lr_grid : cfg_.lr_net) * lr_scale;
-    ac.beta1 = cfg_.beta1;
-    ac.beta2 = cfg_.beta2;
-    nn::adam_step(*params[i].param, *grads[i], m_[i], v_[i], adam_step_, ac);
-  }
+  adam_.step(model_.params(), cfg_.schedule.lr_scale(k));
   iteration_ = k;
   st.iteration = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) check_finite("after iteration " + std::to_string(k));
@@ -236,37 +216,32 @@ void DensityTrainer::on_step_done(StepStats& st) {
     // TensoRF: the mask at the grid resolution while that stays under 256^3 voxels.
     const auto r = model_.res();
     const int64_t voxels = int64_t(r[0]) * r[1] * r[2];
-    const auto mres = voxels < 256LL * 256 * 256 ? r : res_for(model_, 256LL * 256 * 256);
+    const auto mres = voxels < 256LL * 256 * 256 ? r : res_for(model_.geo, 256LL * 256 * 256);
     model_.update_alpha_mask(mres);
     std::ostringstream e;
     e << "alpha mask " << mres[0] << "x" << mres[1] << "x" << mres[2] << ": "
-      << 100.0 * double(model_.mask.occupied) / (double(mres[0]) * mres[1] * mres[2]) << "% occupied";
+      << 100.0 * double(model_.geo.mask.occupied) / (double(mres[0]) * mres[1] * mres[2]) << "% occupied";
     if (s.first_mask_step(k)) {
       l1_weight_ = cfg_.l1_rest;
-      if (model_.mask.empty()) {
+      if (model_.geo.mask.empty()) {
         e << " (empty: box kept, mask not used)";
-        model_.mask = field::AlphaMask{};
+        model_.geo.mask = field::AlphaMask{};
       } else {
         // Shrink the box to the occupied region; the Adam moments follow the grids by the same crop.
-        const GridCrop c = model_.occupied_crop();
-        const field::VMGrid old_density = model_.density, old_app = model_.app;
-        model_.apply_crop(c);
-        m_[0] = crop_like_grid(old_density, m_[0], c);
-        v_[0] = crop_like_grid(old_density, v_[0], c);
-        m_[1] = crop_like_grid(old_app, m_[1], c);
-        v_[1] = crop_like_grid(old_app, v_[1], c);
-        grads_ = DensityGrads::zeros_like(model_);
+        const model::GridCrop c = model_.occupied_crop();
+        carry_moments(c, [&] { model_.apply_crop(c); });
         const auto nr = model_.res();
-        e << "; box shrunk to [" << model_.box_lo[0] << ", " << model_.box_lo[1] << ", " << model_.box_lo[2] << "] .. ["
-          << model_.box_hi[0] << ", " << model_.box_hi[1] << ", " << model_.box_hi[2] << "], grid " << nr[0] << "x"
+        const model::Geometry& g = model_.geo;
+        e << "; box shrunk to [" << g.box_lo[0] << ", " << g.box_lo[1] << ", " << g.box_lo[2] << "] .. ["
+          << g.box_hi[0] << ", " << g.box_hi[1] << ", " << g.box_hi[2] << "], grid " << nr[0] << "x"
           << nr[1] << "x" << nr[2];
         // The mask was built over the old box: rebuild it over the new one.
         const int64_t nv = int64_t(nr[0]) * nr[1] * nr[2];
-        model_.update_alpha_mask(nv < 256LL * 256 * 256 ? nr : res_for(model_, 256LL * 256 * 256));
+        model_.update_alpha_mask(nv < 256LL * 256 * 256 ? nr : res_for(model_.geo, 256LL * 256 * 256));
       }
-    } else if (model_.mask.empty()) {
+    } else if (model_.geo.mask.empty()) {
       e << " (empty: not used)";
-      model_.mask = field::AlphaMask{};
+      model_.geo.mask = field::AlphaMask{};
     }
     st.events.push_back(e.str());
   }
@@ -274,49 +249,46 @@ void DensityTrainer::on_step_done(StepStats& st) {
     const auto list = s.voxel_list();
     size_t idx = 0;
     while (s.upsample_at[idx] != k) ++idx;
-    const auto nr = res_for(model_, list[idx]);
-    const field::VMGrid old_density = model_.density, old_app = model_.app;
-    model_.upsample(nr);
+    const auto nr = res_for(model_.geo, list[idx]);
     if (cfg_.reset_optimizer_on_upsample) {
+      model_.upsample(nr);
       init_optimizer();  // TensoRF builds a new Adam here
     } else {
-      GridCrop c;
+      model::GridCrop c;  // the whole box at the new resolution: the moments are upsampled with the grids
       c.res = nr;
-      m_[0] = crop_like_grid(old_density, m_[0], c);
-      v_[0] = crop_like_grid(old_density, v_[0], c);
-      m_[1] = crop_like_grid(old_app, m_[1], c);
-      v_[1] = crop_like_grid(old_app, v_[1], c);
-      grads_ = DensityGrads::zeros_like(model_);
+      carry_moments(c, [&] { model_.upsample(nr); });
     }
     std::ostringstream e;
-    e << "upsampled to " << nr[0] << "x" << nr[1] << "x" << nr[2] << " (" << model_.max_samples << " samples/ray max)"
+    e << "upsampled to " << nr[0] << "x" << nr[1] << "x" << nr[2] << " (" << model_.geo.max_samples << " samples/ray max)"
       << (cfg_.reset_optimizer_on_upsample ? ", optimiser reset" : "");
     st.events.push_back(e.str());
   }
 }
 
-void DensityTrainer::check_finite(const std::string& when) const {
-  for (const auto& p : named_params(const_cast<DensityModel&>(model_)))
-    if (nn::has_nonfinite(*p.param))
-      throw Error("train-density: parameter '" + p.name + "' holds NaN or infinite values " + when +
-                  " (diverged; try a lower --lr-grid or another --seed)");
+void DensityTrainer::carry_moments(const model::GridCrop& c, const std::function<void()>& change) {
+  const field::VMGrid old_density = model_.geo.density, old_app = model_.rgb.app();
+  change();
+  adam_.remap("density", [&](const Tensor& t) { return model::crop_like_grid(old_density, t, c); });
+  adam_.remap("app", [&](const Tensor& t) { return model::crop_like_grid(old_app, t, c); });
 }
 
-void DensityTrainer::save(const std::string& path, const json& scene_meta) const {
+void DensityTrainer::check_finite(const std::string& when) {
+  const std::string bad = model_.first_nonfinite();
+  if (!bad.empty())
+    throw Error("train-density: parameter '" + bad + "' holds NaN or infinite values " + when +
+                " (diverged; try a lower --lr-grid or another --seed)");
+}
+
+void DensityTrainer::save(const std::string& path, const json& scene_meta) {
   check_finite("at iteration " + std::to_string(iteration_) + "; checkpoint " + path + " not written");
   io::Checkpoint ck;
   ck.kind = "density";
-  save_model(ck, model_);
+  model::save_model(ck, model_);
   ck.meta["scene"] = scene_meta;
   ck.meta["trainer"] = {{"config", cfg_.to_json()},
                         {"iteration", iteration_},
-                        {"adam_step", adam_step_},
                         {"l1_weight", l1_weight_}};
-  auto params = named_params(const_cast<DensityModel&>(model_));
-  for (size_t i = 0; i < params.size(); ++i) {
-    ck.put("adam.m." + params[i].name, m_[i]);
-    ck.put("adam.v." + params[i].name, v_[i]);
-  }
+  adam_.save(ck, "");
   io::save_checkpoint(path, ck);
 }
 
@@ -329,7 +301,7 @@ static std::vector<float> to_planar(const std::vector<float>& hwc, int w, int h)
   return out;
 }
 
-std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene& scene, int max_views, bool ssim) {
+std::vector<ViewScore> evaluate_views(const model::DensityModel& m, const scene::Scene& scene, int max_views, bool ssim) {
   const int n = static_cast<int>(scene.test.size());
   std::vector<int> ids;
   if (max_views <= 0 || max_views >= n) {
@@ -341,12 +313,13 @@ std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene&
   for (int id : ids) {
     const scene::View& v = scene.test[size_t(id)];
     if (v.rgb.empty()) throw Error("evaluate: test view " + v.image_path + " has no image loaded");
-    const ViewRender r = render_camera(m, scene, v.camera);
+    const model::ViewValues r = model::render_view(m, scene, v.camera);
     ViewScore s;
     s.view = id;
-    s.psnr = eval::psnr(r.rgb, v.rgb);
+    s.psnr = eval::psnr(r.value, v.rgb);
     if (ssim)
-      s.ssim = eval::ssim(to_planar(r.rgb, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
+      s.ssim =
+          eval::ssim(to_planar(r.value, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
     out.push_back(s);
   }
   return out;
@@ -361,30 +334,6 @@ double mean_psnr(const std::vector<ViewScore>& v) {
 }  // namespace stylerf::train
 
 namespace stylerf::train {
-
-json scene_meta(const std::string& dir, const scene::LoadOptions& opt, const scene::Scene& s) {
-  std::error_code ec;
-  const auto abs = std::filesystem::absolute(dir, ec);
-  return json{{"dir", ec ? dir : abs.string()},
-              {"name", s.name},
-              {"format", s.format},
-              {"downsample", opt.downsample},
-              {"ndc", s.effects.ndc},
-              {"view_dependence", s.effects.view_dependence}};
-}
-
-std::string scene_dir_from_meta(const json& meta) {
-  if (!meta.contains("dir")) throw Error("checkpoint has no scene directory; pass --scene DIR");
-  return meta.at("dir").get<std::string>();
-}
-
-scene::LoadOptions load_options_from_meta(const json& meta) {
-  scene::LoadOptions o;
-  o.downsample = meta.value("downsample", 1);
-  o.ndc = meta.value("ndc", false) ? scene::Switch::on : scene::Switch::off;
-  o.view_dependence = meta.value("view_dependence", false);
-  return o;
-}
 
 static std::string hms(double s) {
   if (!std::isfinite(s) || s < 0) return "?";

@@ -20,10 +20,16 @@
 
 #include "lib/scene/rays.hpp"
 #include "lib/scene/scene.hpp"
-#include "lib/train/density_model.hpp"
+#include "lib/scene/scene_meta.hpp"
+#include "lib/model/density_model.hpp"
+#include "lib/nn/adam.hpp"
 #include "lib/train/schedule.hpp"
 
 namespace stylerf::train {
+
+using model::DensityModel;
+using model::DensityModelConfig;
+using host::Tensor;
 
 struct DensityTrainConfig {
   DensityModelConfig model;
@@ -80,21 +86,22 @@ class DensityTrainer {
   // (never to a step already taken). Used by time-budgeted runs as the step rate becomes known.
   void refit_schedule(int total_iters);
   // `scene_meta` (how to reload the scene) is stored beside the model and optimiser state.
-  void save(const std::string& path, const nlohmann::json& scene_meta) const;
+  void save(const std::string& path, const nlohmann::json& scene_meta);
 
  private:
   void init_optimizer();
   // Throws an Error naming the first parameter holding a NaN or an infinity, and `when`.
-  void check_finite(const std::string& when) const;
+  void check_finite(const std::string& when);
+  // Runs `change` (a crop or an upsampling of both grids, described by c) and carries the grids' Adam
+  // moments through the same crop/resampling.
+  void carry_moments(const model::GridCrop& c, const std::function<void()>& change);
   void on_step_done(StepStats& st);
 
   const scene::Scene* scene_;
   DensityTrainConfig cfg_;
   Schedule planned_;  // the schedule as configured, before any refit
   DensityModel model_;
-  DensityGrads grads_;
-  std::vector<Tensor> m_, v_;  // Adam moments, named_params order
-  int adam_step_ = 0;          // Adam's step count (restarts when the optimiser is rebuilt)
+  nn::Adam adam_;  // groups: grid (lr_grid), network (lr_net); rebuilt at upsampling (TensoRF)
   int iteration_ = 0;
   float l1_weight_ = 0;
   std::unique_ptr<scene::RaySampler> sampler_;
@@ -108,10 +115,6 @@ struct ViewScore {
 std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene& scene, int max_views, bool ssim);
 double mean_psnr(const std::vector<ViewScore>& v);  // mean of per-view PSNR (as the NeRF papers report)
 
-// How a checkpoint finds its scene again: the directory (absolute) and the load options that matter.
-nlohmann::json scene_meta(const std::string& dir, const scene::LoadOptions& opt, const scene::Scene& s);
-std::string scene_dir_from_meta(const nlohmann::json& meta);
-scene::LoadOptions load_options_from_meta(const nlohmann::json& meta);
 
 // The loop around step(): progress lines (iteration, loss, batch PSNR, rays/s, ETA), events, periodic
 // atomic checkpoints, and an optional callback after every step (return false to stop early).

@@ -1,0 +1,163 @@
+// Compositing as two ops (host side: lib/render/weights.cpp and lib/render/composite_values.cpp):
+//   1. sigma -> weights over the full sample list: w_i = T_i (1 - exp(-x_i)), plus acc = sum w and
+//      depth = sum w t per ray;
+//   2. a weighted sum of C-channel values over a COMPACTED list of kept samples: out_r = sum_k w_k v_k,
+//      plus the accumulated opacity of the kept samples. It never touches a [samples, C] buffer of all
+//      samples, so at C = 256 the cost is that of the kept samples only.
+// Gradients flow back the same way: op 2 gives dvalues and dw of the kept samples; the caller adds any
+// other dw terms (the full acc, depth, background) and op 1 turns dw into dsigma.
+//
+// Integer arrays (offsets, counts, ray indices) are int32 bit patterns (see lib/render/int_tensor.hpp).
+
+// Shared with render.cl (kept identical: the two must agree on the weights they produce).
+inline float od_of(float sigma, float delta) { return delta > 0.0f ? fmax(sigma * delta, 0.0f) : 0.0f; }
+inline float alpha_from(float x, float e) {
+  return x < 1e-2f ? x * (1.0f - 0.5f * x * (1.0f - x * (1.0f / 3.0f))) : 1.0f - e;
+}
+inline float dod_dsigma(float sigma, float delta) { return (delta > 0.0f && sigma >= 0.0f) ? delta : 0.0f; }
+
+// ---- op 1: sigma -> weights ---------------------------------------------------------------------------
+kernel void weights_forward(global const float* sigma, global const float* deltas, global const float* tvals,
+                            global const int* offsets, global const int* counts, int R, global float* weights,
+                            global float* acc_out, global float* depth_out) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const int off = offsets[r], cnt = counts[r];
+  float T = 1.0f, acc = 0.0f, depth = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float x = od_of(sigma[k], deltas[k]);
+    const float e = exp(-x);
+    const float w = T * alpha_from(x, e);
+    T *= e;
+    acc += w;
+    depth = fma(w, tvals[k], depth);
+    weights[k] = w;
+  }
+  acc_out[r] = acc;
+  depth_out[r] = depth;
+}
+
+// With v_i = dw_i + dacc_r + ddepth_r t_i (the full gradient of the loss w.r.t. w_i):
+//   dL/dx_k = v_k T_{k+1} - sum_{i>k} v_i w_i,   dsigma_k = dL/dx_k * dx_k/dsigma_k.
+// Two passes over the ray: the first totals sum v_i w_i, the second subtracts the running prefix.
+kernel void weights_backward(global const float* sigma, global const float* deltas, global const float* tvals,
+                             global const int* offsets, global const int* counts, int R, global const float* dw,
+                             int has_dw, global const float* dacc, int has_dacc, global const float* ddepth,
+                             int has_ddepth, global float* dsigma) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const int off = offsets[r], cnt = counts[r];
+  const float da = has_dacc ? dacc[r] : 0.0f, dd = has_ddepth ? ddepth[r] : 0.0f;
+  float T = 1.0f, total = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float x = od_of(sigma[k], deltas[k]);
+    const float e = exp(-x);
+    const float w = T * alpha_from(x, e);
+    T *= e;
+    const float v = (has_dw ? dw[k] : 0.0f) + da + dd * tvals[k];
+    total = fma(v, w, total);
+  }
+  T = 1.0f;
+  float prefix = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float s = sigma[k], dl = deltas[k];
+    const float x = od_of(s, dl);
+    const float e = exp(-x);
+    const float w = T * alpha_from(x, e);
+    const float Tn = T * e;
+    const float v = (has_dw ? dw[k] : 0.0f) + da + dd * tvals[k];
+    prefix = fma(v, w, prefix);
+    dsigma[k] = (v * Tn - (total - prefix)) * dod_dsigma(s, dl);
+    T = Tn;
+  }
+}
+
+// ---- op 2: weighted sum of C-channel values over kept samples ---------------------------------------------
+// VW (a build option) is the vector width over channels: 16, 8, 4 or 1; the host picks the largest that
+// divides C. One work-item handles one ray (or one kept sample) and VW consecutive channels.
+#ifndef VW
+#define VW 1
+#endif
+#define CAT_(a, b) a##b
+#define CAT(a, b) CAT_(a, b)
+#if VW == 1
+#define VT float
+#define VLOAD(i, p) ((p)[i])
+#define VSTORE(v, i, p) ((p)[i] = (v))
+#define VSUM(v) (v)
+#else
+#define VT CAT(float, VW)
+#define VLOAD(i, p) CAT(vload, VW)(i, p)
+#define VSTORE(v, i, p) CAT(vstore, VW)(v, i, p)
+#endif
+#if VW == 4
+#define VSUM(v) ((v).s0 + (v).s1 + (v).s2 + (v).s3)
+#elif VW == 8
+#define VSUM(v) (((v).s0 + (v).s1) + ((v).s2 + (v).s3) + ((v).s4 + (v).s5) + ((v).s6 + (v).s7))
+#elif VW == 16
+#define VSUM(v) (VSUM8((v).lo) + VSUM8((v).hi))
+#define VSUM8(v) (((v).s0 + (v).s1) + ((v).s2 + (v).s3) + ((v).s4 + (v).s5) + ((v).s6 + (v).s7))
+#endif
+
+// out[r, chunk] = sum_{k in ray r} w[k] * vals[k, chunk]; chunk 0 also writes acc[r] = sum w[k].
+kernel void values_forward(global const float* w, global const float* vals, global const int* offsets,
+                           global const int* counts, int R, int C, global float* out, global float* acc_out) {
+  const int r = get_global_id(0), ch = get_global_id(1);
+  const int chunks = C / VW;
+  if (r >= R || ch >= chunks) return;
+  const int off = offsets[r], cnt = counts[r];
+  VT s = (VT)(0.0f);
+  float acc = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float wk = w[k];
+    s = fma((VT)(wk), VLOAD(ch, vals + (long)k * C), s);
+    acc += wk;
+  }
+  VSTORE(s, ch, out + (long)r * C);
+  if (ch == 0) acc_out[r] = acc;
+}
+
+// dvals[k, chunk] = w[k] * dout[ray[k], chunk].
+kernel void values_backward_dvalues(global const float* w, global const int* ray_of, int K, int C,
+                                    global const float* dout, global float* dvals) {
+  const int k = get_global_id(0), ch = get_global_id(1);
+  if (k >= K || ch >= C / VW) return;
+  VSTORE((VT)(w[k]) * VLOAD(ch, dout + (long)ray_of[k] * C), ch, dvals + (long)k * C);
+}
+
+// dw[k] = <dout[ray[k]], vals[k]> + dacc[ray[k]] (dout / dacc optional).
+kernel void values_backward_dweights(global const float* vals, global const int* ray_of, int K, int C,
+                                     global const float* dout, int has_dout, global const float* dacc, int has_dacc,
+                                     global float* dw) {
+  const int k = get_global_id(0);
+  if (k >= K) return;
+  const int r = ray_of[k];
+  float s = has_dacc ? dacc[r] : 0.0f;
+  if (has_dout) {
+    const global float* v = vals + (long)k * C;
+    const global float* d = dout + (long)r * C;
+    VT a = (VT)(0.0f);
+    for (int ch = 0; ch < C / VW; ++ch) a = fma(VLOAD(ch, v), VLOAD(ch, d), a);
+    s += VSUM(a);
+  }
+  dw[k] = s;
+}
+
+// ---- background -------------------------------------------------------------------------------------------
+// out[r, c] += (1 - acc[r]) * bg[c]  (in place).
+kernel void background_forward(global float* out, global const float* acc, global const float* bg, int R, int C) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const float t = 1.0f - acc[r];
+  for (int c = 0; c < C; ++c) out[(long)r * C + c] = fma(t, bg[c], out[(long)r * C + c]);
+}
+
+// dacc[r] (+)= -<dout[r], bg>  (accumulate: has_prev adds to what is there).
+kernel void background_backward(global const float* dout, global const float* bg, int R, int C, global float* dacc,
+                                int accumulate) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  float s = 0.0f;
+  for (int c = 0; c < C; ++c) s = fma(dout[(long)r * C + c], bg[c], s);
+  dacc[r] = (accumulate ? dacc[r] : 0.0f) - s;
+}

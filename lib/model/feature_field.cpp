@@ -1,0 +1,132 @@
+#include "lib/model/feature_field.hpp"
+
+#include <cmath>
+#include <random>
+
+#include "host/error.hpp"
+#include "host/gemm.hpp"
+#include "lib/scene/rays.hpp"
+
+namespace stylerf::model {
+
+using host::Error;
+using host::Trans;
+
+struct FeatureGridContext : SampleHead::Context {
+  Tensor pos;
+};
+
+Tensor FeatureGridHead::forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const {
+  if (ctx) {
+    auto c = std::make_unique<FeatureGridContext>();
+    c->pos = pos;
+    *ctx = std::move(c);
+  }
+  return field::features_forward(grid(), pos);
+}
+
+void FeatureGridHead::backward(const Context& ctx, const Tensor& dvalues) {
+  const auto& c = static_cast<const FeatureGridContext&>(ctx);
+  field::features_backward(grid(), c.pos, dvalues, grid_.grad_buffer());
+}
+
+FeatureField FeatureField::create(const Geometry& g, const FeatureFieldConfig& cfg, uint64_t seed) {
+  FeatureField f;
+  f.cfg = cfg;
+  f.head = FeatureGridHead(field::VMGrid::create(g.res(), cfg.rank, cfg.init_scale, seed * 2 + 1));
+  const int F = f.head.channels();
+  std::mt19937_64 rng(seed * 2 + 2);
+  const float bound = 1.0f / std::sqrt(float(F));
+  std::uniform_real_distribution<float> u(-bound, bound);
+  std::vector<float> b(size_t(F) * cfg.channels);
+  for (auto& x : b) x = u(rng);
+  f.basis.value = Tensor::from_host(b, {F, cfg.channels}, "feature basis");
+  return f;
+}
+
+RayResult FeatureField::render(const Geometry& g, const Tensor& origins, const Tensor& dirs, const RayOptions& opt,
+                               Context* ctx) const {
+  RayResult r = render_rays(g, head, origins, dirs, opt, ctx ? &ctx->rays : nullptr);
+  Tensor feat({r.value.dim(0), cfg.channels}, "rendered features");
+  if (feat.numel() > 0) host::matmul(r.value, Trans::No, basis.value, Trans::No, feat);
+  if (ctx) ctx->composited = r.value;
+  r.value = feat;
+  return r;
+}
+
+void FeatureField::render_backward(const Geometry& g, const Context& ctx, const Tensor& dfeat,
+                                   const Tensor& dkept_acc) {
+  Tensor dcomp;
+  if (dfeat.defined()) {
+    host::expect_shape(dfeat, {ctx.composited.dim(0), cfg.channels}, "FeatureField::render_backward", "dfeat");
+    // basis grad += composited^T dfeat; d composited = dfeat basis^T.
+    Tensor& db = basis.grad_buffer();
+    if (dfeat.numel() > 0) host::matmul(ctx.composited, Trans::Yes, dfeat, Trans::No, db, 1.0f, 1.0f);
+    dcomp = Tensor(ctx.composited.shape(), "d composited grid features");
+    if (dcomp.numel() > 0) host::matmul(dfeat, Trans::No, basis.value, Trans::Yes, dcomp);
+  }
+  render_rays_backward(g, head, ctx.rays, dcomp, dkept_acc, nullptr);
+}
+
+// Per point: the basis inside the head (grid features x basis for every kept sample).
+namespace {
+class PerPointHead : public SampleHead {
+ public:
+  PerPointHead(const FeatureGridHead& grid, const Tensor& basis) : grid_(grid), basis_(basis) {}
+  int channels() const override { return int(basis_.dim(1)); }
+  Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>*) const override {
+    Tensor f = grid_.forward(pos, dirs, nullptr);
+    Tensor out({f.dim(0), basis_.dim(1)}, "per-point features");
+    host::matmul(f, Trans::No, basis_, Trans::No, out);
+    return out;
+  }
+  void backward(const Context&, const Tensor&) override { throw Error("per-point feature head: inference only"); }
+  void collect_params(std::vector<nn::Param*>&) override {}
+
+ private:
+  const FeatureGridHead& grid_;
+  Tensor basis_;
+};
+}  // namespace
+
+RayResult FeatureField::render_per_point(const Geometry& g, const Tensor& origins, const Tensor& dirs,
+                                         const RayOptions& opt) const {
+  PerPointHead h(head, basis.value);
+  return render_rays(g, h, origins, dirs, opt, nullptr);
+}
+
+void FeatureField::collect_params(std::vector<nn::Param*>& out) {
+  head.collect_params(out);
+  out.push_back(&basis);
+}
+
+ViewValues render_feature_view(const Geometry& g, const FeatureField& f, const scene::Scene& scene,
+                               const scene::Camera& cam, int chunk) {
+  if (chunk < 1) throw Error("render_feature_view: chunk must be >= 1");
+  const scene::Rays rays = scene::camera_rays(scene, cam);
+  const int64_t n = static_cast<int64_t>(rays.size());
+  const int C = f.channels();
+  ViewValues v;
+  v.width = cam.width;
+  v.height = cam.height;
+  v.channels = C;
+  v.value.resize(size_t(n) * C);
+  v.acc.resize(size_t(n));
+  v.depth.resize(size_t(n));
+  for (int64_t b = 0; b < n; b += chunk) {
+    const int64_t R = std::min<int64_t>(chunk, n - b);
+    std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
+    std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
+    RayResult out = f.render(g, Tensor::from_host(o, {R, 3}, "render origins"),
+                             Tensor::from_host(d, {R, 3}, "render directions"), RayOptions{}, nullptr);
+    const auto val = out.value.to_host(), acc = out.acc.to_host(), depth = out.depth.to_host();
+    std::copy(val.begin(), val.end(), v.value.begin() + int64_t(C) * b);
+    for (int64_t i = 0; i < R; ++i) {
+      v.acc[size_t(b + i)] = acc[size_t(i)];
+      v.depth[size_t(b + i)] = acc[size_t(i)] > 1e-6f ? depth[size_t(i)] / acc[size_t(i)] : 0.0f;
+    }
+  }
+  return v;
+}
+
+}  // namespace stylerf::model

@@ -1,0 +1,63 @@
+// The geometry of a radiance field: the density VM grid, the scene box, the near/far range, the alpha
+// mask and the sample step: everything the ray pipeline (lib/model/ray_pipeline.hpp) needs to decide
+// where samples go and how much each one weighs. Trained in stage 1 (lib/model/density_model.hpp), then
+// frozen: stages 2 and 3 load it from a density checkpoint and never change it.
+//
+// Units: t and depth are in the ray space (world distance along unit rays; the NDC parameter in [0,1]
+// for NDC scenes). delta = step * |d| * distance_scale (TensoRF's distance_scale 25).
+#pragma once
+#include <array>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "host/tensor.hpp"
+#include "lib/field/alpha_mask.hpp"
+#include "lib/field/vm_grid.hpp"
+#include "lib/render/ray_march.hpp"
+
+namespace stylerf::io {
+struct Checkpoint;
+struct HostTensor;
+}  // namespace stylerf::io
+
+namespace stylerf::model {
+
+using host::Tensor;
+
+struct Geometry {
+  std::array<float, 3> box_lo{}, box_hi{};
+  float near = 0, far = 1;
+  bool ndc = false;
+  bool has_background = false;
+  std::array<float, 3> background{1, 1, 1};
+  field::VMGrid density;
+  field::DensityActivation act = field::DensityActivation::Softplus;
+  field::AlphaMask mask;         // mask.voxels null: no mask
+  bool use_mask = true;          // false: ignore the mask while marching (bench knob)
+  float step_ratio = 0.5f;       // samples per voxel side (TensoRF)
+  float distance_scale = 25.0f;  // TensoRF
+  float weight_threshold = 1e-4f;  // samples below this weight get no value (TensoRF's app mask)
+  float step = 0;                // t units between samples (derived: update_step)
+  float mask_step = 0;           // box-unit step the alpha mask is built with (TensoRF: its stepSize)
+  int max_samples = 0;
+
+  std::array<int, 3> res() const { return density.res; }
+  std::array<float, 3> box_size() const;
+  // Recomputes step / max_samples from the grid resolution and the box (TensoRF's update_stepSize).
+  void update_step();
+  render::MarchConfig march_config(bool jitter, uint32_t seed) const;
+  const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels) ? &mask : nullptr; }
+  Tensor background_tensor() const;  // [3], undefined when the scene has no background
+  std::string describe() const;      // grid, step, samples per ray, box, mask occupancy
+
+  // Saved as "<prefix>density" + "<prefix>mask" tensors and meta[<prefix>geometry].
+  void save(io::Checkpoint& ck, const std::string& prefix) const;
+  static Geometry load(const io::Checkpoint& ck, const std::string& prefix);
+};
+
+// The alpha mask stored packed, 8 voxels per value (0..255), as TensoRF packs its mask bits: a record of
+// the mask training used, not something to recompute from a later grid.
+io::HostTensor pack_mask(const field::AlphaMask& m);
+field::AlphaMask unpack_mask(const io::HostTensor& t, std::array<int, 3> res, const std::string& path);
+
+}  // namespace stylerf::model

@@ -1,0 +1,132 @@
+#include "lib/model/ray_pipeline.hpp"
+
+#include <algorithm>
+
+#include "host/error.hpp"
+#include "lib/field/vm_grid.hpp"
+#include "lib/scene/rays.hpp"
+
+namespace stylerf::model {
+
+using host::Error;
+
+// Rays with no samples at all (every ray missed the box, or all its voxels are empty): value 0 plus the
+// background, acc 0, depth 0.
+static RayResult empty_result(int64_t R, int C, const Tensor& background) {
+  RayResult out;
+  out.value = Tensor::zeros({R, C}, "rendered values");
+  out.acc = Tensor::zeros({R}, "rendered acc");
+  out.kept_acc = Tensor::zeros({R}, "rendered kept acc");
+  out.depth = Tensor::zeros({R}, "rendered depth");
+  if (background.defined() && R > 0) render::background_forward(out.value, out.acc, background);
+  return out;
+}
+
+RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& origins, const Tensor& dirs,
+                      const RayOptions& opt, RayContext* ctx) {
+  const int64_t R = origins.dim(0);
+  const int C = head.channels();
+  if (opt.background.defined()) host::expect_shape(opt.background, {C}, "render_rays", "background");
+  render::Samples s = render::march(origins, dirs, g.march_config(opt.jitter, opt.seed), g.active_mask());
+  if (ctx) {
+    *ctx = RayContext{};
+    ctx->samples = s;
+    ctx->background = opt.background;
+  }
+  if (s.count == 0) return empty_result(R, C, opt.background);
+
+  Tensor sigma = field::density_forward(g.density, s.positions, g.act);
+  render::Weights w = render::weights_forward(s, sigma);
+  render::Kept k = render::keep_by_weight(s, w.w, g.weight_threshold);
+
+  render::KeptLayout layout;
+  layout.count = k.count;
+  layout.ray_offset = k.ray_offset;
+  layout.ray_count = k.ray_count;
+  RayResult out;
+  out.acc = w.acc;
+  out.depth = w.depth;
+  out.samples = s.count;
+  out.kept = k.count;
+  Tensor kept_w, values;
+  std::unique_ptr<SampleHead::Context> hctx;
+  if (k.count > 0) {
+    layout.ray_index = render::gather_rows(s.ray_index, k.index, k.count);
+    kept_w = render::gather_rows(w.w, k.index, k.count);
+    Tensor pos = render::gather_rows(s.positions, k.index, k.count);
+    Tensor view_dirs;
+    if (head.wants_view_dirs()) view_dirs = render::gather_rows(dirs, layout.ray_index, k.count);
+    values = head.forward(pos, view_dirs, ctx ? &hctx : nullptr);
+    if (values.ndim() != 2 || values.dim(0) != k.count || values.dim(1) != C)
+      throw Error("render_rays: the value head returned shape " + host::shape_str(values.shape()) + ", expected [" +
+                  std::to_string(k.count) + ", " + std::to_string(C) + "]");
+    render::CompositedValues cv = render::composite_values_forward(layout, kept_w, values);
+    out.value = cv.value;
+    out.kept_acc = cv.acc;
+  } else {
+    out.value = Tensor::zeros({R, C}, "rendered values");
+    out.kept_acc = Tensor::zeros({R}, "rendered kept acc");
+  }
+  if (opt.background.defined()) render::background_forward(out.value, out.acc, opt.background);
+  if (ctx) {
+    ctx->sigma = sigma;
+    ctx->weights = w;
+    ctx->kept = k;
+    ctx->kept_layout = layout;
+    ctx->kept_w = kept_w;
+    ctx->kept_values = values;
+    ctx->head = std::move(hctx);
+  }
+  return out;
+}
+
+void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
+                          const Tensor& dkept_acc, Tensor* ddensity) {
+  const render::Samples& s = ctx.samples;
+  if (s.count == 0) return;
+  Tensor dw_full;  // [S]: gradient w.r.t. every sample's weight
+  if (ctx.kept.count > 0) {
+    render::CompositeValuesGrads cg =
+        render::composite_values_backward(ctx.kept_layout, ctx.kept_w, ctx.kept_values, dvalue, dkept_acc);
+    if (dvalue.defined()) head.backward(*ctx.head, cg.dvalues);
+    if (ddensity) dw_full = render::scatter_rows(cg.dw, ctx.kept.index, s.count);
+  }
+  if (!ddensity) return;
+  Tensor dacc;  // the background term's gradient w.r.t. the opacity of all samples
+  if (ctx.background.defined() && dvalue.defined()) render::background_backward(dvalue, ctx.background, dacc, false);
+  Tensor dsigma = render::weights_backward(s, ctx.sigma, dw_full, dacc, Tensor());
+  field::density_backward(g.density, s.positions, ctx.sigma, dsigma, *ddensity, g.act);
+}
+
+ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
+                         const scene::Camera& cam, const Tensor& background, int chunk) {
+  if (chunk < 1) throw Error("render_camera: chunk must be >= 1");
+  const scene::Rays rays = scene::camera_rays(scene, cam);
+  const int64_t n = static_cast<int64_t>(rays.size());
+  const int C = head.channels();
+  ViewValues v;
+  v.width = cam.width;
+  v.height = cam.height;
+  v.channels = C;
+  v.value.resize(size_t(n) * C);
+  v.acc.resize(size_t(n));
+  v.depth.resize(size_t(n));
+  RayOptions opt;
+  opt.background = background;
+  for (int64_t b = 0; b < n; b += chunk) {
+    const int64_t R = std::min<int64_t>(chunk, n - b);
+    std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
+    std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
+    RayResult out = render_rays(g, head, Tensor::from_host(o, {R, 3}, "render origins"),
+                                Tensor::from_host(d, {R, 3}, "render directions"), opt, nullptr);
+    const auto val = out.value.to_host(), acc = out.acc.to_host(), depth = out.depth.to_host();
+    std::copy(val.begin(), val.end(), v.value.begin() + int64_t(C) * b);
+    for (int64_t i = 0; i < R; ++i) {
+      v.acc[size_t(b + i)] = acc[size_t(i)];
+      v.depth[size_t(b + i)] = acc[size_t(i)] > 1e-6f ? depth[size_t(i)] / acc[size_t(i)] : 0.0f;
+    }
+  }
+  return v;
+}
+
+}  // namespace stylerf::model

@@ -1,0 +1,69 @@
+// The ray pipeline shared by every stage:
+//   march (box, near/far, jitter when training, alpha-mask skip) -> sigma = density grid -> weights
+//   (lib/render/weights.hpp) -> keep samples with w >= geometry.weight_threshold (compacted list) -> the
+//   value head on the kept samples only -> weighted sum over them (lib/render/composite_values.hpp)
+//   (+ (1 - acc) * background when one is given).
+// Its backward: composite -> dvalues (-> head.backward, accumulating) and dw of the kept samples; those dw
+// (scattered into the full list, zero for dropped samples, whose value is 0 as in TensoRF) plus the
+// background term -> weights_backward -> dsigma -> density grid gradient (only when one is asked for:
+// the geometry is frozen after stage 1). The sample selection itself has no gradient.
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "host/tensor.hpp"
+#include "lib/model/geometry.hpp"
+#include "lib/model/sample_head.hpp"
+#include "lib/render/composite.hpp"
+#include "lib/render/composite_values.hpp"
+#include "lib/render/weights.hpp"
+#include "lib/scene/scene.hpp"
+
+namespace stylerf::model {
+
+struct RayOptions {
+  bool jitter = false;  // training: random offset of each ray's first sample
+  uint32_t seed = 0;
+  Tensor background;    // [C] composited behind the rays, or undefined (none)
+};
+
+struct RayResult {
+  Tensor value;     // [R, C]
+  Tensor acc;       // [R] opacity over all samples
+  Tensor kept_acc;  // [R] opacity over the kept samples (what the values were composited with)
+  Tensor depth;     // [R] sum w t over all samples (not divided by acc)
+  int64_t samples = 0, kept = 0;
+};
+
+// What render_rays_backward needs.
+struct RayContext {
+  render::Samples samples;
+  Tensor sigma;
+  render::Weights weights;
+  render::Kept kept;
+  render::KeptLayout kept_layout;
+  Tensor kept_w;
+  Tensor kept_values;
+  std::unique_ptr<SampleHead::Context> head;
+  Tensor background;
+};
+
+// origins, dirs [R,3] in the ray space.
+RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& origins, const Tensor& dirs,
+                      const RayOptions& opt, RayContext* ctx);
+
+// dvalue [R, C], dkept_acc [R] (either may be undefined). The head's gradients are accumulated; when
+// ddensity is given, the density grid's gradient is added to it.
+void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
+                          const Tensor& dkept_acc, Tensor* ddensity);
+
+// A whole camera in chunks of rays (bounded memory): interleaved values [H*W*C], acc and depth [H*W]
+// (depth divided by acc where acc > 1e-6, else 0).
+struct ViewValues {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> value, acc, depth;
+};
+ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
+                         const scene::Camera& cam, const Tensor& background, int chunk = 8192);
+
+}  // namespace stylerf::model

@@ -1,0 +1,15 @@
+// How a checkpoint finds its scene again: the directory (absolute) and the load options that matter,
+// stored as meta["scene"] by every stage.
+#pragma once
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "lib/scene/scene.hpp"
+
+namespace stylerf::scene {
+
+nlohmann::json scene_meta(const std::string& dir, const LoadOptions& opt, const Scene& s);
+std::string scene_dir_from_meta(const nlohmann::json& meta);
+LoadOptions load_options_from_meta(const nlohmann::json& meta);
+
+}  // namespace stylerf::scene

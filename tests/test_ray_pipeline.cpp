@@ -1,0 +1,200 @@
+// The ray pipeline (lib/model/ray_pipeline.hpp) as a whole: the composed render backward (march ->
+// density -> weights -> keep -> head -> weighted sum -> background) against central finite differences of
+// the forward, for the density grid and every head parameter; the feature field's two orders (basis per
+// ray after compositing vs per point before) agree; hard cases (rays missing the box, an empty geometry).
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "host/tensor.hpp"
+#include "lib/field/appearance_head.hpp"
+#include "lib/model/feature_field.hpp"
+#include "lib/model/ray_pipeline.hpp"
+#include "lib/model/rgb_head.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using host::Tensor;
+
+namespace {
+
+// A small geometry whose density is positive and moderate everywhere (planes and lines ~ N(1, 0.3): the
+// relu never sits at its kink), distance scale 1 so rays stay partly transparent, and every sample kept
+// (weight threshold 0), so the forward is a smooth function of every parameter.
+model::Geometry small_geometry() {
+  model::Geometry g;
+  g.box_lo = {-1, -1, -1};
+  g.box_hi = {1, 1, 1};
+  g.near = 0;
+  g.far = 10;
+  g.act = field::DensityActivation::Relu;
+  g.distance_scale = 1.0f;
+  g.weight_threshold = 0.0f;
+  g.density = field::VMGrid::create({6, 7, 5}, {2, 2, 2}, 0.3f, 11);
+  auto v = g.density.params.to_host();
+  for (auto& x : v) x += 0.6f;
+  g.density.params.upload(v);
+  g.update_step();
+  return g;
+}
+
+// 6 rays from outside the box towards random points inside it, and one that misses the box.
+void make_rays(Tensor& o, Tensor& d) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-0.7f, 0.7f);
+  std::vector<float> ov, dv;
+  for (int i = 0; i < 6; ++i) {
+    const float origin[3] = {u(rng) + 3.0f * (i % 2 ? 1 : -1), u(rng), u(rng) - 2.5f};
+    const float target[3] = {u(rng), u(rng), u(rng)};
+    float dir[3], n = 0;
+    for (int a = 0; a < 3; ++a) dir[a] = target[a] - origin[a], n += dir[a] * dir[a];
+    for (int a = 0; a < 3; ++a) ov.push_back(origin[a]), dv.push_back(dir[a] / std::sqrt(n));
+  }
+  ov.insert(ov.end(), {5.0f, 5.0f, 5.0f});
+  dv.insert(dv.end(), {0.0f, 0.0f, 1.0f});
+  o = Tensor::from_host(ov, {7, 3});
+  d = Tensor::from_host(dv, {7, 3});
+}
+
+// Compares p's accumulated gradient with central differences of loss() at a few entries of p.
+void check_param_fd(nn::Param& p, const std::function<double()>& loss, int probes, double h, const std::string& what) {
+  const auto grad = p.grad.to_host();
+  auto values = p.value.to_host();
+  std::mt19937 rng(17);
+  std::vector<float> got;
+  std::vector<double> want;
+  for (int i = 0; i < probes; ++i) {
+    const size_t k = rng() % values.size();
+    const float x0 = values[k];
+    values[k] = x0 + float(h);
+    p.value.upload(values);
+    const double lp = loss();
+    values[k] = x0 - float(h);
+    p.value.upload(values);
+    const double lm = loss();
+    values[k] = x0;
+    p.value.upload(values);
+    got.push_back(grad[k]);
+    want.push_back((lp - lm) / (2 * h));
+  }
+  // Float forward, h 1e-2: rounding noise ~1e-5 / 2e-2 in the quotient, truncation O(h^2).
+  testing::check_close(got, want, 2e-2, 2e-3, what);
+}
+
+double dot_host(const Tensor& t, const std::vector<double>& g) {
+  const auto v = t.to_host();
+  double s = 0;
+  for (size_t i = 0; i < v.size(); ++i) s += v[i] * g[i];
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("ray pipeline: the composed render backward (RGB head, background) matches finite differences") {
+  model::Geometry g = small_geometry();
+  field::AppearanceHeadConfig hc;
+  hc.features = 6;
+  hc.basis_dim = 5;
+  hc.hidden = 8;
+  // Hidden biases of +3 keep every ReLU of the MLP active: with ~100 samples x 8 units, some pre-activation
+  // would otherwise sit within any finite-difference step of a kink (the MLP alone is tested at its kinks'
+  // sides in test_appearance).
+  field::AppearanceHead mlp = field::AppearanceHead::create(hc, 13);
+  mlp.b1.fill(3.0f);
+  mlp.b2.fill(3.0f);
+  model::RgbHead head(field::VMGrid::create(g.res(), {2, 2, 2}, 0.5f, 12), mlp);
+  Tensor o, d;
+  make_rays(o, d);
+  model::RayOptions opt;
+  opt.background = Tensor::from_host({0.9f, 0.2f, 0.4f}, {3});
+  const auto G = testing::to_double(testing::random_normal(7 * 3, 21));
+  nn::Param density("density", 0, g.density.params);
+  auto loss = [&] {
+    g.density.params = density.value;
+    return dot_host(model::render_rays(g, head, o, d, opt, nullptr).value, G);
+  };
+  model::RayContext ctx;
+  auto out = model::render_rays(g, head, o, d, opt, &ctx);
+  CHECK(out.samples > 20);
+  CHECK(out.kept == out.samples);  // threshold 0: every sample kept
+  // The missing ray shows the background exactly.
+  const auto val = out.value.to_host();
+  CHECK(val[18] == doctest::Approx(0.9f));
+  CHECK(val[20] == doctest::Approx(0.4f));
+  head.zero_grad();
+  model::render_rays_backward(g, head, ctx, Tensor::from_host(std::vector<float>(G.begin(), G.end()), {7, 3}),
+                              Tensor(), &density.grad_buffer());
+  check_param_fd(density, loss, 24, 1e-2, "d density grid");
+  for (nn::Param* p : head.params()) check_param_fd(*p, loss, 12, 1e-2, "d " + p->name);
+}
+
+TEST_CASE("ray pipeline: the feature field's backward (grid, basis, kept opacity) matches finite differences") {
+  model::Geometry g = small_geometry();
+  model::FeatureFieldConfig fc;
+  fc.rank = {3, 2, 2};
+  fc.channels = 16;
+  fc.init_scale = 0.5f;
+  model::FeatureField f = model::FeatureField::create(g, fc, 3);
+  Tensor o, d;
+  make_rays(o, d);
+  const auto G = testing::to_double(testing::random_normal(7 * 16, 22));
+  const auto Ga = testing::to_double(testing::random_normal(7, 23));
+  auto loss = [&] {
+    auto r = f.render(g, o, d, {}, nullptr);
+    return dot_host(r.value, G) + dot_host(r.kept_acc, Ga);
+  };
+  model::FeatureField::Context ctx;
+  f.render(g, o, d, {}, &ctx);
+  f.zero_grad();
+  f.render_backward(g, ctx, Tensor::from_host(std::vector<float>(G.begin(), G.end()), {7, 16}),
+                    Tensor::from_host(std::vector<float>(Ga.begin(), Ga.end()), {7}));
+  for (nn::Param* p : f.params()) check_param_fd(*p, loss, 24, 1e-2, "d " + p->name);
+
+  // The density gradient through the feature head (stage 2 freezes it, the pipeline still supports it).
+  nn::Param density("density", 0, g.density.params);
+  auto loss_d = [&] {
+    g.density.params = density.value;
+    auto r = model::render_rays(g, f.head, o, d, {}, nullptr);
+    return dot_host(r.value, std::vector<double>(G.begin(), G.begin() + 7 * 7)) + dot_host(r.kept_acc, Ga);
+  };
+  model::RayContext rc;
+  model::render_rays(g, f.head, o, d, {}, &rc);
+  f.zero_grad();
+  std::vector<float> g7(G.begin(), G.begin() + 7 * 7);
+  model::render_rays_backward(g, f.head, rc, Tensor::from_host(g7, {7, 7}),
+                              Tensor::from_host(std::vector<float>(Ga.begin(), Ga.end()), {7}),
+                              &density.grad_buffer());
+  check_param_fd(density, loss_d, 24, 1e-2, "d density grid (feature head)");
+}
+
+TEST_CASE("feature field: compositing first and applying the basis per ray equals the per-point order") {
+  model::Geometry g = small_geometry();
+  g.weight_threshold = 1e-4f;  // as in training: dropped samples are dropped in both orders alike
+  model::FeatureFieldConfig fc;
+  fc.rank = {8, 8, 8};
+  model::FeatureField f = model::FeatureField::create(g, fc, 4);
+  Tensor o, d;
+  make_rays(o, d);
+  const auto a = f.render(g, o, d, {}, nullptr), b = f.render_per_point(g, o, d, {});
+  CHECK(a.value.shape() == host::Shape{7, 256});
+  std::vector<double> want;
+  for (float x : b.value.to_host()) want.push_back(x);
+  testing::check_close(a.value.to_host(), want, 1e-5, 1e-6, "basis per ray vs per point");
+  CHECK(a.kept_acc.to_host() == b.kept_acc.to_host());
+}
+
+TEST_CASE("ray pipeline: no samples at all (every ray misses) gives the background, zero opacity, no gradient") {
+  model::Geometry g = small_geometry();
+  model::FeatureField f = model::FeatureField::create(g, {}, 5);
+  Tensor o = Tensor::from_host({5, 5, 5, -5, 5, 5}, {2, 3}), d = Tensor::from_host({0, 0, 1, 0, 1, 0}, {2, 3});
+  model::FeatureField::Context ctx;
+  auto r = f.render(g, o, d, {}, &ctx);
+  CHECK(r.samples == 0);
+  CHECK(r.value.to_host() == std::vector<float>(2 * 256, 0.0f));
+  CHECK(r.acc.to_host() == std::vector<float>{0.0f, 0.0f});
+  f.zero_grad();
+  f.render_backward(g, ctx, Tensor::full({2, 256}, 1.0f), Tensor());
+  CHECK(f.basis.grad.to_host() == std::vector<float>(f.basis.value.numel(), 0.0f));
+}
