@@ -1,4 +1,4 @@
-// stylerf bench <gemm|conv|ops|field|density> [--json FILE] [--repeats N] [--quick] [--device D]
+// stylerf bench <gemm|conv|ops|field|density|targets> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <iostream>
@@ -6,6 +6,7 @@
 #include "bench/bench.hpp"
 #include "bench/bench_density.hpp"
 #include "bench/bench_field.hpp"
+#include "bench/bench_targets.hpp"
 #include "examples/stylerf/commands.hpp"
 
 namespace po = boost::program_options;
@@ -14,7 +15,7 @@ namespace {
 int run_bench(int argc, char** argv) {
   std::string which, device, parts;
   stylerf::bench::BenchOptions opt;
-  po::options_description desc("stylerf bench <gemm|conv|ops|field|density> [options]");
+  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
@@ -36,7 +37,8 @@ int run_bench(int argc, char** argv) {
               << "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
               << "  ops   perf mode of every NN op kernel (GB/s)\n"
               << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n"
-              << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n";
+              << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n"
+              << "  targets  stage-2 target reads: per-ray gather fwd/bwd, patch read (GB/s)\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
@@ -55,7 +57,8 @@ int run_bench(int argc, char** argv) {
   if (which == "ops") return stylerf::bench::bench_ops(opt);
   if (which == "field") return stylerf::bench::bench_field(opt);
   if (which == "density") return stylerf::bench::bench_density(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density)\n";
+  if (which == "targets") return stylerf::bench::bench_targets(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);
