@@ -11,6 +11,7 @@ int bench_ops(const BenchOptions& opt) {
   std::cout << "device: " << host::Runtime::instance().device().describe() << "\n";
   bench_ops_spatial(opt);
   bench_ops_norm(opt);
+  bench_ops_layout(opt);
   return 0;
 }
 

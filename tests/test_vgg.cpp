@@ -25,6 +25,7 @@
 #include "lib/nn/decoder.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/nn/weights.hpp"
+#include "tests/conv_reference.hpp"
 #include "tests/testing.hpp"
 
 namespace fs = std::filesystem;
@@ -35,44 +36,10 @@ namespace {
 
 // ---- CPU double-precision reference ----------------------------------------------------------------
 
-struct RefTensor {  // [C,H,W]
-  int C = 0, H = 0, W = 0;
-  std::vector<double> v;
-  double& at(int c, int y, int x) { return v[(size_t(c) * H + y) * W + x]; }
-  double at(int c, int y, int x) const { return v[(size_t(c) * H + y) * W + x]; }
-};
-
-int reflect(int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); }
-
-// k x k conv (k = 1 or 3), stride 1, same size; reflect or zero padding; w [Cout,Cin,k,k].
-RefTensor ref_conv(const RefTensor& x, const std::vector<float>& w, const std::vector<float>& b, int cout, int k,
-                   bool reflect_pad) {
-  RefTensor y{cout, x.H, x.W, std::vector<double>(size_t(cout) * x.H * x.W)};
-  const int r = k / 2;
-  for (int o = 0; o < cout; ++o)
-    for (int yy = 0; yy < x.H; ++yy)
-      for (int xx = 0; xx < x.W; ++xx) {
-        double s = b[o];
-        for (int i = 0; i < x.C; ++i)
-          for (int dy = -r; dy <= r; ++dy)
-            for (int dx = -r; dx <= r; ++dx) {
-              int sy = yy + dy, sx = xx + dx;
-              if (reflect_pad) {
-                sy = reflect(sy, x.H);
-                sx = reflect(sx, x.W);
-              } else if (sy < 0 || sy >= x.H || sx < 0 || sx >= x.W) {
-                continue;
-              }
-              s += double(w[((size_t(o) * x.C + i) * k + dy + r) * k + dx + r]) * x.at(i, sy, sx);
-            }
-        y.at(o, yy, xx) = s;
-      }
-  return y;
-}
-
-void ref_relu(RefTensor& x) {
-  for (double& v : x.v) v = std::max(v, 0.0);
-}
+using testing::ref_conv;
+using testing::ref_relu;
+using testing::ref_upsample;
+using testing::RefTensor;
 
 RefTensor ref_pool(const RefTensor& x) {
   RefTensor y{x.C, x.H / 2, x.W / 2, std::vector<double>(size_t(x.C) * (x.H / 2) * (x.W / 2))};
@@ -81,14 +48,6 @@ RefTensor ref_pool(const RefTensor& x) {
       for (int xx = 0; xx < y.W; ++xx)
         y.at(c, yy, xx) = std::max(std::max(x.at(c, 2 * yy, 2 * xx), x.at(c, 2 * yy, 2 * xx + 1)),
                                    std::max(x.at(c, 2 * yy + 1, 2 * xx), x.at(c, 2 * yy + 1, 2 * xx + 1)));
-  return y;
-}
-
-RefTensor ref_upsample(const RefTensor& x) {
-  RefTensor y{x.C, x.H * 2, x.W * 2, std::vector<double>(x.v.size() * 4)};
-  for (int c = 0; c < x.C; ++c)
-    for (int yy = 0; yy < y.H; ++yy)
-      for (int xx = 0; xx < y.W; ++xx) y.at(c, yy, xx) = x.at(c, yy / 2, xx / 2);
   return y;
 }
 
@@ -345,11 +304,12 @@ TEST_CASE("decoder: architecture from the keys, forward and backward against the
   }
   std::string path = temp_file("mini_decoder.safetensors");
   io::save_safetensors(path, file);
-  nn::AdainDecoder dec;
-  dec.load(path);
+  nn::ConvStack dec = nn::ConvStack::from_file(path);
   fs::remove(path);
   REQUIRE(dec.layers().size() == 3);
   CHECK(dec.layers()[0].upsample);
+  CHECK(dec.layers()[0].w.name == "1.weight");
+  CHECK(dec.layers()[2].b.name == "8.bias");
   CHECK(!dec.layers()[1].upsample);
   CHECK(!dec.layers()[2].relu);
   CHECK(dec.in_channels() == cin);
@@ -368,13 +328,14 @@ TEST_CASE("decoder: architecture from the keys, forward and backward against the
     }
     return t;
   };
-  Tensor y = dec.forward(Tensor::from_host(x, {1, cin, h, w}));
+  nn::ConvStack::Ctx ctx;
+  Tensor y = dec.forward(Tensor::from_host(x, {1, cin, h, w}), &ctx);
   RefTensor yr = ref_forward(testing::to_double(x), file);
   CHECK(y.shape() == host::Shape{1, 3, 2 * h, 2 * w});
   testing::check_close(y.to_host(), yr.v, 1e-5, 1e-5, "decoder forward");
 
   auto g = testing::random_normal(yr.v.size(), 71);
-  Tensor dx = dec.backward(Tensor::from_host(g, y.shape()));
+  Tensor dx = dec.backward(ctx, Tensor::from_host(g, y.shape()));
   auto gd = testing::to_double(g);
   // d input
   auto fd_x = testing::finite_difference(
@@ -385,7 +346,7 @@ TEST_CASE("decoder: architecture from the keys, forward and backward against the
   for (int i = 0; i < 3; ++i) {
     for (const char* kind : {"weight", "bias"}) {
       std::string key = std::to_string(layers[i].idx) + "." + kind;
-      const Tensor& grad = std::string(kind) == "weight" ? dec.layers()[i].dw : dec.layers()[i].db;
+      const Tensor& grad = std::string(kind) == "weight" ? dec.layers()[i].w.grad : dec.layers()[i].b.grad;
       REQUIRE(grad.defined());
       auto pd = testing::to_double(file.at(key).data);
       std::vector<size_t> idx = {0, pd.size() / 2, pd.size() - 1};
@@ -419,11 +380,11 @@ TEST_CASE("decoder: the pretrained decoder inverts the encoder (vs a He-initiali
   auto t0 = std::chrono::steady_clock::now();
   Tensor f = encoder().forward(x, 4, false)[3];
   auto fh = f.to_host();
-  nn::AdainDecoder dec = nn::AdainDecoder::load_default();
+  nn::ConvStack dec = nn::load_adain_decoder();
   REQUIRE(dec.in_channels() == 512);
   REQUIRE(dec.upsamplings() == 3);
-  auto roundtrip = [&](nn::AdainDecoder& d) {
-    Tensor y = d.forward(f, false);
+  auto roundtrip = [&](const nn::ConvStack& d) {
+    Tensor y = d.forward(f);
     CHECK(y.shape() == x.shape());
     return rel_error(encoder().forward(y, 4, false)[3].to_host(), fh);
   };

@@ -1,55 +1,33 @@
-// AdaIN's decoder: relu4_1 features (512 channels) back to an RGB image, with forward and backward.
+// The decoders StyleRF uses, all nn::ConvStacks (lib/nn/conv_stack.hpp): features -> RGB.
 //
-// A chain of 3x3 reflect-padded convs, ReLU after every conv but the last, and a nearest x2 upsampling
-// after some of them. The chain is read from the weights file rather than hard-coded: AdaIN's decoder is
-// an nn.Sequential whose keys are "<module index>.weight"; between two convs the modules are
-// (relu, pad) -> index gap 3, or (relu, upsample, pad) -> gap 4, which is how the upsamplings are found.
-// The parameters are trainable (StyleRF fine-tunes the decoder): backward fills dw/db of every layer.
+//  - AdaIN's pretrained decoder (decoder.pth, converted by scripts/fetch_weights.sh): relu4_1 features,
+//    512 channels, at 1/8 size -> RGB. Nine reflect-padded convs, Sequential modules 1, 5, 8, 11, 14, 18,
+//    21, 25, 28: 512-256, up, 256-256 x3, 256-128, up, 128-128, 128-64, up, 64-64, 64-3.
+//  - The paper profile's PlainDecoder: relu3_1-like features (256) at full size -> RGB, eight reflect
+//    convs 256-256-256-256-128-128-64-64-3, no upsampling (StyleRF's own decoder, trained from scratch).
+//  - The fast profile's decoder: relu3_1 features (256) at their native 1/4 size -> RGB at full size,
+//    AdaIN's decoder after its relu4_1 stage, i.e. its convs 2..9 (modules 5 ... 28): 256-256 x3, 256-128,
+//    up, 128-128, 128-64, up, 64-64, 64-3. Only the first conv (module 1, 512 -> 256) and the upsampling
+//    after it are dropped; every other weight is AdaIN's, as a starting point for fine-tuning.
 #pragma once
-#include <cstdint>
 #include <string>
-#include <vector>
 
-#include "lib/nn/ops.hpp"
+#include "lib/nn/conv_stack.hpp"
 
 namespace stylerf::nn {
 
-class AdainDecoder {
- public:
-  struct Layer {
-    std::string key;  // module index in the original Sequential ("1", "5", ...), used when saving
-    Tensor w, b;      // [Cout,Cin,3,3], [Cout]
-    Tensor dw, db;    // gradients of the last backward (overwritten, not accumulated)
-    bool relu = true;
-    bool upsample = false;  // nearest x2 after the relu
-  };
+ConvStackSpec adain_decoder_spec(const std::string& name_prefix = "adain_decoder.", int group = 0);
+ConvStackSpec plain_decoder_spec(const std::string& name_prefix = "decoder.", int group = 0);
+ConvStackSpec fast_decoder_spec(const std::string& name_prefix = "decoder.", int group = 0);
 
-  AdainDecoder() = default;
-  // Errors name the file and what is wrong (missing keys, gaps we do not understand, channel mismatch).
-  void load(const std::string& path);
-  static AdainDecoder load_default();  // weights_path(kDecoderWeightsFile)
-  void save(const std::string& path) const;  // same keys as the loaded file, atomic
-  bool loaded() const { return !layers_.empty(); }
+// AdaIN's decoder from `path` (default: weights_path(kDecoderWeightsFile)). Errors name the file, and
+// the set-up command when it is missing; a file of another architecture is refused, naming both.
+ConvStack load_adain_decoder(const std::string& path = "", const std::string& name_prefix = "adain_decoder.",
+                             int group = 0);
 
-  // Re-initialises every weight in place (He normal: std sqrt(2 / fan_in), zero bias) with a fixed seed;
-  // the architecture stays. For baselines and from-scratch training.
-  void init_he(uint64_t seed);
-
-  int in_channels() const;   // 512 for AdaIN
-  int upsamplings() const;   // 3 for AdaIN: output is 8x the input size
-  std::vector<Layer>& layers() { return layers_; }
-  const std::vector<Layer>& layers() const { return layers_; }
-
-  // x [N,Cin,h,w] -> [N,3,h*2^u,w*2^u]. With keep_for_backward the activations are kept for backward().
-  Tensor forward(const Tensor& x, bool keep_for_backward = true);
-  // dy of the output -> dx (undefined when need_dx is false); sets every layer's dw and db.
-  Tensor backward(const Tensor& dy, bool need_dx = true);
-  void release() { inputs_.clear(), relu_out_.clear(); }
-
- private:
-  std::vector<Layer> layers_;
-  std::vector<Tensor> inputs_;    // conv inputs
-  std::vector<Tensor> relu_out_;  // relu outputs (relu backward uses them)
-};
+// The fast profile's decoder initialised from AdaIN's (layers 2..9, weights copied: fine-tuning it does
+// not touch `adain`). An Error when `adain` does not have AdaIN's architecture.
+ConvStack fast_decoder_from_adain(const ConvStack& adain, const std::string& name_prefix = "decoder.",
+                                  int group = 0);
 
 }  // namespace stylerf::nn

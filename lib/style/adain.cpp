@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "host/error.hpp"
-#include "lib/nn/weights.hpp"
 
 namespace stylerf::style {
 
@@ -13,10 +12,7 @@ using host::Tensor;
 AdainModel AdainModel::load_default() {
   AdainModel m;
   m.encoder = nn::VggEncoder::load_default();
-  m.decoder = nn::AdainDecoder::load_default();
-  if (m.decoder.in_channels() != 512)
-    throw Error("AdaIN decoder " + std::string(nn::kDecoderWeightsFile) + " takes " +
-                std::to_string(m.decoder.in_channels()) + " channels, expected 512 (relu4_1)");
+  m.decoder = nn::load_adain_decoder();  // refuses a file of another architecture, naming it
   return m;
 }
 
@@ -27,7 +23,7 @@ Tensor adain_stylize(AdainModel& model, const Tensor& content, const Tensor& sty
   Tensor fs = model.encoder.forward(style, 4, false)[3];
   Tensor t = nn::adain_forward(fc, fs);
   if (alpha < 1.0f) nn::axpby(1.0f - alpha, fc, alpha, t);  // t = alpha * t + (1 - alpha) * fc
-  return model.decoder.forward(t, false);
+  return model.decoder.forward(t);
 }
 
 io::Image load_image_for_adain(const std::string& path, int size) {

@@ -12,7 +12,7 @@ namespace stylerf::style {
 
 struct AdainModel {
   nn::VggEncoder encoder;
-  nn::AdainDecoder decoder;
+  nn::ConvStack decoder;  // AdaIN's pretrained decoder (nn::load_adain_decoder)
   // From the weights folder (nn::weights_dir()); errors name the missing file and the set-up command.
   static AdainModel load_default();
 };

@@ -1,0 +1,60 @@
+// Double-precision CPU references shared by the conv-chain tests (VGG encoder, ConvStack decoders):
+// one image [C,H,W], 3x3 / 1x1 stride-1 "same" convs with reflect or zero padding, ReLU, x2 nearest
+// upsampling. Written from the definitions (PyTorch's Conv2d, ReflectionPad2d, Upsample(nearest)).
+#pragma once
+#include <algorithm>
+#include <vector>
+
+namespace stylerf::testing {
+
+struct RefTensor {  // [C,H,W]
+  int C = 0, H = 0, W = 0;
+  std::vector<double> v;
+  double& at(int c, int y, int x) { return v[(size_t(c) * H + y) * W + x]; }
+  double at(int c, int y, int x) const { return v[(size_t(c) * H + y) * W + x]; }
+};
+
+// ReflectionPad2d(1): -1 -> 1, n -> n-2 (n >= 2).
+inline int reflect(int i, int n) { return i < 0 ? -i : (i >= n ? 2 * n - 2 - i : i); }
+
+// k x k conv (k = 1 or 3), stride 1, same size; reflect or zero padding; w [Cout,Cin,k,k]. T: float for
+// weights as stored, double for finite differences in the weights (no rounding of the perturbed value).
+template <class T>
+RefTensor ref_conv(const RefTensor& x, const std::vector<T>& w, const std::vector<T>& b, int cout, int k,
+                   bool reflect_pad) {
+  RefTensor y{cout, x.H, x.W, std::vector<double>(size_t(cout) * x.H * x.W)};
+  const int r = k / 2;
+  for (int o = 0; o < cout; ++o)
+    for (int yy = 0; yy < x.H; ++yy)
+      for (int xx = 0; xx < x.W; ++xx) {
+        double s = b[o];
+        for (int i = 0; i < x.C; ++i)
+          for (int dy = -r; dy <= r; ++dy)
+            for (int dx = -r; dx <= r; ++dx) {
+              int sy = yy + dy, sx = xx + dx;
+              if (reflect_pad) {
+                sy = reflect(sy, x.H);
+                sx = reflect(sx, x.W);
+              } else if (sy < 0 || sy >= x.H || sx < 0 || sx >= x.W) {
+                continue;
+              }
+              s += double(w[((size_t(o) * x.C + i) * k + dy + r) * k + dx + r]) * x.at(i, sy, sx);
+            }
+        y.at(o, yy, xx) = s;
+      }
+  return y;
+}
+
+inline void ref_relu(RefTensor& x) {
+  for (double& v : x.v) v = std::max(v, 0.0);
+}
+
+inline RefTensor ref_upsample(const RefTensor& x) {
+  RefTensor y{x.C, x.H * 2, x.W * 2, std::vector<double>(x.v.size() * 4)};
+  for (int c = 0; c < x.C; ++c)
+    for (int yy = 0; yy < y.H; ++yy)
+      for (int xx = 0; xx < y.W; ++xx) y.at(c, yy, xx) = x.at(c, yy / 2, xx / 2);
+  return y;
+}
+
+}  // namespace stylerf::testing
