@@ -152,8 +152,7 @@ int bench_field(const BenchOptions& opt) {
       }
   field::AlphaMask mask;
   mask.res = {M, M, M};
-  mask.voxels = std::make_shared<host::Buffer>(ball.size(), "bench mask");
-  clEnqueueWriteBuffer(rt.queue(), mask.voxels->mem(), CL_TRUE, 0, ball.size(), ball.data(), 0, nullptr, nullptr);
+  mask.voxels = Tensor::from_host(ball, {M, M, M}, "bench mask");
   render::Samples sm;
   ms = timed("march (ball mask)", true, [&] { sm = render::march(to, td, mc, &mask); });
   std::printf("samples with mask: %lld (%.0f per ray)\n", (long long)sm.count, double(sm.count) / R);

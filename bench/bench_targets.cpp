@@ -13,7 +13,6 @@
 #include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "lib/features/target_gather.hpp"
-#include "lib/render/int_tensor.hpp"
 
 namespace stylerf::bench {
 
@@ -41,7 +40,7 @@ int bench_targets(const BenchOptions& opt) {
   t.maps = Tensor::from_host(maps, {V, hf, wf, C}, "bench target maps");
   t.image_width = 4 * wf;
   t.image_height = 4 * hf;
-  const Tensor tv = render::int_tensor_from_host(view), txy = Tensor::from_host(xy, {R, 2});
+  const Tensor tv = Tensor::from_host(view, {R}, "bench view index"), txy = Tensor::from_host(xy, {R, 2});
   const Tensor tg = Tensor::from_host(grad, {R, C});
   Tensor dmaps = Tensor::zeros({V, hf, wf, C}, "bench dmaps");
 

@@ -218,6 +218,9 @@ void matmul(const Tensor& A, Trans ta, const Tensor& B, Trans tb, Tensor& C, flo
   if (A.ndim() != 2 || B.ndim() != 2 || C.ndim() != 2)
     throw Error("matmul: expects 2-D tensors, got " + shape_str(A.shape()) + ", " + shape_str(B.shape()) + ", " +
                 shape_str(C.shape()));
+  expect_dtype(A, DType::F32, "matmul", "A");
+  expect_dtype(B, DType::F32, "matmul", "B");
+  expect_dtype(C, DType::F32, "matmul", "C");
   int M = static_cast<int>(ta == Trans::No ? A.dim(0) : A.dim(1));
   int K = static_cast<int>(ta == Trans::No ? A.dim(1) : A.dim(0));
   int Kb = static_cast<int>(tb == Trans::No ? B.dim(0) : B.dim(1));

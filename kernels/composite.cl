@@ -7,7 +7,7 @@
 // Gradients flow back the same way: op 2 gives dvalues and dw of the kept samples; the caller adds any
 // other dw terms (the full acc, depth, background) and op 1 turns dw into dsigma.
 //
-// Integer arrays (offsets, counts, ray indices) are int32 bit patterns (see lib/render/int_tensor.hpp).
+// Integer arrays (offsets, counts, ray indices) are I32 tensors (int here).
 
 // Shared with render.cl (kept identical: the two must agree on the weights they produce).
 inline float od_of(float sigma, float delta) { return delta > 0.0f ? fmax(sigma * delta, 0.0f) : 0.0f; }

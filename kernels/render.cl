@@ -1,8 +1,9 @@
 // Ray marching (box intersection, samples, alpha-mask skip, compaction) and dropping low-weight samples
 // (compositing: kernels/composite.cl). Host side: lib/render/ray_march.cpp, lib/render/composite.cpp.
 //
-// Integer arrays (ray index, per-ray offset/count, kept indices) are int32 bit patterns stored in float
-// tensors; kernels declare them int/uint so the bits are never touched by float arithmetic.
+// Integer arrays (ray index, per-ray offset/count, kept indices) are I32 tensors (int here); the alpha mask
+// is a U8 tensor (uchar). gather_rows/scatter_rows copy 32-bit words (uint), so they move F32 and I32 rows
+// alike, bit for bit.
 
 // ---- ray marching -------------------------------------------------------------------------------------
 // Seeded per-ray uniform in [0,1) (integer hash, reproduced bit for bit by the tests' CPU reference).

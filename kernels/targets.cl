@@ -3,7 +3,7 @@
 //
 // maps: [V][Hf][Wf][C], channels innermost, C a multiple of 8: one work-item walks the C channels of its
 // four taps in float8 runs (vectorised inside the work-item, which suits PoCL's CPU device).
-// view indices are int32 arrays (int32 bit patterns in a float tensor on the host).
+// view indices: an I32 tensor on the host (int here).
 
 // The four taps of full-resolution position (px, py) on an hf x wf map: feature coordinate p / 4 - 0.5,
 // clamped to [0, n-1] (callers reject non-finite positions first). At the last row/column the second tap repeats the first

@@ -22,7 +22,6 @@
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/io/checkpoint.hpp"
-#include "lib/render/int_tensor.hpp"
 #include "lib/scene/make_scene.hpp"
 #include "tests/testing.hpp"
 
@@ -162,6 +161,7 @@ GatherCase make_case(int V, int hf, int wf, int C, int R, uint64_t seed) {
 }
 
 Tensor device_maps(const GatherCase& g) { return Tensor::from_host(g.maps, {g.V, g.hf, g.wf, g.C}); }
+Tensor view_tensor(const std::vector<int32_t>& v) { return Tensor::from_host(v, {int64_t(v.size())}, "view index"); }
 
 }  // namespace
 
@@ -391,7 +391,7 @@ TEST_CASE("gather_targets forward against a double reference (F.interpolate, ali
     CAPTURE(C);
     CAPTURE(hf);
     const GatherCase g = make_case(V, hf, wf, C, R, 11 + uint64_t(C));
-    const Tensor out = features::gather_targets(device_maps(g), render::int_tensor_from_host(g.view),
+    const Tensor out = features::gather_targets(device_maps(g), view_tensor(g.view),
                                                 Tensor::from_host(g.xy, {R, 2}));
     CHECK(out.shape() == host::Shape{R, C});
     testing::check_close(out.to_host(), ref_gather(testing::to_double(g.maps), hf, wf, C, g.view, g.xy), 1e-5, 1e-5,
@@ -406,14 +406,14 @@ TEST_CASE("gather_targets forward against a double reference (F.interpolate, ali
     for (int x = 0; x < 4 * wf; ++x) g.view.push_back(0), g.xy.push_back(x + 0.5f), g.xy.push_back(y + 0.5f);
   const int R = int(g.view.size());
   const std::vector<float> full =
-      features::gather_targets(device_maps(g), render::int_tensor_from_host(g.view), Tensor::from_host(g.xy, {R, 2}))
+      features::gather_targets(device_maps(g), view_tensor(g.view), Tensor::from_host(g.xy, {R, 2}))
           .to_host();
   testing::check_close(full, ref_gather(testing::to_double(g.maps), hf, wf, C, g.view, g.xy), 1e-6, 1e-6, "full image");
   // The centre of map pixel (i, j) is image position (4j + 2, 4i + 2): the map value itself, bit for bit.
   std::vector<int32_t> v0{0};
   std::vector<float> at{4 * 2 + 2.0f, 4 * 1 + 2.0f};
   const std::vector<float> centre =
-      features::gather_targets(device_maps(g), render::int_tensor_from_host(v0), Tensor::from_host(at, {1, 2})).to_host();
+      features::gather_targets(device_maps(g), view_tensor(v0), Tensor::from_host(at, {1, 2})).to_host();
   for (int c = 0; c < C; ++c) CHECK(centre[size_t(c)] == g.maps[(size_t(1) * wf + 2) * C + c]);
 }
 
@@ -421,7 +421,7 @@ TEST_CASE("gather_targets: a bad view index or position gives NaN, not another p
   GatherCase g = make_case(2, 3, 3, 8, 4, 5);
   g.view = {0, 2, -1, 1};
   g.xy[6] = NAN;
-  const std::vector<float> out = features::gather_targets(device_maps(g), render::int_tensor_from_host(g.view),
+  const std::vector<float> out = features::gather_targets(device_maps(g), view_tensor(g.view),
                                                           Tensor::from_host(g.xy, {4, 2}))
                                      .to_host();
   for (int c = 0; c < 8; ++c) {
@@ -430,7 +430,7 @@ TEST_CASE("gather_targets: a bad view index or position gives NaN, not another p
     CHECK(std::isnan(out[16 + size_t(c)]));
     CHECK(std::isnan(out[24 + size_t(c)]));
   }
-  const Tensor idx = render::int_tensor_from_host(g.view), xy = Tensor::from_host(g.xy, {4, 2});
+  const Tensor idx = view_tensor(g.view), xy = Tensor::from_host(g.xy, {4, 2});
   testing::expect_error([&] { features::gather_targets(Tensor::zeros({2, 3, 3, 12}), idx, xy); }, "multiple of 8");
   testing::expect_error([&] { features::gather_targets(Tensor::zeros({2, 3, 24}), idx, xy); }, "[V, Hf, Wf, C]");
   testing::expect_error([&] { features::gather_targets(device_maps(g), idx, Tensor::zeros({4, 3})); }, "pixel_xy");
@@ -458,7 +458,7 @@ TEST_CASE("gather_targets backward against central finite differences of the ref
     // Accumulates: start from a known non-zero gradient.
     const std::vector<float> start = testing::random_normal(g.maps.size(), 41);
     Tensor dmaps = Tensor::from_host(start, {g.V, g.hf, g.wf, C});
-    features::gather_targets_backward(render::int_tensor_from_host(g.view), Tensor::from_host(g.xy, {R, 2}),
+    features::gather_targets_backward(view_tensor(g.view), Tensor::from_host(g.xy, {R, 2}),
                                       Tensor::from_host(gout, {R, C}), dmaps);
     std::vector<double> want(fd.size());
     for (size_t i = 0; i < fd.size(); ++i) want[i] = fd[i] + start[i];

@@ -130,13 +130,16 @@ TEST_CASE("ray pipeline: the composed render backward (RGB head, background) mat
   for (nn::Param* p : head.params()) check_param_fd(*p, loss, 12, 1e-2, "d " + p->name);
 }
 
-TEST_CASE("ray pipeline: the feature field's backward (grid, basis, kept opacity) matches finite differences") {
+TEST_CASE("ray pipeline: the feature field's backward (grid, basis, background, kept opacity) matches FD") {
   model::Geometry g = small_geometry();
+  g.has_background = true;  // the field learns a background feature
   model::FeatureFieldConfig fc;
   fc.rank = {3, 2, 2};
   fc.channels = 16;
   fc.init_scale = 0.5f;
   model::FeatureField f = model::FeatureField::create(g, fc, 3);
+  REQUIRE(f.background.value.defined());
+  f.background.value.upload(testing::random_normal(16, 29));
   Tensor o, d;
   make_rays(o, d);
   const auto G = testing::to_double(testing::random_normal(7 * 16, 22));
@@ -172,9 +175,11 @@ TEST_CASE("ray pipeline: the feature field's backward (grid, basis, kept opacity
 TEST_CASE("feature field: compositing first and applying the basis per ray equals the per-point order") {
   model::Geometry g = small_geometry();
   g.weight_threshold = 1e-4f;  // as in training: dropped samples are dropped in both orders alike
+  g.has_background = true;
   model::FeatureFieldConfig fc;
   fc.rank = {8, 8, 8};
   model::FeatureField f = model::FeatureField::create(g, fc, 4);
+  f.background.value.upload(testing::random_normal(256, 30));
   Tensor o, d;
   make_rays(o, d);
   const auto a = f.render(g, o, d, {}, nullptr), b = f.render_per_point(g, o, d, {});

@@ -16,14 +16,12 @@
 #include "lib/render/composite.hpp"
 #include "lib/render/composite_values.hpp"
 #include "lib/render/weights.hpp"
-#include "lib/render/int_tensor.hpp"
 #include "lib/render/ray_march.hpp"
+#include "lib/render/scan.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
 using host::Tensor;
-using render::int_tensor_from_host;
-using render::int_tensor_to_host;
 using render::MarchConfig;
 using render::Samples;
 using testing::check_close;
@@ -90,12 +88,14 @@ std::vector<RefSample> ref_march(const float* o, const float* d, int r, const Ma
 field::AlphaMask mask_from_host(const std::vector<uint8_t>& v, std::array<int, 3> res) {
   field::AlphaMask m;
   m.res = res;
-  m.voxels = std::make_shared<host::Buffer>(v.size(), "test mask");
-  host::check(clEnqueueWriteBuffer(host::Runtime::instance().queue(), m.voxels->mem(), CL_TRUE, 0, v.size(), v.data(),
-                                   0, nullptr, nullptr),
-              "clEnqueueWriteBuffer", "test mask");
+  m.voxels = Tensor::from_host(v, {res[2], res[1], res[0]}, "test mask");
   for (auto b : v) m.occupied += b;
   return m;
+}
+
+// An I32 tensor [n] of host ints.
+Tensor i32(const std::vector<int32_t>& v, const std::string& what = "test int list") {
+  return Tensor::from_host(v, {int64_t(v.size())}, what);
 }
 
 // Random rays: origins on a sphere of radius 3 aimed near the box centre (some miss), plus rays starting
@@ -126,8 +126,8 @@ void make_rays(int n, uint64_t seed, std::vector<float>& o, std::vector<float>& 
 void check_march(const Samples& s, const std::vector<float>& o, const std::vector<float>& d, const MarchConfig& c,
                  const std::vector<uint8_t>* mask, const std::array<int, 3>& mr) {
   const int R = int(o.size() / 3);
-  const auto counts = int_tensor_to_host(s.ray_count), offs = int_tensor_to_host(s.ray_offset);
-  const auto ridx = int_tensor_to_host(s.ray_index);
+  const auto counts = s.ray_count.to_host_i32(), offs = s.ray_offset.to_host_i32();
+  const auto ridx = s.ray_index.to_host_i32();
   const auto pos = s.positions.to_host(), tv = s.t.to_host(), dl = s.deltas.to_host();
   REQUIRE(int(counts.size()) == R);
   int ambiguous = 0, hits = 0;
@@ -181,7 +181,7 @@ TEST_CASE("ray marching matches the CPU reference: counts, offsets, positions, t
   // The cap: at most max_samples per ray.
   c.max_samples = 7;
   Samples s = render::march(to, td, c, nullptr);
-  for (int n : int_tensor_to_host(s.ray_count)) CHECK(n <= 7);
+  for (int n : s.ray_count.to_host_i32()) CHECK(n <= 7);
   check_march(s, o, d, c, nullptr, {1, 1, 1});
 }
 
@@ -216,7 +216,7 @@ TEST_CASE("ray marching hard cases: a ray that misses, an empty ray list, NDC-li
     std::vector<float> o = {-3, 2.5f, 0}, d = {1, 0, 0};
     Samples s = render::march(Tensor::from_host(o, {1, 3}), Tensor::from_host(d, {1, 3}), c, nullptr);
     CHECK(s.count == 0);
-    CHECK(int_tensor_to_host(s.ray_count)[0] == 0);
+    CHECK(s.ray_count.to_host_i32()[0] == 0);
   }
   // No rays at all.
   {
@@ -235,7 +235,7 @@ TEST_CASE("ray marching hard cases: a ray that misses, an empty ray list, NDC-li
     n.max_samples = 1000;
     std::vector<float> o = {0.3f, -0.2f, -1.0f, -1.4f, 1.6f, -1.0f}, d = {0.1f, 0.05f, 2.0f, 0.0f, 0.0f, 2.0f};
     Samples s = render::march(Tensor::from_host(o, {2, 3}), Tensor::from_host(d, {2, 3}), n, nullptr);
-    const auto cnt = int_tensor_to_host(s.ray_count);
+    const auto cnt = s.ray_count.to_host_i32();
     CHECK(cnt[0] == 129);  // t = 0, 1/128, ..., 1
     CHECK(cnt[1] == 129);
     const auto t = s.t.to_host(), p = s.positions.to_host();
@@ -281,8 +281,8 @@ Samples make_samples(const std::vector<int>& counts, const std::vector<float>& t
   Samples s;
   std::vector<int32_t> off;
   s.count = render::exclusive_scan(counts, off);
-  s.ray_count = int_tensor_from_host(counts);
-  s.ray_offset = int_tensor_from_host(off);
+  s.ray_count = i32(counts);
+  s.ray_offset = i32(off);
   s.t = Tensor::from_host(t, {s.count});
   s.deltas = Tensor::from_host(delta, {s.count});
   return s;
@@ -298,7 +298,7 @@ render::KeptLayout all_kept(const Samples& s, const std::vector<int>& counts) {
   std::vector<int32_t> ray;
   for (int r = 0; r < int(counts.size()); ++r)
     for (int k = 0; k < counts[r]; ++k) ray.push_back(r);
-  l.ray_index = int_tensor_from_host(ray);
+  l.ray_index = i32(ray);
   return l;
 }
 struct OpsComposite {
@@ -453,7 +453,7 @@ TEST_CASE("dropping samples below a weight threshold keeps the rest in order; ga
   s.positions = Tensor::from_host(pos, {S, 3});
   std::vector<int32_t> ridx;
   for (int r = 0; r < 4; ++r) ridx.insert(ridx.end(), counts[r], r);
-  s.ray_index = int_tensor_from_host(ridx);
+  s.ray_index = i32(ridx);
   auto k = render::keep_by_weight(s, Tensor::from_host(w, {S}), 1e-4f);
   std::vector<int32_t> want;
   for (int i = 0; i < S; ++i)
@@ -461,17 +461,17 @@ TEST_CASE("dropping samples below a weight threshold keeps the rest in order; ga
   REQUIRE(k.count == int64_t(want.size()));
   CHECK(want.size() > 3);
   CHECK(want.size() < size_t(S));
-  CHECK(int_tensor_to_host(k.index) == want);
+  CHECK(k.index.to_host_i32() == want);
   Samples c = render::compact(s, k);
   const auto cp = c.positions.to_host(), ct = c.t.to_host();
-  const auto cr = int_tensor_to_host(c.ray_index);
+  const auto cr = c.ray_index.to_host_i32();
   for (size_t j = 0; j < want.size(); ++j) {
     CHECK(ct[j] == t[want[j]]);
     CHECK(cr[j] == ridx[want[j]]);
     for (int a = 0; a < 3; ++a) CHECK(cp[3 * j + a] == pos[3 * want[j] + a]);
   }
   // Per-ray counts of the compacted list sum to the kept count; offsets are their exclusive scan.
-  const auto kc = int_tensor_to_host(c.ray_count), ko = int_tensor_to_host(c.ray_offset);
+  const auto kc = c.ray_count.to_host_i32(), ko = c.ray_offset.to_host_i32();
   int64_t run = 0;
   for (size_t r = 0; r < kc.size(); ++r) {
     CHECK(ko[r] == run);

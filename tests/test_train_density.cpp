@@ -234,7 +234,7 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   CHECK(shrunk);
   CHECK(upsampled);
   const auto& m = t.trainer->model();
-  CHECK(m.geo.mask.voxels);
+  CHECK(m.geo.mask.voxels.defined());
   CHECK(m.res()[0] > 24);
 
   // Held-out views: PSNR and depth against the generator's ground truth.

@@ -1,8 +1,12 @@
-// stylerf render --ckpt CKPT --views test|path [--frames N] [-o DIR]: renders a density-stage checkpoint.
+// stylerf render --ckpt CKPT --views test|path [--frames N] [-o DIR]: renders a density-stage checkpoint
+// (RGB) or a feature-stage checkpoint (decoded RGB, plus a PCA picture of the feature map).
 //   test: every held-out view -> test_NNN.png, test_NNN_depth.exr (depth along the ray, ray-space units),
-//         test_NNN_depth.png (colourised), metrics.json (PSNR and SSIM per view and their means);
+//         test_NNN_depth.png (colourised), [test_NNN_features.png], metrics.json (PSNR and SSIM per view
+//         and their means);
 //   path: a camera path (spiral for forward-facing scenes, orbit for object scenes) -> frame_NNNN.png,
-//         depth_NNNN.exr / .png, and video.mp4 when ffmpeg is on PATH.
+//         depth_NNNN.exr / .png, [features_NNNN.png], and video.mp4 when ffmpeg is on PATH.
+// Feature checkpoints: depth and the PCA picture are at the feature map's resolution (1/4 for the fast
+// profile); one PCA, fitted to the first frame, colours every frame.
 // Every file is written atomically (temporary file + rename); rays go through the renderer in chunks.
 #include <boost/program_options.hpp>
 #include <chrono>
@@ -16,11 +20,13 @@
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
+#include "lib/eval/feature_pca.hpp"
 #include "lib/eval/metrics.hpp"
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
 #include "lib/scene/camera_path.hpp"
 #include "lib/model/density_model.hpp"
+#include "lib/model/feature_model.hpp"
 #include "lib/scene/scene_meta.hpp"
 
 namespace po = boost::program_options;
@@ -42,9 +48,18 @@ stylerf::io::Image to_image(const std::vector<float>& hwc, int w, int h) {
   return img;
 }
 
+// What a frame gives, whichever stage rendered it.
+struct Frame {
+  int width = 0, height = 0;
+  std::vector<float> rgb;         // [H][W][3]
+  int map_width = 0, map_height = 0;
+  std::vector<float> acc, depth;  // [map H][map W]
+  std::vector<float> pca;         // [map H][map W][3], feature checkpoints only
+};
+
 // Depth as colour: near = yellow, far = dark purple (a few control points of a perceptual ramp, linearly
 // interpolated), range from the 2nd..98th percentile of pixels with acc > 0.5; empty pixels black.
-stylerf::io::Image colourise_depth(const model::ViewValues& r) {
+stylerf::io::Image colourise_depth(const Frame& r) {
   static const float ramp[5][3] = {{0.99f, 0.91f, 0.14f}, {0.98f, 0.55f, 0.04f}, {0.80f, 0.24f, 0.33f},
                                    {0.42f, 0.07f, 0.51f}, {0.05f, 0.03f, 0.20f}};
   std::vector<float> vals;
@@ -58,10 +73,10 @@ stylerf::io::Image colourise_depth(const model::ViewValues& r) {
   }
   if (!(hi > lo)) hi = lo + 1e-6f;
   stylerf::io::Image img;
-  img.width = r.width;
-  img.height = r.height;
-  img.data.assign(size_t(3) * r.width * r.height, 0.0f);
-  const size_t plane = size_t(r.width) * r.height;
+  img.width = r.map_width;
+  img.height = r.map_height;
+  img.data.assign(size_t(3) * r.map_width * r.map_height, 0.0f);
+  const size_t plane = size_t(r.map_width) * r.map_height;
   for (size_t i = 0; i < plane; ++i) {
     if (r.acc[i] <= 0.5f) continue;
     const float u = std::clamp((r.depth[i] - lo) / (hi - lo), 0.0f, 1.0f) * 4.0f;
@@ -78,12 +93,62 @@ std::string numbered(const fs::path& dir, const std::string& stem, int i, int di
   return (dir / o.str()).string();
 }
 
-void save_outputs(const model::ViewValues& r, const std::string& png, const std::string& exr,
-                  const std::string& depth_png) {
-  stylerf::io::save_png(png, to_image(r.value, r.width, r.height));
-  stylerf::io::write_exr(exr, r.depth, r.width, r.height, 1);
+void save_outputs(const Frame& r, const std::string& png, const std::string& exr, const std::string& depth_png,
+                  const std::string& pca_png) {
+  stylerf::io::save_png(png, to_image(r.rgb, r.width, r.height));
+  stylerf::io::write_exr(exr, r.depth, r.map_width, r.map_height, 1);
   stylerf::io::save_png(depth_png, colourise_depth(r));
+  if (!r.pca.empty()) stylerf::io::save_png(pca_png, to_image(r.pca, r.map_width, r.map_height));
 }
+
+// Renders a camera with whichever model the checkpoint holds.
+class FrameRenderer {
+ public:
+  explicit FrameRenderer(const stylerf::io::Checkpoint& ck) : kind_(ck.kind) {
+    if (kind_ == "density")
+      density_ = std::make_unique<model::DensityModel>(model::load_model(ck));
+    else if (kind_ == "features")
+      features_ = std::make_unique<model::FeatureModel>(model::FeatureModel::load(ck));
+    else
+      throw Error("render: checkpoint " + ck.path + " holds a '" + kind_ + "' stage; render takes density or features");
+  }
+  std::string describe() const {
+    if (density_) return "density model: " + density_->describe();
+    return std::string("feature model (") + model::decoder_profile_name(features_->profile) +
+           " profile): " + features_->geo.describe();
+  }
+  Frame render(const stylerf::scene::Scene& scene, const stylerf::scene::Camera& cam, int chunk) {
+    Frame f;
+    if (density_) {
+      auto r = model::render_view(*density_, scene, cam, chunk);
+      f.width = f.map_width = r.width;
+      f.height = f.map_height = r.height;
+      f.rgb = std::move(r.value);
+      f.acc = std::move(r.acc);
+      f.depth = std::move(r.depth);
+      return f;
+    }
+    auto r = features_->render_decoded(scene, cam, chunk);
+    f.width = r.width;
+    f.height = r.height;
+    f.rgb = std::move(r.rgb);
+    f.map_width = r.map.width;
+    f.map_height = r.map.height;
+    f.acc = std::move(r.map.acc);
+    f.depth = std::move(r.map.depth);
+    const int C = int(r.map.features.dim(1)), n = f.map_width * f.map_height;
+    const auto rows = stylerf::eval::planar_to_rows(r.map.features.to_host(), C, n);
+    if (!pca_) pca_ = std::make_unique<stylerf::eval::FeaturePca>(stylerf::eval::FeaturePca::fit(rows, C));
+    f.pca = pca_->apply(rows);
+    return f;
+  }
+
+ private:
+  std::string kind_;
+  std::unique_ptr<model::DensityModel> density_;
+  std::unique_ptr<model::FeatureModel> features_;
+  std::unique_ptr<stylerf::eval::FeaturePca> pca_;
+};
 
 bool have_ffmpeg() { return std::system("command -v ffmpeg >/dev/null 2>&1") == 0; }
 
@@ -91,7 +156,7 @@ int run_render(int argc, char** argv) {
   std::string ckpt, views = "test", out, scene_dir, device;
   int frames = 120, chunk = 8192, max_views = 0;
   po::options_description desc("stylerf render --ckpt CKPT --views test|path [options]");
-  desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "density-stage checkpoint")(
+  desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "density- or feature-stage checkpoint")(
       "views", po::value(&views)->default_value("test"), "test (held-out views + metrics) or path (camera path)")(
       "frames", po::value(&frames)->default_value(120), "frames of the camera path")(
       "output,o", po::value(&out), "output directory (default: <ckpt>_render_<views>)")(
@@ -110,15 +175,15 @@ int run_render(int argc, char** argv) {
   if (frames < 1 || chunk < 1) throw Error("--frames and --chunk must be positive");
   stylerf::cli::init_runtime(device, false);
 
-  const auto ck = stylerf::io::load_checkpoint(ckpt, "density");
-  auto density = model::load_model(ck);
+  const auto ck = stylerf::io::load_checkpoint(ckpt, "");
+  FrameRenderer renderer(ck);
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
   if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
   auto lo = stylerf::scene::load_options_from_meta(smeta);
   lo.load_images = views == "test";
   lo.log = &std::cout;
   const auto scene = stylerf::scene::load_scene(scene_dir, lo);
-  std::cout << "model: " << density.describe() << "\n";
+  std::cout << renderer.describe() << "\n";
   if (out.empty()) out = ckpt + "_render_" + views;
   fs::create_directories(out);
   const auto t0 = std::chrono::steady_clock::now();
@@ -132,10 +197,11 @@ int run_render(int argc, char** argv) {
     for (int j = 0; j < m; ++j) {
       const int id = static_cast<int>(int64_t(j) * n / m);
       const auto& v = scene.test[size_t(id)];
-      const auto r = model::render_view(density, scene, v.camera, chunk);
+      const Frame r = renderer.render(scene, v.camera, chunk);
       const std::string png = numbered(out, "test_", id, 3, ".png");
-      save_outputs(r, png, numbered(out, "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"));
-      const auto a = to_image(r.value, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
+      save_outputs(r, png, numbered(out, "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"),
+                   numbered(out, "test_", id, 3, "_features.png"));
+      const auto a = to_image(r.rgb, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
       const double p = stylerf::eval::psnr(a.data, b.data), s = stylerf::eval::ssim(a, b);
       sp += p;
       ss += s;
@@ -159,9 +225,9 @@ int run_render(int argc, char** argv) {
     std::cout << (scene.effects.ndc || scene.format == "llff-forward" ? "spiral" : "orbit") << " path, "
               << path.size() << " frames\n";
     for (size_t i = 0; i < path.size(); ++i) {
-      const auto r = model::render_view(density, scene, path[i], chunk);
+      const Frame r = renderer.render(scene, path[i], chunk);
       save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(out, "depth_", int(i), 4, ".exr"),
-                   numbered(out, "depth_", int(i), 4, ".png"));
+                   numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
       if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
     }
     if (have_ffmpeg()) {
@@ -182,6 +248,7 @@ int run_render(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("render", "render a density-stage checkpoint: held-out views with PSNR/SSIM, or a camera path",
+stylerf::cli::Register reg("render",
+                           "render a density or feature checkpoint: held-out views with PSNR/SSIM, or a camera path",
                            run_render);
 }  // namespace

@@ -3,13 +3,14 @@
 #include <algorithm>
 
 #include "host/error.hpp"
-#include "lib/render/int_tensor.hpp"
 
 namespace stylerf::features {
 
 using host::Error;
 
-host::Tensor FeatureRays::view_tensor() const { return render::int_tensor_from_host(view, "ray view index"); }
+host::Tensor FeatureRays::view_tensor() const {
+  return host::Tensor::from_host(view, {int64_t(view.size())}, "ray view index");
+}
 
 host::Tensor FeatureRays::pixel_xy_tensor() const {
   return host::Tensor::from_host(pixel_xy, {int64_t(view.size()), 2}, "ray pixel_xy");

@@ -21,7 +21,7 @@ struct FeatureRays {
   std::vector<int32_t> view;     // [R] training-view index
   std::vector<float> pixel_xy;   // [R][2] pixel-centre positions (x + 0.5, y + 0.5), full resolution
   size_t size() const { return view.size(); }
-  host::Tensor view_tensor() const;      // [R] int32 bits, for gather_targets
+  host::Tensor view_tensor() const;      // [R] I32, for gather_targets
   host::Tensor pixel_xy_tensor() const;  // [R, 2]
 };
 

@@ -22,6 +22,7 @@ struct MapDims {
 
 MapDims map_dims(const Tensor& maps, const char* op) {
   if (!maps.defined()) throw Error(std::string(op) + ": the target maps are undefined");
+  host::expect_dtype(maps, host::DType::F32, op, "target maps");
   if (maps.ndim() != 4)
     throw Error(std::string(op) + ": target maps must be [V, Hf, Wf, C], got " + host::shape_str(maps.shape()));
   const MapDims d{int(maps.dim(0)), int(maps.dim(1)), int(maps.dim(2)), int(maps.dim(3))};
@@ -32,13 +33,12 @@ MapDims map_dims(const Tensor& maps, const char* op) {
 }
 
 int ray_count(const Tensor& view_index, const Tensor& pixel_xy, const char* op) {
-  if (!view_index.defined() || view_index.ndim() != 1)
-    throw Error(std::string(op) + ": view_index must be [R] int32, got " +
-                (view_index.defined() ? host::shape_str(view_index.shape()) : std::string("undefined")));
+  host::expect_dtype(view_index, host::DType::I32, op, "view_index");
+  if (view_index.ndim() != 1)
+    throw Error(std::string(op) + ": view_index must be [R], got " + host::shape_str(view_index.shape()));
   if (view_index.numel() > INT_MAX / 2) throw Error(std::string(op) + ": too many rays for int indexing");
   const int R = int(view_index.numel());
-  if (!pixel_xy.defined()) throw Error(std::string(op) + ": pixel_xy is undefined");
-  host::expect_shape(pixel_xy, {R, 2}, op, "pixel_xy");
+  host::expect_shape(pixel_xy, {R, 2}, host::DType::F32, op, "pixel_xy");
   return R;
 }
 
@@ -57,8 +57,7 @@ Tensor gather_targets(const Tensor& maps, const Tensor& view_index, const Tensor
 void gather_targets_backward(const Tensor& view_index, const Tensor& pixel_xy, const Tensor& dout, Tensor& dmaps) {
   const MapDims d = map_dims(dmaps, "gather_targets_backward");
   const int R = ray_count(view_index, pixel_xy, "gather_targets_backward");
-  if (!dout.defined()) throw Error("gather_targets_backward: dout is undefined");
-  host::expect_shape(dout, {R, d.C}, "gather_targets_backward", "dout");
+  host::expect_shape(dout, {R, d.C}, host::DType::F32, "gather_targets_backward", "dout");
   if (R == 0) return;
   host::launch_with_local("targets", "targets_gather_backward", "", {size_t(R)}, {kGroup}, view_index, pixel_xy, dout,
                           R, d.V, d.hf, d.wf, d.C, dmaps);

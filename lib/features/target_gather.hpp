@@ -7,8 +7,8 @@
 
 namespace stylerf::features {
 
-// maps [V, Hf, Wf, C] (C a multiple of 8), view_index [R] int32 bits (lib/render/int_tensor.hpp), pixel_xy
-// [R, 2] full-resolution positions -> [R, C], the target of each ray. A view index outside [0, V) or a
+// maps [V, Hf, Wf, C] F32 (C a multiple of 8), view_index [R] I32, pixel_xy [R, 2] F32 full-resolution
+// positions -> [R, C], the target of each ray. A view index outside [0, V) or a
 // non-finite position gives a row of NaN (a bad input must not quietly read some other pixel).
 host::Tensor gather_targets(const host::Tensor& maps, const host::Tensor& view_index, const host::Tensor& pixel_xy);
 

@@ -4,19 +4,14 @@
 
 #include "host/error.hpp"
 #include "host/launch.hpp"
-#include "host/runtime.hpp"
 
 namespace stylerf::field {
 
 using host::launch;
 
 std::vector<uint8_t> AlphaMask::to_host() const {
-  std::vector<uint8_t> v(size_t(res[0]) * res[1] * res[2]);
-  if (v.empty()) return v;
-  host::check(clEnqueueReadBuffer(host::Runtime::instance().queue(), voxels->mem(), CL_TRUE, 0, v.size(), v.data(), 0,
-                                  nullptr, nullptr),
-              "clEnqueueReadBuffer", "alpha mask");
-  return v;
+  if (!voxels.defined()) return {};
+  return voxels.to_host_u8();
 }
 
 AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::array<int, 3> res, float step,
@@ -26,15 +21,16 @@ AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::ar
   AlphaMask m;
   m.res = res;
   const size_t n = size_t(res[0]) * res[1] * res[2];
-  auto raw = std::make_shared<host::Buffer>(n, "alpha mask (raw)");
-  m.voxels = std::make_shared<host::Buffer>(n, "alpha mask");
+  const host::Shape shape{res[2], res[1], res[0]};
+  host::Tensor raw(shape, host::DType::U8, "alpha mask (raw)");
+  m.voxels = host::Tensor(shape, host::DType::U8, "alpha mask");
   const std::string opts = "-DRANK0=" + std::to_string(density.rank[0]) + " -DRANK1=" +
                            std::to_string(density.rank[1]) + " -DRANK2=" + std::to_string(density.rank[2]);
   // Groups of 64 voxels (an explicit size: PoCL picks awkward divisors of odd voxel counts).
-  host::launch_with_local("grid", "alpha_mask_eval", opts, {n}, {64}, density.params, raw->mem(), int(res[0]), int(res[1]), int(res[2]),
+  host::launch_with_local("grid", "alpha_mask_eval", opts, {n}, {64}, density.params, raw, int(res[0]), int(res[1]), int(res[2]),
          density.res[0], density.res[1], density.res[2], density.rank[0], density.rank[1], density.rank[2], int(act),
          step, threshold);
-  launch("grid", "alpha_mask_dilate", {n}, raw->mem(), m.voxels->mem(), int(res[0]), int(res[1]), int(res[2]));
+  launch("grid", "alpha_mask_dilate", {n}, raw, m.voxels, int(res[0]), int(res[1]), int(res[2]));
   // The tight box: read back once per rebuild (rare: on the trainer's schedule).
   const std::vector<uint8_t> v = m.to_host();
   int lo[3] = {res[0], res[1], res[2]}, hi[3] = {-1, -1, -1};

@@ -6,7 +6,6 @@
 // (3x3x3 max, as TensoRF max-pools its alpha volume) so surfaces between voxel centres are kept.
 #pragma once
 #include <array>
-#include <memory>
 #include <vector>
 
 #include "host/tensor.hpp"
@@ -16,7 +15,7 @@ namespace stylerf::field {
 
 struct AlphaMask {
   std::array<int, 3> res{};               // mx, my, mz
-  std::shared_ptr<host::Buffer> voxels;   // uchar [mz][my][mx], 1 = occupied
+  host::Tensor voxels;                    // U8 [mz, my, mx], 1 = occupied; undefined: no mask
   int64_t occupied = 0;                   // occupied voxels after dilation
   // Tight box of occupied voxels in normalised coordinates (lo > hi when nothing is occupied).
   std::array<float, 3> lo{1, 1, 1}, hi{-1, -1, -1};

@@ -72,7 +72,8 @@ void save_checkpoint(const std::string& path, const Checkpoint& ck) {
 Checkpoint load_checkpoint(const std::string& path, const std::string& expected_kind) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw Error("checkpoint " + path + " does not exist (train one with `stylerf train-" + expected_kind + "`)");
+    throw Error("checkpoint " + path + " does not exist" +
+                (expected_kind.empty() ? std::string() : " (train one with `stylerf train-" + expected_kind + "`)"));
   SafeTensors st;
   try {
     st = SafeTensors::load(path);
@@ -92,7 +93,7 @@ Checkpoint load_checkpoint(const std::string& path, const std::string& expected_
   Checkpoint ck;
   ck.path = path;
   ck.kind = field("stylerf.kind");
-  if (ck.kind != expected_kind)
+  if (!expected_kind.empty() && ck.kind != expected_kind)
     throw Error("checkpoint " + path + " holds a '" + ck.kind + "' stage, expected '" + expected_kind + "'");
   try {
     ck.meta = nlohmann::json::parse(field("stylerf.meta"));

@@ -34,7 +34,7 @@ struct Checkpoint {
 
 void save_checkpoint(const std::string& path, const Checkpoint& ck);
 // Throws host::Error naming the file when it is missing, not a safetensors file, not a stylerf checkpoint,
-// of another version or kind, or fails its checksum.
+// of another version or kind (expected_kind "" accepts any; ck.kind says which), or fails its checksum.
 Checkpoint load_checkpoint(const std::string& path, const std::string& expected_kind);
 
 }  // namespace stylerf::io

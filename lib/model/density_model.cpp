@@ -95,7 +95,7 @@ GridCrop DensityModel::occupied_crop() const {
   GridCrop c;
   c.res = res();
   const field::AlphaMask& mask = geo.mask;
-  if (!mask.voxels || mask.empty()) return c;
+  if (!mask.voxels.defined() || mask.empty()) return c;
   for (int a = 0; a < 3; ++a) {
     const int n = c.res[a];
     // Grid points are at -1 + 2 i / (n - 1); snap the occupied box outwards to them.
@@ -187,10 +187,10 @@ void save_model(io::Checkpoint& ck, DensityModel& m) {
   j["ndc"] = g.ndc;
   j["has_background"] = g.has_background;
   j["background"] = g.background;
-  j["mask_res"] = g.mask.voxels ? g.mask.res : std::array<int, 3>{0, 0, 0};
+  j["mask_res"] = g.mask.voxels.defined() ? g.mask.res : std::array<int, 3>{0, 0, 0};
   ck.meta["model"] = j;
   m.save(ck, "model.");
-  if (g.mask.voxels) ck.tensors["model.mask"] = pack_mask(g.mask);
+  if (g.mask.voxels.defined()) ck.tensors["model.mask"] = pack_mask(g.mask);
 }
 
 DensityModel load_model(const io::Checkpoint& ck) {

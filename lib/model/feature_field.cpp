@@ -5,6 +5,8 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
+#include "lib/nn/ops.hpp"
+#include "lib/render/composite_values.hpp"
 #include "lib/scene/rays.hpp"
 
 namespace stylerf::model {
@@ -41,6 +43,7 @@ FeatureField FeatureField::create(const Geometry& g, const FeatureFieldConfig& c
   std::vector<float> b(size_t(F) * cfg.channels);
   for (auto& x : b) x = u(rng);
   f.basis.value = Tensor::from_host(b, {F, cfg.channels}, "feature basis");
+  if (g.has_background) f.background.value = Tensor::zeros({cfg.channels}, "feature background");
   return f;
 }
 
@@ -49,7 +52,8 @@ RayResult FeatureField::render(const Geometry& g, const Tensor& origins, const T
   RayResult r = render_rays(g, head, origins, dirs, opt, ctx ? &ctx->rays : nullptr);
   Tensor feat({r.value.dim(0), cfg.channels}, "rendered features");
   if (feat.numel() > 0) host::matmul(r.value, Trans::No, basis.value, Trans::No, feat);
-  if (ctx) ctx->composited = r.value;
+  if (background.value.defined() && feat.numel() > 0) render::background_forward(feat, r.acc, background.value);
+  if (ctx) ctx->composited = r.value, ctx->rays_acc = r.acc;
   r.value = feat;
   return r;
 }
@@ -64,6 +68,15 @@ void FeatureField::render_backward(const Geometry& g, const Context& ctx, const 
     if (dfeat.numel() > 0) host::matmul(ctx.composited, Trans::Yes, dfeat, Trans::No, db, 1.0f, 1.0f);
     dcomp = Tensor(ctx.composited.shape(), "d composited grid features");
     if (dcomp.numel() > 0) host::matmul(dfeat, Trans::No, basis.value, Trans::Yes, dcomp);
+    if (background.value.defined() && dfeat.numel() > 0) {
+      // d background = sum_r (1 - acc_r) dfeat_r: a [1, R] x [R, C] product. (The opacity is the
+      // frozen geometry's: no gradient flows to it.)
+      const int64_t R = dfeat.dim(0);
+      Tensor transparency = Tensor::full({1, R}, 1.0f, "ray transparency");
+      nn::axpby(-1.0f, ctx.rays_acc.reshape({1, R}), 1.0f, transparency);
+      Tensor dbg = background.grad_buffer().reshape({1, cfg.channels});
+      host::matmul(transparency, Trans::No, dfeat, Trans::No, dbg, 1.0f, 1.0f);
+    }
   }
   render_rays_backward(g, head, ctx.rays, dcomp, dkept_acc, nullptr);
 }
@@ -92,12 +105,15 @@ class PerPointHead : public SampleHead {
 RayResult FeatureField::render_per_point(const Geometry& g, const Tensor& origins, const Tensor& dirs,
                                          const RayOptions& opt) const {
   PerPointHead h(head, basis.value);
-  return render_rays(g, h, origins, dirs, opt, nullptr);
+  RayResult r = render_rays(g, h, origins, dirs, opt, nullptr);
+  if (background.value.defined() && r.value.numel() > 0) render::background_forward(r.value, r.acc, background.value);
+  return r;
 }
 
 void FeatureField::collect_params(std::vector<nn::Param*>& out) {
   head.collect_params(out);
   out.push_back(&basis);
+  if (background.value.defined()) out.push_back(&background);
 }
 
 ViewValues render_feature_view(const Geometry& g, const FeatureField& f, const scene::Scene& scene,

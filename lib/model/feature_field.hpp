@@ -7,7 +7,8 @@
 // render_per_point() does it the other way (for the equivalence test, and for heads with a nonlinearity
 // per point, such as stage 3's SICT, which must use that order).
 //
-// Parameters: "feature_grid" (group 0) and "feature_basis" [F, C] (group 1).
+// Parameters: "feature_grid" (group 0), "feature_basis" [F, C] and, with a background,
+// "feature_background" [C] (group 1).
 #pragma once
 #include <array>
 #include <cstdint>
@@ -47,14 +48,21 @@ class FeatureField : public nn::Module {
   FeatureFieldConfig cfg;
   FeatureGridHead head;
   nn::Param basis{"feature_basis", 1, Tensor()};  // [F, C]
+  // Scenes whose images have alpha (a background colour) also learn the feature of empty space, [C],
+  // composited behind each ray as (1 - acc) * background in the C-channel space: the relu3_1 of the
+  // background colour is far from 0, and without it empty pixels would carry an error no parameter can
+  // lower. Undefined (no parameter) for scenes without a background.
+  nn::Param background{"feature_background", 1, Tensor()};
 
-  // Grid at the geometry's resolution; basis U(+-1/sqrt(F)) (PyTorch Linear's default), seeded.
+  // Grid at the geometry's resolution; basis U(+-1/sqrt(F)) (PyTorch Linear's default), seeded; a zero
+  // background feature when the geometry has a background.
   static FeatureField create(const Geometry& g, const FeatureFieldConfig& cfg, uint64_t seed);
   int channels() const { return cfg.channels; }
 
   struct Context {
     RayContext rays;
     Tensor composited;  // [R, F] grid components composited over the kept samples
+    Tensor rays_acc;    // [R] opacity over all samples (the background's weight is 1 - this)
   };
   // Features [R, C] (no background: empty space renders as 0), composited first, basis per ray.
   RayResult render(const Geometry& g, const Tensor& origins, const Tensor& dirs, const RayOptions& opt,

@@ -4,7 +4,6 @@
 #include <sstream>
 
 #include "host/error.hpp"
-#include "host/runtime.hpp"
 #include "lib/io/checkpoint.hpp"
 
 namespace stylerf::model {
@@ -56,7 +55,7 @@ std::string Geometry::describe() const {
     << density.rank[1] << "/" << density.rank[2] << ", step " << step << " (<= " << max_samples
     << " samples/ray), box [" << box_lo[0] << ", " << box_lo[1] << ", " << box_lo[2] << "] .. [" << box_hi[0] << ", "
     << box_hi[1] << ", " << box_hi[2] << "]";
-  if (mask.voxels)
+  if (mask.voxels.defined())
     o << ", alpha mask " << mask.res[0] << "x" << mask.res[1] << "x" << mask.res[2] << " ("
       << 100.0 * double(mask.occupied) / (double(mask.res[0]) * mask.res[1] * mask.res[2]) << "% occupied"
       << (use_mask ? "" : ", not used") << ")";
@@ -97,10 +96,7 @@ field::AlphaMask unpack_mask(const io::HostTensor& t, std::array<int, 3> res, co
       m.lo[a] = -1.0f + 2.0f * lo[a] / res[a];
       m.hi[a] = -1.0f + 2.0f * (hi[a] + 1) / res[a];
     }
-  m.voxels = std::make_shared<host::Buffer>(n, "alpha mask");
-  host::check(clEnqueueWriteBuffer(host::Runtime::instance().queue(), m.voxels->mem(), CL_TRUE, 0, n, v.data(), 0,
-                                   nullptr, nullptr),
-              "clEnqueueWriteBuffer", "alpha mask from " + path);
+  m.voxels = Tensor::from_host(v, {res[2], res[1], res[0]}, "alpha mask from " + path);
   return m;
 }
 
@@ -119,10 +115,10 @@ void Geometry::save(io::Checkpoint& ck, const std::string& prefix) const {
   j["step_ratio"] = step_ratio;
   j["distance_scale"] = distance_scale;
   j["weight_threshold"] = weight_threshold;
-  j["mask_res"] = mask.voxels ? mask.res : std::array<int, 3>{0, 0, 0};
+  j["mask_res"] = mask.voxels.defined() ? mask.res : std::array<int, 3>{0, 0, 0};
   ck.meta[prefix + "geometry"] = j;
   ck.put(prefix + "density", density.params);
-  if (mask.voxels) ck.tensors[prefix + "mask"] = pack_mask(mask);
+  if (mask.voxels.defined()) ck.tensors[prefix + "mask"] = pack_mask(mask);
 }
 
 Geometry Geometry::load(const io::Checkpoint& ck, const std::string& prefix) {

@@ -32,7 +32,7 @@ struct Geometry {
   std::array<float, 3> background{1, 1, 1};
   field::VMGrid density;
   field::DensityActivation act = field::DensityActivation::Softplus;
-  field::AlphaMask mask;         // mask.voxels null: no mask
+  field::AlphaMask mask;         // mask.voxels undefined: no mask
   bool use_mask = true;          // false: ignore the mask while marching (bench knob)
   float step_ratio = 0.5f;       // samples per voxel side (TensoRF)
   float distance_scale = 25.0f;  // TensoRF
@@ -46,7 +46,7 @@ struct Geometry {
   // Recomputes step / max_samples from the grid resolution and the box (TensoRF's update_stepSize).
   void update_step();
   render::MarchConfig march_config(bool jitter, uint32_t seed) const;
-  const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels) ? &mask : nullptr; }
+  const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels.defined()) ? &mask : nullptr; }
   Tensor background_tensor() const;  // [3], undefined when the scene has no background
   std::string describe() const;      // grid, step, samples per ray, box, mask occupancy
 

@@ -1,10 +1,11 @@
 #include "lib/render/composite.hpp"
 
 #include <algorithm>
+#include <string>
 
 #include "host/error.hpp"
 #include "host/launch.hpp"
-#include "lib/render/int_tensor.hpp"
+#include "lib/render/scan.hpp"
 
 namespace stylerf::render {
 
@@ -18,36 +19,53 @@ using host::launch_with_local;
 constexpr size_t kGroup = 64;
 
 Kept keep_by_weight(const Samples& s, const Tensor& weights, float threshold) {
-  host::expect_shape(weights, {s.count}, "keep_by_weight", "weights");
-  const int R = static_cast<int>(s.ray_count.numel());
+  const int R = static_cast<int>(check_ray_lists(s.ray_offset, s.ray_count, "keep_by_weight"));
+  host::expect_shape(weights, {s.count}, host::DType::F32, "keep_by_weight", "weights");
   Kept k;
-  k.ray_count = Tensor({R}, "kept counts");
+  k.ray_count = Tensor({R}, host::DType::I32, "kept counts");
   launch_with_local("render", "keep_count", "", {size_t(R)}, {kGroup}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_count);
   std::vector<int32_t> offsets;
-  k.count = exclusive_scan(int_tensor_to_host(k.ray_count), offsets);
-  k.ray_offset = int_tensor_from_host(offsets, "kept offsets");
-  k.index = Tensor({k.count}, "kept sample index");
+  k.count = exclusive_scan(k.ray_count.to_host_i32(), offsets);
+  k.ray_offset = Tensor::from_host(offsets, {R}, "kept offsets");
+  k.index = Tensor({k.count}, host::DType::I32, "kept sample index");
   launch_with_local("render", "keep_write", "", {size_t(R)}, {kGroup}, weights, s.ray_offset, s.ray_count, R, threshold, k.ray_offset,
          k.index);
   return k;
 }
 
+// Rows of C 32-bit words: the kernels copy bits, so F32 and I32 payloads move unchanged.
+static int64_t row_words(const Tensor& t, const char* op, const char* name) {
+  host::expect_dtype(t, {host::DType::F32, host::DType::I32}, op, name);
+  if (t.ndim() < 1) throw Error(std::string(op) + ": " + name + " has no rows");
+  return t.ndim() == 1 ? 1 : t.numel() / std::max<int64_t>(t.dim(0), 1);
+}
+
+static void check_index(const Tensor& index, int64_t count, const char* op) {
+  host::expect_dtype(index, host::DType::I32, op, "index");
+  if (index.ndim() != 1 || index.numel() < count)
+    throw Error(std::string(op) + ": index has shape " + host::shape_str(index.shape()) + ", expected at least " +
+                std::to_string(count) + " entries");
+}
+
 Tensor gather_rows(const Tensor& src, const Tensor& index, int64_t count) {
-  if (src.ndim() < 1) throw Error("gather_rows: source has no rows");
-  const int64_t C = src.ndim() == 1 ? 1 : src.numel() / std::max<int64_t>(src.dim(0), 1);
+  const int64_t C = row_words(src, "gather_rows", "source");
+  check_index(index, count, "gather_rows");
   host::Shape shape = src.shape();
   shape[0] = count;
-  Tensor out(shape, "gathered rows");
+  Tensor out(shape, src.dtype(), "gathered rows");
+  if (count == 0) return out;
   launch_with_local("render", "gather_rows", "", {size_t(count)}, {kGroup}, src, index, out, int(count), int(C));
   return out;
 }
 
 Tensor scatter_rows(const Tensor& rows, const Tensor& index, int64_t total) {
+  const int64_t C = row_words(rows, "scatter_rows", "rows");
   const int64_t K = rows.dim(0);
-  const int64_t C = rows.ndim() == 1 ? 1 : rows.numel() / std::max<int64_t>(K, 1);
+  check_index(index, K, "scatter_rows");
   host::Shape shape = rows.shape();
   shape[0] = total;
-  Tensor out = Tensor::zeros(shape, "scattered rows");
+  Tensor out = Tensor::zeros(shape, rows.dtype(), "scattered rows");
+  if (K == 0) return out;
   launch_with_local("render", "scatter_rows", "", {size_t(K)}, {kGroup}, rows, index, out, int(K), int(C));
   return out;
 }

@@ -25,7 +25,8 @@ static int vector_width(int C) {
 static std::string vw_option(int vw) { return "-DVW=" + std::to_string(vw); }
 
 static int check_values(const KeptLayout& l, const Tensor& w, const Tensor& values, const char* op) {
-  host::expect_shape(w, {l.count}, op, "weights");
+  host::expect_shape(w, {l.count}, host::DType::F32, op, "weights");
+  host::expect_dtype(values, host::DType::F32, op, "values");
   if (values.ndim() != 2 || values.dim(0) != l.count)
     throw Error(std::string(op) + ": values have shape " + host::shape_str(values.shape()) + ", expected [" +
                 std::to_string(l.count) + ", C]");
@@ -35,7 +36,8 @@ static int check_values(const KeptLayout& l, const Tensor& w, const Tensor& valu
 
 CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values) {
   const int C = check_values(l, w, values, "composite_values_forward");
-  const int R = static_cast<int>(l.rays()), vw = vector_width(C);
+  const int R = static_cast<int>(check_ray_lists(l.ray_offset, l.ray_count, "composite_values_forward"));
+  const int vw = vector_width(C);
   CompositedValues out;
   out.value = Tensor({R, C}, "composited values");
   out.acc = Tensor({R}, "accumulated opacity (kept samples)");
@@ -52,8 +54,11 @@ CompositeValuesGrads composite_values_backward(const KeptLayout& l, const Tensor
                                                const Tensor& dvalue, const Tensor& dacc) {
   const int C = check_values(l, w, values, "composite_values_backward");
   const int R = static_cast<int>(l.rays()), K = static_cast<int>(l.count), vw = vector_width(C);
-  if (dvalue.defined()) host::expect_shape(dvalue, {R, C}, "composite_values_backward", "dvalue");
-  if (dacc.defined()) host::expect_shape(dacc, {R}, "composite_values_backward", "dacc");
+  // The backward kernels go from each kept entry to its ray: ray_index, not the per-ray offsets (with no
+  // entries there is nothing to read, and callers leave it undefined).
+  if (K > 0) host::expect_shape(l.ray_index, {K}, host::DType::I32, "composite_values_backward", "ray_index");
+  if (dvalue.defined()) host::expect_shape(dvalue, {R, C}, host::DType::F32, "composite_values_backward", "dvalue");
+  if (dacc.defined()) host::expect_shape(dacc, {R}, host::DType::F32, "composite_values_backward", "dacc");
   CompositeValuesGrads g;
   g.dw = Tensor({K}, "d kept weights");
   if (dvalue.defined()) {
@@ -65,7 +70,7 @@ CompositeValuesGrads composite_values_backward(const KeptLayout& l, const Tensor
   const size_t chunks = size_t(C / vw);
   if (dvalue.defined())
     launch_with_local("composite", "values_backward_dvalues", vw_option(vw), {size_t(K), chunks},
-                      {chunks >= 16 ? 4 : 64, chunks}, w, l.ray_index, K, C, dvalue, g.dvalues);
+                      {size_t(chunks >= 16 ? 4 : 64), chunks}, w, l.ray_index, K, C, dvalue, g.dvalues);
   launch_with_local("composite", "values_backward_dweights", vw_option(vw), {size_t(K)}, {64}, values, l.ray_index,
                     K, C, dvalue.defined() ? dvalue : absent(), int(dvalue.defined()),
                     dacc.defined() ? dacc : absent(), int(dacc.defined()), g.dw);

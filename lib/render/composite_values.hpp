@@ -12,7 +12,8 @@
 
 namespace stylerf::render {
 
-// The layout of a compacted list: per-ray offset and count [R] and each entry's ray [K] (int32 bits).
+// The layout of a compacted list: per-ray offset and count [R] and each entry's ray [K], all I32. The
+// forward reads the offsets and counts, the backward the ray index.
 struct KeptLayout {
   int64_t count = 0;  // K
   Tensor ray_offset, ray_count, ray_index;

@@ -39,12 +39,16 @@ struct Samples {
   Tensor positions;    // [S,3] normalised to [-1,1]^3 by the box
   Tensor t;            // [S]   ray parameter
   Tensor deltas;       // [S]   step * |d| * delta_scale
-  Tensor ray_index;    // [S]   int32 bits: which ray
-  Tensor ray_offset;   // [R]   int32 bits: first sample of ray r
-  Tensor ray_count;    // [R]   int32 bits: samples of ray r (consecutive)
+  Tensor ray_index;    // [S]   I32: which ray
+  Tensor ray_offset;   // [R]   I32: first sample of ray r
+  Tensor ray_count;    // [R]   I32: samples of ray r (consecutive)
 };
 
-// origins, dirs: [R,3] world. mask may be null (no skipping).
+// Checks what an op over a sample list reads: ray_offset and ray_count defined, I32 and [R] alike.
+// Returns R.
+int64_t check_ray_lists(const Tensor& ray_offset, const Tensor& ray_count, const char* op);
+
+// origins, dirs: [R,3] F32, world. mask may be null (no skipping); its voxels are U8 [mz, my, mx].
 Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask);
 
 }  // namespace stylerf::render

@@ -16,8 +16,8 @@ static const Tensor& absent() {
 }
 
 Weights weights_forward(const Samples& s, const Tensor& sigma) {
-  host::expect_shape(sigma, {s.count}, "weights_forward", "sigma");
-  const int R = static_cast<int>(s.ray_count.numel());
+  const int R = static_cast<int>(check_ray_lists(s.ray_offset, s.ray_count, "weights_forward"));
+  host::expect_shape(sigma, {s.count}, host::DType::F32, "weights_forward", "sigma");
   Weights out;
   out.w = Tensor({s.count}, "sample weights");
   out.acc = Tensor({R}, "accumulated opacity");
@@ -29,11 +29,11 @@ Weights weights_forward(const Samples& s, const Tensor& sigma) {
 
 Tensor weights_backward(const Samples& s, const Tensor& sigma, const Tensor& dw, const Tensor& dacc,
                         const Tensor& ddepth) {
-  const int R = static_cast<int>(s.ray_count.numel());
-  host::expect_shape(sigma, {s.count}, "weights_backward", "sigma");
-  if (dw.defined()) host::expect_shape(dw, {s.count}, "weights_backward", "dw");
-  if (dacc.defined()) host::expect_shape(dacc, {R}, "weights_backward", "dacc");
-  if (ddepth.defined()) host::expect_shape(ddepth, {R}, "weights_backward", "ddepth");
+  const int R = static_cast<int>(check_ray_lists(s.ray_offset, s.ray_count, "weights_backward"));
+  host::expect_shape(sigma, {s.count}, host::DType::F32, "weights_backward", "sigma");
+  if (dw.defined()) host::expect_shape(dw, {s.count}, host::DType::F32, "weights_backward", "dw");
+  if (dacc.defined()) host::expect_shape(dacc, {R}, host::DType::F32, "weights_backward", "dacc");
+  if (ddepth.defined()) host::expect_shape(ddepth, {R}, host::DType::F32, "weights_backward", "ddepth");
   auto opt = [](const Tensor& t) -> const Tensor& { return t.defined() ? t : absent(); };
   Tensor dsigma({s.count}, "dsigma");
   launch_with_local("composite", "weights_backward", "", {size_t(R)}, {kGroup}, sigma, s.deltas, s.t, s.ray_offset,

@@ -35,3 +35,14 @@ LoadOptions load_options_from_meta(const json& meta) {
 }
 
 }  // namespace stylerf::scene
+
+namespace stylerf::scene {
+void check_same_scene(const nlohmann::json& meta, const Scene& scene, int downsample, const std::string& checkpoint) {
+  const std::string name = meta.value("name", ""), format = meta.value("format", "");
+  const int ds = meta.value("downsample", 0);
+  if (name != scene.name || format != scene.format || ds != downsample)
+    throw host::Error("checkpoint " + checkpoint + " was trained on scene '" + name + "' (" + format + ", downsample " +
+                      std::to_string(ds) + "), not on '" + scene.name + "' (" + scene.format + ", downsample " +
+                      std::to_string(downsample) + ") from " + scene.root);
+}
+}  // namespace stylerf::scene

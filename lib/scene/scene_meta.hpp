@@ -13,3 +13,9 @@ std::string scene_dir_from_meta(const nlohmann::json& meta);
 LoadOptions load_options_from_meta(const nlohmann::json& meta);
 
 }  // namespace stylerf::scene
+
+namespace stylerf::scene {
+// Throws an Error naming `checkpoint` and both scenes when meta (a checkpoint's scene section) was not
+// made from `scene` loaded with `downsample`: another name, format or downsample factor.
+void check_same_scene(const nlohmann::json& meta, const Scene& scene, int downsample, const std::string& checkpoint);
+}  // namespace stylerf::scene

@@ -1,0 +1,370 @@
+#include "lib/train/feature_trainer.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/eval/metrics.hpp"
+#include "lib/features/target_cache.hpp"
+#include "lib/features/target_gather.hpp"
+#include "lib/nn/layout.hpp"
+#include "lib/nn/ops.hpp"
+#include "lib/scene/rays.hpp"
+
+namespace stylerf::train {
+
+using host::Error;
+using host::Tensor;
+using nlohmann::json;
+
+// ---- config ------------------------------------------------------------------------------------------------
+json FeatureTrainConfig::to_json() const {
+  return json{{"profile", model::decoder_profile_name(profile)},
+              {"rank", field.rank},
+              {"channels", field.channels},
+              {"init_scale", field.init_scale},
+              {"iters", iters},
+              {"batch", batch},
+              {"patch", patch},
+              {"lr_grid", lr_grid},
+              {"lr_basis", lr_basis},
+              {"lr_decoder", lr_decoder},
+              {"beta1", beta1},
+              {"beta2", beta2},
+              {"lr_decay_ratio", lr_decay_ratio},
+              {"tv", tv},
+              {"content_weight", content_weight},
+              {"seed", seed}};
+}
+
+FeatureTrainConfig FeatureTrainConfig::from_json(const json& j) {
+  FeatureTrainConfig c;
+  c.profile = model::parse_decoder_profile(j.at("profile").get<std::string>());
+  c.field.rank = j.at("rank").get<std::array<int, 3>>();
+  c.field.channels = j.at("channels").get<int>();
+  c.field.init_scale = j.at("init_scale").get<float>();
+  c.iters = j.at("iters").get<int>();
+  c.batch = j.at("batch").get<int>();
+  c.patch = j.at("patch").get<int>();
+  c.lr_grid = j.at("lr_grid").get<float>();
+  c.lr_basis = j.at("lr_basis").get<float>();
+  c.lr_decoder = j.at("lr_decoder").get<float>();
+  c.beta1 = j.at("beta1").get<float>();
+  c.beta2 = j.at("beta2").get<float>();
+  c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
+  c.tv = j.at("tv").get<float>();
+  c.content_weight = j.at("content_weight").get<float>();
+  c.seed = j.at("seed").get<uint64_t>();
+  return c;
+}
+
+FeatureTrainConfig default_feature_config(const scene::Scene& scene, model::DecoderProfile profile) {
+  FeatureTrainConfig c;
+  c.profile = profile;
+  const bool blender = scene.format == "blender";
+  c.field.rank = blender ? std::array<int, 3>{48, 48, 48} : std::array<int, 3>{48, 12, 12};
+  c.tv = blender ? 10.0f : 80.0f;
+  // The fast decoder starts from AdaIN's trained weights and is fine-tuned; the PlainDecoder starts from
+  // random weights and needs a larger step.
+  c.lr_decoder = profile == model::DecoderProfile::Fast ? 1e-4f : 5e-4f;
+  return c;
+}
+
+static void validate(const FeatureTrainConfig& c) {
+  if (c.iters < 1) throw Error("train-features: iterations must be >= 1 (got " + std::to_string(c.iters) + ")");
+  if (c.batch < 1) throw Error("train-features: batch must be >= 1");
+  if (c.patch < 8 || c.patch % 8) throw Error("train-features: patch must be a positive multiple of 8");
+  for (float lr : {c.lr_grid, c.lr_basis, c.lr_decoder})
+    if (!(lr > 0.0f) || !std::isfinite(lr)) throw Error("train-features: learning rates must be positive");
+  if (!(c.tv >= 0.0f) || !std::isfinite(c.tv)) throw Error("train-features: --tv must be >= 0");
+}
+
+// ---- trainer -----------------------------------------------------------------------------------------------
+FeatureTrainer::FeatureTrainer(const scene::Scene& scene, const model::Geometry& density, const FeatureTrainConfig& cfg,
+                               std::ostream* log)
+    : scene_(&scene), cfg_(cfg) {
+  validate(cfg_);
+  model_ = model::FeatureModel::create(density, cfg_.field, cfg_.profile, cfg_.seed);
+  init(log);
+  init_background_feature();
+}
+
+void FeatureTrainer::init_background_feature() {
+  nn::Param& bg = model_.field.background;
+  if (!bg.value.defined()) return;
+  // relu3_1 of an image of the background colour: reflect padding keeps a constant image constant, so every
+  // pixel of the map holds the same 256 values; take the map's mean.
+  const auto& c = model_.geo.background;
+  const int n = 32;
+  std::vector<float> img(size_t(3) * n * n);
+  for (int ch = 0; ch < 3; ++ch) std::fill(img.begin() + size_t(ch) * n * n, img.begin() + size_t(ch + 1) * n * n, c[ch]);
+  const nn::VggFeatures f = vgg_.forward(Tensor::from_host(img, {1, 3, n, n}, "background image"), 3, false);
+  const auto v = f[2].to_host();
+  const int C = int(f[2].dim(1)), px = int(f[2].dim(2) * f[2].dim(3));
+  if (C != int(bg.value.numel())) throw Error("train-features: relu3_1 has " + std::to_string(C) + " channels");
+  std::vector<float> mean(size_t(C), 0.0f);
+  for (int ch = 0; ch < C; ++ch) {
+    double s = 0;
+    for (int i = 0; i < px; ++i) s += v[size_t(ch) * px + i];
+    mean[size_t(ch)] = float(s / px);
+  }
+  bg.value.upload(mean);
+}
+
+FeatureTrainer::FeatureTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log)
+    : scene_(&scene) {
+  try {
+    const json& t = ck.meta.at("trainer");
+    cfg_ = FeatureTrainConfig::from_json(t.at("config"));
+    iteration_ = t.at("iteration").get<int>();
+  } catch (const json::exception& e) {
+    throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
+  }
+  model_ = model::FeatureModel::load(ck);
+  init(log);
+  adam_.load(ck, "", model_.params());
+}
+
+void FeatureTrainer::init(std::ostream* log) {
+  adam_ = nn::Adam({{"grid", cfg_.lr_grid}, {"basis", cfg_.lr_basis}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1,
+                   cfg_.beta2);
+  vgg_ = nn::VggEncoder::load_default();
+  features::TargetCacheOptions to;
+  to.log = log;
+  targets_ = features::load_or_compute_targets(*scene_, vgg_, to);
+  // Samplers restart from a seed derived from the iteration (their state is not checkpointed).
+  const uint64_t s = cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration_);
+  rays_ = std::make_unique<features::FeatureRaySampler>(*scene_, s);
+  patches_ = std::make_unique<features::PatchSampler>(*scene_, s + 1, cfg_.patch);
+}
+
+void FeatureTrainer::set_total_iters(int iters) {
+  if (iters < 1) throw Error("train-features: iterations must be >= 1");
+  cfg_.iters = iters;
+}
+
+static double read_scalar(const Tensor& t) { return t.to_host()[0]; }
+
+double FeatureTrainer::view_feature_mse(int view) {
+  if (view < 0 || view >= int(scene_->train.size())) throw Error("view_feature_mse: no training view " + std::to_string(view));
+  const scene::Camera& cam = scene_->train[size_t(view)].camera;
+  const scene::Rays rays = scene::camera_rays(*scene_, cam);
+  const int64_t R = int64_t(rays.size());
+  std::vector<float> xy(size_t(R) * 2);
+  for (int64_t i = 0; i < R; ++i) {
+    xy[size_t(2 * i)] = float(i % cam.width) + 0.5f;
+    xy[size_t(2 * i + 1)] = float(i / cam.width) + 0.5f;
+  }
+  Tensor target = features::gather_targets(targets_.maps, Tensor::from_host(std::vector<int32_t>(size_t(R), view), {R}, "view"),
+                                           Tensor::from_host(xy, {R, 2}, "pixel positions"));
+  model::RayResult r = model_.field.render(model_.geo, Tensor::from_host(rays.origins, {R, 3}, "view origins"),
+                                           Tensor::from_host(rays.directions, {R, 3}, "view directions"), {}, nullptr);
+  return read_scalar(nn::mse_forward(r.value, target));
+}
+
+FeatureStepStats FeatureTrainer::ray_step(int k) {
+  FeatureStepStats st;
+  const features::FeatureRays fr = rays_->next(cfg_.batch);
+  const int64_t R = int64_t(fr.size());
+  Tensor o = Tensor::from_host(fr.rays.origins, {R, 3}, "feature batch origins");
+  Tensor d = Tensor::from_host(fr.rays.directions, {R, 3}, "feature batch directions");
+  Tensor target = features::gather_targets(targets_.maps, fr.view_tensor(), fr.pixel_xy_tensor());
+  model::FeatureField::Context ctx;
+  model::RayOptions opt;
+  opt.jitter = true;
+  opt.seed = static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k));
+  model::RayResult r = model_.field.render(model_.geo, o, d, opt, &ctx);
+  const Tensor mse = nn::mse_forward(r.value, target);
+  model_.field.render_backward(model_.geo, ctx, nn::mse_backward(r.value, target, 1.0f), Tensor());
+  st.feature_mse = read_scalar(mse);
+  st.samples = r.samples;
+  st.kept = r.kept;
+  st.rays = R;
+  return st;
+}
+
+FeatureStepStats FeatureTrainer::patch_step(int k) {
+  FeatureStepStats st;
+  st.patch = true;
+  const int s = model_.stride();
+  const features::Patch p = patches_->next(s);
+  const int h = p.height / s, w = p.width / s;
+  const int64_t R = int64_t(h) * w;
+  Tensor o = Tensor::from_host(p.rays.origins, {R, 3}, "patch origins");
+  Tensor d = Tensor::from_host(p.rays.directions, {R, 3}, "patch directions");
+  model::FeatureField::Context fctx;
+  model::RayOptions opt;
+  opt.jitter = true;
+  opt.seed = static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k));
+  model::RayResult r = model_.field.render(model_.geo, o, d, opt, &fctx);
+  Tensor map = nn::rows_to_image(r.value, h, w);
+  nn::ConvStack::Ctx dctx;
+  Tensor rgb = model_.decoder.forward(map, &dctx);
+  const Tensor gt = p.rgb_tensor();
+  host::expect_shape(rgb, gt.shape(), "train-features patch step", "decoded patch");
+
+  // VGG of the true patch first (no activations kept), then of the decoded one (kept for backward).
+  const nn::VggFeatures ft = vgg_.forward(gt, 4, false);
+  const nn::VggFeatures fo = vgg_.forward(rgb, 4, true);
+  const Tensor pix = nn::mse_forward(rgb, gt);
+  const Tensor c3 = nn::mse_forward(fo[2], ft[2]), c4 = nn::mse_forward(fo[3], ft[3]);
+  nn::VggFeatures grads;
+  grads[2] = nn::mse_backward(fo[2], ft[2], cfg_.content_weight);
+  grads[3] = nn::mse_backward(fo[3], ft[3], cfg_.content_weight);
+  Tensor drgb = vgg_.backward(grads);
+  vgg_.release();
+  nn::axpby(1.0f, nn::mse_backward(rgb, gt, 1.0f), 1.0f, drgb);
+  Tensor dmap = model_.decoder.backward(dctx, drgb, true);
+  model_.field.render_backward(model_.geo, fctx, nn::rows_to_image_backward(dmap), Tensor());
+  st.pixel_mse = read_scalar(pix);
+  st.content = cfg_.content_weight * (read_scalar(c3) + read_scalar(c4));
+  st.samples = r.samples;
+  st.kept = r.kept;
+  st.rays = R;
+  return st;
+}
+
+FeatureStepStats FeatureTrainer::step() {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int k = iteration_ + 1;
+  model_.zero_grad();
+  FeatureStepStats st = (k % 2 == 1) ? ray_step(k) : patch_step(k);
+  const double loss = st.patch ? st.pixel_mse + st.content : st.feature_mse;
+  if (!std::isfinite(loss))
+    throw Error("train-features: the loss is " + std::to_string(loss) + " at iteration " + std::to_string(k) +
+                " (diverged; try lower learning rates or another --seed)");
+  const field::VMGrid grid = model_.field.head.grid();
+  if (cfg_.tv > 0) field::tv_backward(grid, cfg_.tv * 2e-2f, model_.field.head.grid_param().grad_buffer());
+  // lr decays geometrically to lr_decay_ratio over the run (TensoRF's lr_factor per step).
+  const float lr_scale = std::pow(cfg_.lr_decay_ratio, float(k - 1) / float(std::max(1, cfg_.iters)));
+  adam_.step(model_.params(), lr_scale);
+  iteration_ = k;
+  if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {
+    const std::string bad = model_.first_nonfinite();
+    if (!bad.empty())
+      throw Error("train-features: parameter '" + bad + "' holds NaN or infinite values after iteration " +
+                  std::to_string(k));
+  }
+  st.iteration = k;
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return st;
+}
+
+void FeatureTrainer::save(const std::string& path, const json& scene_meta, const json& density_meta) {
+  const std::string bad = model_.first_nonfinite();
+  if (!bad.empty())
+    throw Error("train-features: parameter '" + bad + "' holds NaN or infinite values at iteration " +
+                std::to_string(iteration_) + "; checkpoint " + path + " not written");
+  io::Checkpoint ck;
+  ck.kind = "features";
+  model_.save(ck);
+  ck.meta["scene"] = scene_meta;
+  ck.meta["density"] = density_meta;
+  ck.meta["trainer"] = {{"config", cfg_.to_json()}, {"iteration", iteration_}};
+  adam_.save(ck, "");
+  io::save_checkpoint(path, ck);
+}
+
+// ---- evaluation --------------------------------------------------------------------------------------------
+static std::vector<float> to_planar(const std::vector<float>& hwc, int w, int h) {
+  std::vector<float> out(hwc.size());
+  const size_t plane = size_t(w) * h;
+  for (size_t i = 0; i < plane; ++i)
+    for (int c = 0; c < 3; ++c) out[c * plane + i] = hwc[3 * i + c];
+  return out;
+}
+
+std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const scene::Scene& scene, int max_views,
+                                           bool ssim) {
+  const int n = static_cast<int>(scene.test.size());
+  std::vector<int> ids;
+  const int count = (max_views <= 0 || max_views >= n) ? n : max_views;
+  for (int i = 0; i < count; ++i) ids.push_back(static_cast<int>(int64_t(i) * n / count));
+  std::vector<DecodedScore> out;
+  for (int id : ids) {
+    const scene::View& v = scene.test[size_t(id)];
+    if (v.rgb.empty()) throw Error("evaluate: test view " + v.image_path + " has no image loaded");
+    const auto r = m.render_decoded(scene, v.camera);
+    DecodedScore s;
+    s.view = id;
+    s.psnr = eval::psnr(r.rgb, v.rgb);
+    if (ssim)
+      s.ssim = eval::ssim(to_planar(r.rgb, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width,
+                          r.height, 3);
+    out.push_back(s);
+  }
+  return out;
+}
+
+// ---- run loop ----------------------------------------------------------------------------------------------
+static std::string hms(double s) {
+  if (!std::isfinite(s) || s < 0) return "?";
+  const long t = std::lround(s);
+  std::ostringstream o;
+  if (t >= 3600) o << t / 3600 << "h";
+  if (t >= 60) o << (t / 60) % 60 << "m";
+  o << t % 60 << "s";
+  return o.str();
+}
+
+FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt) {
+  FeatureRunSummary sum;
+  double win_s = 0, win_fmse = 0, win_pmse = 0, win_content = 0, win_rays = 0;
+  int win_r = 0, win_p = 0, win_n = 0;
+  double next_refit_s = 0;
+  auto save = [&] {
+    if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta, opt.density_meta);
+  };
+  while (!trainer.done()) {
+    const FeatureStepStats st = trainer.step();
+    ++sum.iterations;
+    sum.seconds += st.seconds;
+    win_s += st.seconds;
+    win_rays += double(st.rays);
+    ++win_n;
+    if (st.patch) {
+      win_pmse += st.pixel_mse, win_content += st.content, ++win_p;
+    } else {
+      win_fmse += st.feature_mse, ++win_r;
+    }
+    const int total = trainer.config().iters;
+    if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
+      const double per_it = win_s / win_n;
+      std::ostringstream l;
+      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total;
+      if (win_r) l << "  feature mse " << win_fmse / win_r;
+      if (win_p)
+        l << "  patch mse " << win_pmse / win_p << " (psnr " << std::setprecision(2)
+          << eval::psnr_from_mse(win_pmse / win_p) << ") content " << std::setprecision(4) << win_content / win_p;
+      l << std::setprecision(0) << "  " << win_rays / win_s << " rays/s  " << std::setprecision(2) << per_it
+        << " s/it  ETA "
+        << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
+      *opt.log << l.str() << std::endl;
+      if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
+      if (win_r) sum.last_feature_mse = win_fmse / win_r;
+      win_s = win_fmse = win_pmse = win_content = win_rays = 0;
+      win_r = win_p = win_n = 0;
+    }
+    if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
+    if (opt.time_budget_s > 0) {
+      if (sum.seconds >= opt.time_budget_s) break;
+      // Refit the run's length (its lr decay horizon) to the budget from the rate so far: after 10 steps,
+      // then every 5% of the budget.
+      if (sum.iterations >= 10 && sum.seconds >= next_refit_s) {
+        const double per_it = sum.seconds / sum.iterations;
+        trainer.set_total_iters(trainer.iteration() +
+                                std::max(1, int((opt.time_budget_s - sum.seconds) / per_it)));
+        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
+      }
+    }
+  }
+  if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
+  if (win_r) sum.last_feature_mse = win_fmse / win_r;
+  save();
+  return sum;
+}
+
+}  // namespace stylerf::train
