@@ -13,10 +13,15 @@ struct BenchOptions {
   // which parts to run ("lego", "fern", "knobs"; empty: all).
   double budget_s = 0, knob_budget_s = 0;
   std::vector<std::string> parts;
+  // bench patch only: a density or feature checkpoint whose geometry to render (empty: a synthetic
+  // geometry where every sample counts), the stage, the decoder profile and the patch side.
+  std::string ckpt, profile = "fast";
+  int stage = 2, size = 256;
 };
 
 int bench_gemm(const BenchOptions& opt);  // bench/bench_gemm.cpp
 int bench_conv(const BenchOptions& opt);  // bench/bench_conv.cpp
 int bench_ops(const BenchOptions& opt);   // bench/bench_ops.cpp: every NN op's perf mode (GB/s or GFLOP/s)
+int bench_patch(const BenchOptions& opt); // bench/bench_patch.cpp: one patch-training step, part by part
 
 }  // namespace stylerf::bench

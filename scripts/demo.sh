@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set up and run the main job on built-in defaults (nothing from ../shared is needed):
 # list OpenCL devices, make a content and a style image, stylize with AdaIN, train and render the density
-# stage on a generated scene, print the GEMM summary.
+# stage on a generated scene, then its feature stage (VGG feature grid + decoder, fast profile), print the
+# GEMM summary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -22,6 +23,10 @@ echo "== density stage on a generated scene (make-scene -> train-density -> rend
     --upsample-at 70,140 --mask-at 70,140 --log-every 50 -o "$OUT/density.ckpt"
 "$S" render --ckpt "$OUT/density.ckpt" --views test -o "$OUT/render_test"
 "$S" render --ckpt "$OUT/density.ckpt" --views path --frames 24 -o "$OUT/render_path"
+echo "== feature stage on the same scene (train-features -> render: decoded RGB, PCA of the features)"
+"$S" train-features --density "$OUT/density.ckpt" --iters 300 --log-every 100 --force -o "$OUT/features.ckpt"
+"$S" render --ckpt "$OUT/features.ckpt" --views test -o "$OUT/features_test"
+"$S" render --ckpt "$OUT/features.ckpt" --views path --frames 24 -o "$OUT/features_path"
 echo "== GEMM summary (quick shapes; full table: $S bench gemm)"
 "$S" bench gemm --quick --repeats 2
 echo "== outputs in $OUT"

@@ -206,3 +206,30 @@ TEST_CASE("feature stage: bad inputs give clear errors") {
   io::save_checkpoint(dpath, dck);
   testing::expect_error([&] { io::load_checkpoint(dpath, "features"); }, "expected 'features'");
 }
+
+TEST_CASE("feature stage: constant features (a flat map) decode, and the patch losses and gradients stay finite") {
+  auto m = model::FeatureModel::create(geometry(), small_config(model::DecoderProfile::Fast, 1).field,
+                                       model::DecoderProfile::Fast, 1);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  for (float value : {0.0f, 2.0f, 1e3f}) {
+    CAPTURE(value);
+    const host::Tensor map = host::Tensor::full({1, 256, 12, 12}, value);
+    nn::ConvStack::Ctx dc;
+    const host::Tensor rgb = m.decoder.forward(map, &dc);
+    REQUIRE(rgb.shape() == host::Shape{1, 3, 48, 48});
+    CHECK(testing::all_finite(rgb.to_host()));
+    const host::Tensor gt = host::Tensor::full({1, 3, 48, 48}, 0.5f);  // flat target too: zero variance
+    const auto ft = vgg.forward(gt, 4, false);
+    const auto fo = vgg.forward(rgb, 4, true);
+    nn::VggFeatures g;
+    g[2] = nn::mse_backward(fo[2], ft[2], 0.1f);
+    g[3] = nn::mse_backward(fo[3], ft[3], 0.1f);
+    host::Tensor drgb = vgg.backward(g);
+    vgg.release();
+    m.zero_grad();
+    const host::Tensor dmap = m.decoder.backward(dc, drgb, true);
+    CHECK(testing::all_finite(dmap.to_host()));
+    CHECK(m.first_nonfinite().empty());
+    for (nn::Param* p : m.decoder.params()) CHECK(testing::all_finite(p->grad.to_host()));
+  }
+}

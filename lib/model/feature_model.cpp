@@ -55,7 +55,7 @@ FeatureModel FeatureModel::create(const Geometry& geo, const FeatureFieldConfig&
 
 // Rays through the centres of the stride x stride blocks of the full camera (NDC from the full camera, so
 // the ray space is exactly the one training used, whatever the rounding of the map's size).
-static scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h) {
+scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h) {
   w = (cam.width + stride - 1) / stride;
   h = (cam.height + stride - 1) / stride;
   scene::Rays r;

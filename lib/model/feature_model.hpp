@@ -17,6 +17,7 @@
 #include "lib/model/feature_field.hpp"
 #include "lib/model/geometry.hpp"
 #include "lib/nn/conv_stack.hpp"
+#include "lib/scene/rays.hpp"
 #include "lib/scene/scene.hpp"
 
 namespace stylerf::model {
@@ -66,6 +67,10 @@ class FeatureModel : public nn::Module {
   void save(io::Checkpoint& ck);
   static FeatureModel load(const io::Checkpoint& ck);
 };
+
+// Rays through the centres of the stride x stride blocks of `cam` (w = ceil(W/s), h = ceil(H/s) of them,
+// row-major), in the scene's ray space; NDC uses the full camera, exactly as training rays do.
+scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h);
 
 // The camera for a feature map rendered at 1/stride of its resolution: ceil(W/s) x ceil(H/s) pixels whose
 // centres sit at the centres of the full-resolution s x s blocks (feature (j + 0.5) <-> pixel s (j + 0.5)).
