@@ -32,10 +32,9 @@ style::AdainModel& model() {
   return m;
 }
 
+// The real photo and painting under ../shared/data, or procedural stand-ins where it is absent.
 std::string data_file(const std::string& rel) {
-  std::string d = testing::shared_data_dir();
-  REQUIRE_MESSAGE(!d.empty(), "STYLERF_TEST_DATA (../shared/data) not found");
-  return d + "/" + rel;
+  return testing::image_file_or_procedural(rel, rel.rfind("styles/", 0) == 0 ? "style" : "content");
 }
 
 const char* kContent = "scenes/llff/fern/images_8/image000.png";

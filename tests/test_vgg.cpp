@@ -370,9 +370,7 @@ TEST_CASE("decoder: architecture from the keys, forward and backward against the
 
 TEST_CASE("decoder: the pretrained decoder inverts the encoder (vs a He-initialised decoder)") {
   require_weights();
-  std::string data = testing::shared_data_dir();
-  REQUIRE_MESSAGE(!data.empty(), "STYLERF_TEST_DATA (../shared/data) not found");
-  std::string lego = data + "/scenes/blender/lego/train/r_0.png";
+  const std::string lego = testing::image_file_or_procedural("scenes/blender/lego/train/r_0.png", "content");
   const std::array<float, 3> white{1.0f, 1.0f, 1.0f};
   io::Image img = io::resize(io::load_image(lego, &white), 128, 128);
   Tensor x = io::to_tensor(img);

@@ -5,6 +5,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <unistd.h>
+
+#include "lib/demo/procedural_images.hpp"
+#include "lib/io/image.hpp"
 #include <random>
 #include <sstream>
 
@@ -104,6 +108,25 @@ void expect_error(const std::function<void()>& f, const std::string& needle) {
 std::string shared_data_dir() {
   if (const char* d = std::getenv("STYLERF_TEST_DATA"); d && std::filesystem::exists(d)) return d;
   return "";
+}
+
+std::string image_file_or_procedural(const std::string& rel, const std::string& kind) {
+  const std::string d = shared_data_dir();
+  if (!d.empty() && std::filesystem::exists(d + "/" + rel)) return d + "/" + rel;
+  const auto dir = std::filesystem::temp_directory_path() / ("stylerf_test_images_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / (kind + ".png")).string();
+  if (!std::filesystem::exists(path)) {
+    const demo::RgbImage src = kind == "style" ? demo::make_style_image(128, 128, 3) : demo::render_content_image(128, 96);
+    // Content 128x96 has the aspect of the fern photo it replaces; style variant 3 (bold strokes) has
+    // statistics far enough from the content for the AdaIN tests' style-distance bounds.
+    io::Image img;
+    img.width = src.width;
+    img.height = src.height;
+    img.data = src.data;  // both planar [3][H][W]
+    io::save_png(path, img);
+  }
+  return path;
 }
 
 }  // namespace stylerf::testing
