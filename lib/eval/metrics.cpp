@@ -108,4 +108,12 @@ double ssim(const io::Image& a, const io::Image& b, const SsimOptions& opt) {
   return ssim(a.data, b.data, a.width, a.height, 3, opt);
 }
 
+std::vector<float> interleaved_to_planar(const std::vector<float>& hwc, int w, int h) {
+  std::vector<float> out(hwc.size());
+  const size_t plane = size_t(w) * h;
+  for (size_t i = 0; i < plane; ++i)
+    for (int c = 0; c < 3; ++c) out[c * plane + i] = hwc[3 * i + c];
+  return out;
+}
+
 }  // namespace stylerf::eval

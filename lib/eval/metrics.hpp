@@ -16,6 +16,8 @@ double mse(const std::vector<float>& a, const std::vector<float>& b);
 // +infinity for identical images (MSE 0).
 double psnr_from_mse(double mse);
 double psnr(const std::vector<float>& a, const std::vector<float>& b);
+// Interleaved [H*W][3] -> planar [3][H*W] (what ssim() takes).
+std::vector<float> interleaved_to_planar(const std::vector<float>& hwc, int width, int height);
 
 struct SsimOptions {
   int window = 11;

@@ -116,33 +116,4 @@ void FeatureField::collect_params(std::vector<nn::Param*>& out) {
   if (background.value.defined()) out.push_back(&background);
 }
 
-ViewValues render_feature_view(const Geometry& g, const FeatureField& f, const scene::Scene& scene,
-                               const scene::Camera& cam, int chunk) {
-  if (chunk < 1) throw Error("render_feature_view: chunk must be >= 1");
-  const scene::Rays rays = scene::camera_rays(scene, cam);
-  const int64_t n = static_cast<int64_t>(rays.size());
-  const int C = f.channels();
-  ViewValues v;
-  v.width = cam.width;
-  v.height = cam.height;
-  v.channels = C;
-  v.value.resize(size_t(n) * C);
-  v.acc.resize(size_t(n));
-  v.depth.resize(size_t(n));
-  for (int64_t b = 0; b < n; b += chunk) {
-    const int64_t R = std::min<int64_t>(chunk, n - b);
-    std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
-    std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
-    RayResult out = f.render(g, Tensor::from_host(o, {R, 3}, "render origins"),
-                             Tensor::from_host(d, {R, 3}, "render directions"), RayOptions{}, nullptr);
-    const auto val = out.value.to_host(), acc = out.acc.to_host(), depth = out.depth.to_host();
-    std::copy(val.begin(), val.end(), v.value.begin() + int64_t(C) * b);
-    for (int64_t i = 0; i < R; ++i) {
-      v.acc[size_t(b + i)] = acc[size_t(i)];
-      v.depth[size_t(b + i)] = acc[size_t(i)] > 1e-6f ? depth[size_t(i)] / acc[size_t(i)] : 0.0f;
-    }
-  }
-  return v;
-}
-
 }  // namespace stylerf::model

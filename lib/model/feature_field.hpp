@@ -75,8 +75,4 @@ class FeatureField : public nn::Module {
   void collect_params(std::vector<nn::Param*>& out) override;
 };
 
-// A whole camera of features in chunks: interleaved [H*W*C] plus acc and depth.
-ViewValues render_feature_view(const Geometry& g, const FeatureField& f, const scene::Scene& scene,
-                               const scene::Camera& cam, int chunk = 4096);
-
 }  // namespace stylerf::model

@@ -9,6 +9,7 @@
 
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
+#include "lib/train/progress.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
 
@@ -293,14 +294,6 @@ void DensityTrainer::save(const std::string& path, const json& scene_meta) {
 }
 
 // ---- evaluation --------------------------------------------------------------------------------------------
-static std::vector<float> to_planar(const std::vector<float>& hwc, int w, int h) {
-  std::vector<float> out(hwc.size());
-  const size_t plane = size_t(w) * h;
-  for (size_t i = 0; i < plane; ++i)
-    for (int c = 0; c < 3; ++c) out[c * plane + i] = hwc[3 * i + c];
-  return out;
-}
-
 std::vector<ViewScore> evaluate_views(const model::DensityModel& m, const scene::Scene& scene, int max_views, bool ssim) {
   const int n = static_cast<int>(scene.test.size());
   std::vector<int> ids;
@@ -319,7 +312,7 @@ std::vector<ViewScore> evaluate_views(const model::DensityModel& m, const scene:
     s.psnr = eval::psnr(r.value, v.rgb);
     if (ssim)
       s.ssim =
-          eval::ssim(to_planar(r.value, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
+          eval::ssim(eval::interleaved_to_planar(r.value, r.width, r.height), eval::interleaved_to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
     out.push_back(s);
   }
   return out;
@@ -334,16 +327,6 @@ double mean_psnr(const std::vector<ViewScore>& v) {
 }  // namespace stylerf::train
 
 namespace stylerf::train {
-
-static std::string hms(double s) {
-  if (!std::isfinite(s) || s < 0) return "?";
-  const long t = std::lround(s);
-  std::ostringstream o;
-  if (t >= 3600) o << t / 3600 << "h";
-  if (t >= 60) o << (t / 60) % 60 << "m";
-  o << t % 60 << "s";
-  return o.str();
-}
 
 RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
   RunSummary sum;

@@ -8,6 +8,7 @@
 
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
+#include "lib/train/progress.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/nn/layout.hpp"
@@ -269,14 +270,6 @@ void FeatureTrainer::save(const std::string& path, const json& scene_meta, const
 }
 
 // ---- evaluation --------------------------------------------------------------------------------------------
-static std::vector<float> to_planar(const std::vector<float>& hwc, int w, int h) {
-  std::vector<float> out(hwc.size());
-  const size_t plane = size_t(w) * h;
-  for (size_t i = 0; i < plane; ++i)
-    for (int c = 0; c < 3; ++c) out[c * plane + i] = hwc[3 * i + c];
-  return out;
-}
-
 std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const scene::Scene& scene, int max_views,
                                            bool ssim) {
   const int n = static_cast<int>(scene.test.size());
@@ -292,7 +285,7 @@ std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const s
     s.view = id;
     s.psnr = eval::psnr(r.rgb, v.rgb);
     if (ssim)
-      s.ssim = eval::ssim(to_planar(r.rgb, r.width, r.height), to_planar(v.rgb, r.width, r.height), r.width,
+      s.ssim = eval::ssim(eval::interleaved_to_planar(r.rgb, r.width, r.height), eval::interleaved_to_planar(v.rgb, r.width, r.height), r.width,
                           r.height, 3);
     out.push_back(s);
   }
@@ -300,16 +293,6 @@ std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const s
 }
 
 // ---- run loop ----------------------------------------------------------------------------------------------
-static std::string hms(double s) {
-  if (!std::isfinite(s) || s < 0) return "?";
-  const long t = std::lround(s);
-  std::ostringstream o;
-  if (t >= 3600) o << t / 3600 << "h";
-  if (t >= 60) o << (t / 60) % 60 << "m";
-  o << t % 60 << "s";
-  return o.str();
-}
-
 FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt) {
   FeatureRunSummary sum;
   double win_s = 0, win_fmse = 0, win_pmse = 0, win_content = 0, win_rays = 0;
