@@ -110,6 +110,13 @@ std::string shared_data_dir() {
   return "";
 }
 
+std::string shared_reference_dir(const std::string& name) {
+  const std::string d = shared_data_dir();
+  if (d.empty()) return "";
+  const auto r = std::filesystem::path(d).parent_path() / "reference" / name;
+  return std::filesystem::exists(r) ? r.string() : "";
+}
+
 std::string image_file_or_procedural(const std::string& rel, const std::string& kind) {
   const std::string d = shared_data_dir();
   if (!d.empty() && std::filesystem::exists(d + "/" + rel)) return d + "/" + rel;

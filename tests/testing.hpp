@@ -40,6 +40,9 @@ void expect_error(const std::function<void()>& f, const std::string& needle);
 // Directory of ../shared/data, or "" if absent (tests needing it say so and fail loudly, not skip).
 std::string shared_data_dir();
 
+// ../shared/reference/<name> (values from official code), or "" when ../shared is absent.
+std::string shared_reference_dir(const std::string& name);
+
 // An image file for tests that need a real photo: `rel` under ../shared/data when it is there, else a
 // procedural stand-in written once per process (kind "content": a rendered scene, "style": a painted
 // pattern; lib/demo/procedural_images), so the suite also runs on a machine without ../shared.

@@ -1,0 +1,70 @@
+// Deferred style transformation (StyleRF Sec. 3.3), applied to the rendered 2D map of SICT outputs rather
+// than to every 3D sample (kernels/dst.cl; products through host/gemm.hpp):
+//   style branch: s = the style image's relu3_1 features as rows [L, 256] -> mean and std per channel
+//     (std UNBIASED, no eps: the authors') -> s - mean -> 1x1 convs 256 -> 128 -> ReLU -> 64 -> ReLU -> 32
+//     -> covariance E^T E / L (not re-centred; 32 x 32) -> linear 1024 -> 1024 -> T (32 x 32);
+//   applied to a ray's composited SICT output c (32) and its opacity w_r:
+//     y = unzip(T c) * std + w_r * mean        (unzip: 1x1 conv 32 -> 256 without bias)
+//   which is y = c (T^T U) diag(std) + w_r mean: one [R, 32] x [32, 256] GEMM and a rank-1 GEMM per map.
+// Since it is linear in c and the bias scales with w_r, it equals compositing the per-point transform
+// sum_i w_i (unzip(T c_i) * std + mean): the deferred-vs-per-point test (tests/test_style_model.cpp).
+//
+// The ablation "no bias" (Fig. 7 b) drops w_r * mean.
+// Parameters "<prefix>s_net.{0,2,4}.weight" [in, out] and ".bias", "<prefix>s_fc.weight" [1024, 1024]
+// ([in, out]) and ".bias", "<prefix>unzip.weight" [32, 256] ([in, out]). PyTorch stores the transposes.
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include "host/tensor.hpp"
+#include "lib/nn/module.hpp"
+
+namespace stylerf::style {
+
+using host::Tensor;
+
+// What a style image contributes: the channel statistics of its relu3_1 features and T.
+struct StyleCode {
+  Tensor mean, std;  // [256]
+  Tensor T;          // [32, 32]
+};
+
+class Dst : public nn::Module {
+ public:
+  static constexpr int kChannels = 256, kEmbed = 32;
+  bool bias = true;  // false: the "no bias" ablation
+  nn::Param w0, b0, w2, b2, w4, b4, fc_w, fc_b, unzip_w;
+
+  // PyTorch's default init (U(+-1/sqrt(fan_in)) for weights and biases), seeded.
+  static Dst create(bool bias, int group, uint64_t seed, const std::string& prefix = "stylizer.dst.");
+
+  struct StyleContext {
+    Tensor s, centred, h1, h2, e, cov;  // rows [L, .]; cov [1, 1024]
+    StyleCode code;
+  };
+  // s [L, 256] (L >= 2 positions). ctx null: inference.
+  StyleCode style_code(const Tensor& s, StyleContext* ctx) const;
+  // Gradients of T, mean, std (any undefined = none); accumulates into the style branch's parameters;
+  // returns ds [L, 256] when need_ds.
+  Tensor style_code_backward(const StyleContext& ctx, const Tensor& dT, const Tensor& dmean, const Tensor& dstd,
+                             bool need_ds);
+
+  struct ApplyContext {
+    Tensor c, acc, M, Wp;  // M = T^T U [32, 256], Wp = M diag(std)
+    StyleCode code;
+  };
+  // c [R, 32], acc [R] -> [R, 256].
+  Tensor apply(const Tensor& c, const Tensor& acc, const StyleCode& code, ApplyContext* ctx) const;
+  struct ApplyGrads {
+    Tensor dc, dT, dmean, dstd;  // dc only when asked for; dmean undefined without the bias
+  };
+  // Accumulates into unzip_w. (No gradient for acc: it comes from the frozen geometry.)
+  ApplyGrads apply_backward(const ApplyContext& ctx, const Tensor& dy, bool need_dc);
+  // The transform of single points (per-point order, for the deferred-vs-per-point proof): the same as
+  // apply() with every weight 1.
+  Tensor apply_per_point(const Tensor& c, const StyleCode& code) const;
+
+  void collect_params(std::vector<nn::Param*>& out) override;
+};
+
+}  // namespace stylerf::style

@@ -1,0 +1,447 @@
+// SICT and DST (lib/style/sict.hpp, lib/style/dst.hpp), three ways and against the authors' semantics:
+//  - forward against the double CPU references of tests/style_reference.hpp (every SICT mode, training
+//    and evaluation, DST with and without bias);
+//  - backward (qkv weights, SICT input, every DST parameter, the composited input, the style features)
+//    against central differences of those references;
+//  - ../shared/reference/stylerf/sict_dst.safetensors: float64 outputs and gradients of the authors'
+//    module for random weights, to 1e-5 of each tensor's largest magnitude;
+//  - hard cases: attention logits of +-1e4 and +-1e5, constant features (std -> 0), a flat-colour style
+//    (zero std, rank-deficient covariance), rays with w_r = 0, a batch of one point, and sampling
+//    invariance (a point's evaluation output does not depend on the other points).
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "host/tensor.hpp"
+#include "lib/io/safetensors.hpp"
+#include "lib/style/dst.hpp"
+#include "lib/style/sict.hpp"
+#include "tests/style_reference.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using host::Tensor;
+using testing::check_close;
+using testing::to_double;
+namespace ref = testing::style_ref;
+
+namespace {
+
+constexpr int C = 256, E = 32;
+
+std::vector<float> to_float(const std::vector<double>& v) { return std::vector<float>(v.begin(), v.end()); }
+
+ref::Mode ref_mode(style::SictMode m) {
+  return m == style::SictMode::VolumeAdaptive ? ref::Mode::VolumeAdaptive
+                                               : (m == style::SictMode::VanillaIn ? ref::Mode::VanillaIn : ref::Mode::None);
+}
+
+ref::DstParams ref_params(const style::Dst& d) {
+  return {to_double(d.w0.value.to_host()),   to_double(d.b0.value.to_host()),   to_double(d.w2.value.to_host()),
+          to_double(d.b2.value.to_host()),   to_double(d.w4.value.to_host()),   to_double(d.b4.value.to_host()),
+          to_double(d.fc_w.value.to_host()), to_double(d.fc_b.value.to_host()), to_double(d.unzip_w.value.to_host())};
+}
+
+// Largest |got - want| over the largest |want|: the reference file's agreement measure.
+double scaled_error(const std::vector<float>& got, const std::vector<double>& want) {
+  REQUIRE(got.size() == want.size());
+  double err = 0, scale = 0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    err = std::max(err, std::abs(double(got[i]) - want[i]));
+    scale = std::max(scale, std::abs(want[i]));
+  }
+  return scale > 0 ? err / scale : err;
+}
+
+// Central differences of loss(x) at `count` spread indices of x, against our gradient there.
+void fd_check(const std::string& what, const std::vector<float>& ours, std::vector<double> x,
+              const std::function<double(const std::vector<double>&)>& loss, int count = 10, double rtol = 3e-3) {
+  REQUIRE(ours.size() == x.size());
+  std::vector<size_t> idx;
+  for (int i = 0; i < count; ++i) idx.push_back(size_t((uint64_t(i) * 2654435761u + 7) % x.size()));
+  const std::vector<double> fd = testing::finite_difference_at(loss, x, idx, 1e-4);
+  std::vector<float> got;
+  std::vector<double> want;
+  double scale = 0;
+  for (size_t k = 0; k < idx.size(); ++k) {
+    got.push_back(ours[idx[k]]);
+    want.push_back(fd[k]);
+    scale = std::max(scale, std::abs(fd[k]));
+  }
+  for (float g : ours) scale = std::max(scale, double(std::abs(g)) * 1e-3);
+  check_close(got, want, rtol, 1e-3 * scale + 1e-9, what);
+}
+
+struct SictCase {
+  style::SictMode mode;
+  bool training;
+};
+
+}  // namespace
+
+TEST_CASE("SICT forward matches the double reference in every mode, training and evaluation") {
+  const int K = 37;
+  const auto x = testing::random_normal(size_t(K) * C, 1, 1.5f, 0.3f);
+  const auto rm = testing::random_normal(C, 2, 0.2f), rv = testing::random_uniform(C, 3, 0.5f, 2.0f);
+  for (SictCase c : {SictCase{style::SictMode::VolumeAdaptive, true}, SictCase{style::SictMode::VolumeAdaptive, false},
+                     SictCase{style::SictMode::VanillaIn, false}, SictCase{style::SictMode::None, true}}) {
+    style::Sict s = style::Sict::create(c.mode, 0, 11);
+    s.running_mean.value = Tensor::from_host(rm, {C});
+    s.running_var.value = Tensor::from_host(rv, {C});
+    const Tensor y = s.forward(Tensor::from_host(x, {K, C}), c.training, nullptr);
+    const auto want = ref::sict(to_double(x), K, to_double(s.qkv_w.value.to_host()), to_double(s.qkv_b.value.to_host()),
+                                ref_mode(c.mode), c.training, to_double(rm), to_double(rv));
+    check_close(y.to_host(), want, 1e-4, 1e-5, std::string("sict ") + style::sict_mode_name(c.mode) +
+                                                   (c.training ? " training" : " evaluation"));
+  }
+}
+
+TEST_CASE("SICT backward (weights, bias, input) matches central differences of the reference") {
+  const int K = 21;
+  const auto x = testing::random_normal(size_t(K) * C, 4, 1.0f, 0.5f);
+  const auto g = testing::random_normal(size_t(K) * E, 5);
+  const auto rm = testing::random_normal(C, 6, 0.2f), rv = testing::random_uniform(C, 7, 0.5f, 2.0f);
+  for (SictCase c : {SictCase{style::SictMode::VolumeAdaptive, true}, SictCase{style::SictMode::VolumeAdaptive, false},
+                     SictCase{style::SictMode::None, true}}) {
+    const std::string name = std::string(style::sict_mode_name(c.mode)) + (c.training ? " training" : " evaluation");
+    style::Sict s = style::Sict::create(c.mode, 0, 12);
+    s.running_mean.value = Tensor::from_host(rm, {C});
+    s.running_var.value = Tensor::from_host(rv, {C});
+    style::Sict::Context ctx;
+    s.forward(Tensor::from_host(x, {K, C}), c.training, &ctx);
+    s.zero_grad();
+    const Tensor dx = s.backward(ctx, Tensor::from_host(g, {K, E}), true);
+    const auto w = to_double(s.qkv_w.value.to_host()), b = to_double(s.qkv_b.value.to_host());
+    const auto xd = to_double(x), gd = to_double(g), rmd = to_double(rm), rvd = to_double(rv);
+    const ref::Mode m = ref_mode(c.mode);
+    fd_check("sict dW " + name, s.qkv_w.grad.to_host(), w, [&](const std::vector<double>& v) {
+      return testing::dot(ref::sict(xd, K, v, b, m, c.training, rmd, rvd), gd);
+    });
+    fd_check("sict db " + name, s.qkv_b.grad.to_host(), b, [&](const std::vector<double>& v) {
+      return testing::dot(ref::sict(xd, K, w, v, m, c.training, rmd, rvd), gd);
+    });
+    fd_check("sict dx " + name, dx.to_host(), xd, [&](const std::vector<double>& v) {
+      return testing::dot(ref::sict(v, K, w, b, m, c.training, rmd, rvd), gd);
+    });
+  }
+}
+
+TEST_CASE("SICT running statistics move towards the unbiased batch variance with momentum 1e-4") {
+  const int K = 50;
+  const auto x = testing::random_normal(size_t(K) * C, 8, 2.0f, 1.0f);
+  style::Sict s = style::Sict::create(style::SictMode::VolumeAdaptive, 0, 13);
+  style::Sict::Context ctx;
+  s.forward(Tensor::from_host(x, {K, C}), true, &ctx);
+  s.update_running(ctx);
+  std::vector<double> rm(C, 0.0), rv(C, 1.0);
+  ref::running_after(to_double(x), K, rm, rv);
+  check_close(s.running_mean.value.to_host(), rm, 1e-5, 1e-9, "running mean");
+  check_close(s.running_var.value.to_host(), rv, 1e-6, 1e-9, "running var");
+  // Evaluation never moves them; neither does the vanilla-IN ablation.
+  style::Sict v = style::Sict::create(style::SictMode::VanillaIn, 0, 13);
+  style::Sict::Context vctx;
+  v.forward(Tensor::from_host(x, {K, C}), true, &vctx);
+  v.update_running(vctx);
+  check_close(v.running_mean.value.to_host(), std::vector<double>(C, 0.0), 0, 0, "vanilla IN keeps its running mean");
+}
+
+TEST_CASE("DST style code and apply match the double reference, with and without bias") {
+  const int L = 45, R = 29;
+  const auto s = testing::random_normal(size_t(L) * C, 20, 1.0f, 0.8f);
+  const auto c = testing::random_normal(size_t(R) * E, 21);
+  auto acc = testing::random_uniform(R, 22, 0.0f, 1.0f);
+  acc[0] = acc[1] = 0.0f;
+  for (bool bias : {true, false}) {
+    style::Dst d = style::Dst::create(bias, 0, 23);
+    const style::StyleCode code = d.style_code(Tensor::from_host(s, {L, C}), nullptr);
+    const ref::DstParams p = ref_params(d);
+    const ref::Code rc = ref::style_code(to_double(s), L, p);
+    check_close(code.mean.to_host(), rc.mean, 1e-5, 1e-6, "style mean");
+    check_close(code.std.to_host(), rc.std, 1e-4, 1e-6, "style std (unbiased)");
+    check_close(code.T.to_host(), rc.T, 1e-4, 1e-6, "style T");
+    const Tensor y = d.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, nullptr);
+    check_close(y.to_host(), ref::dst_apply(to_double(c), to_double(acc), R, rc, p.unzip, bias), 1e-4, 1e-6,
+                bias ? "dst apply" : "dst apply without bias");
+  }
+}
+
+TEST_CASE("DST backward (every parameter, composited input, style features) matches central differences") {
+  const int L = 24, R = 13;
+  const auto s = testing::random_normal(size_t(L) * C, 30, 1.0f, 0.5f);
+  const auto c = testing::random_normal(size_t(R) * E, 31);
+  const auto acc = testing::random_uniform(R, 32, 0.0f, 1.0f);
+  const auto g = testing::random_normal(size_t(R) * C, 33);
+  style::Dst d = style::Dst::create(true, 0, 34);
+  style::Dst::StyleContext sctx;
+  style::Dst::ApplyContext actx;
+  const style::StyleCode code = d.style_code(Tensor::from_host(s, {L, C}), &sctx);
+  d.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, &actx);
+  d.zero_grad();
+  const style::Dst::ApplyGrads ag = d.apply_backward(actx, Tensor::from_host(g, {R, C}), true);
+  const Tensor ds = d.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, true);
+
+  const ref::DstParams p0 = ref_params(d);
+  const auto sd = to_double(s), cd = to_double(c), ad = to_double(acc), gd = to_double(g);
+  auto loss = [&](const ref::DstParams& p, const std::vector<double>& sv, const std::vector<double>& cv) {
+    return testing::dot(ref::dst_apply(cv, ad, R, ref::style_code(sv, L, p), p.unzip, true), gd);
+  };
+  struct Field {
+    const char* name;
+    nn::Param* param;
+    std::vector<double> ref::DstParams::*member;
+  };
+  const Field fields[] = {{"s_net.0.weight", &d.w0, &ref::DstParams::w0}, {"s_net.0.bias", &d.b0, &ref::DstParams::b0},
+                          {"s_net.2.weight", &d.w2, &ref::DstParams::w2}, {"s_net.2.bias", &d.b2, &ref::DstParams::b2},
+                          {"s_net.4.weight", &d.w4, &ref::DstParams::w4}, {"s_net.4.bias", &d.b4, &ref::DstParams::b4},
+                          {"s_fc.weight", &d.fc_w, &ref::DstParams::fc_w}, {"s_fc.bias", &d.fc_b, &ref::DstParams::fc_b},
+                          {"unzip.weight", &d.unzip_w, &ref::DstParams::unzip}};
+  for (const Field& f : fields) {
+    fd_check(std::string("dst d") + f.name, f.param->grad.to_host(), p0.*(f.member), [&](const std::vector<double>& v) {
+      ref::DstParams p = p0;
+      p.*(f.member) = v;
+      return loss(p, sd, cd);
+    });
+  }
+  fd_check("dst dc", ag.dc.to_host(), cd, [&](const std::vector<double>& v) { return loss(p0, sd, v); });
+  fd_check("dst ds (style features)", ds.to_host(), sd, [&](const std::vector<double>& v) { return loss(p0, v, cd); },
+           16);
+}
+
+TEST_CASE("matches the authors' semantics: ../shared/reference/stylerf/sict_dst.safetensors") {
+  const std::string dir = testing::shared_reference_dir("stylerf");
+  if (dir.empty()) {
+    MESSAGE("../shared/reference/stylerf is absent on this machine: the authors' reference values are not checked "
+            "here (the double-reference and finite-difference tests above still run)");
+    return;
+  }
+  const io::SafeTensors f = io::SafeTensors::load(dir + "/sict_dst.safetensors");
+  // PyTorch layouts -> ours: Conv1d weight [out, in, 1] and Linear [out, in] -> [in, out]; [1, C, N] -> rows [N, C].
+  auto transposed = [](const io::HostTensor& t, int out, int in) {
+    std::vector<float> v(size_t(in) * out);
+    for (int o = 0; o < out; ++o)
+      for (int i = 0; i < in; ++i) v[size_t(i) * out + o] = t.data[size_t(o) * in + i];
+    return v;
+  };
+  auto get_t = [&](const std::string& name, int out, int in) { return transposed(f.get(name), out, in); };
+  auto want_t = [&](const std::string& name, int out, int in) { return to_double(get_t(name, out, in)); };
+
+  style::Sict s = style::Sict::create(style::SictMode::VolumeAdaptive, 0, 0);
+  std::vector<float> qkv_w(size_t(C) * 96), qkv_b(96);
+  const char* qkv[] = {"q", "k", "v"};
+  for (int t = 0; t < 3; ++t) {
+    const auto w = get_t(std::string("param.") + qkv[t] + ".weight", E, C);
+    for (int i = 0; i < C; ++i)
+      for (int o = 0; o < E; ++o) qkv_w[size_t(i) * 96 + t * E + o] = w[size_t(i) * E + o];
+    const auto& b = f.get(std::string("param.") + qkv[t] + ".bias").data;
+    std::copy(b.begin(), b.end(), qkv_b.begin() + t * E);
+  }
+  s.qkv_w.value = Tensor::from_host(qkv_w, {C, 96});
+  s.qkv_b.value = Tensor::from_host(qkv_b, {96});
+  style::Dst d = style::Dst::create(true, 0, 0);
+  d.w0.value = Tensor::from_host(get_t("param.s_net.0.weight", 128, C), {C, 128});
+  d.b0.value = Tensor::from_host(f.get("param.s_net.0.bias").data, {128});
+  d.w2.value = Tensor::from_host(get_t("param.s_net.2.weight", 64, 128), {128, 64});
+  d.b2.value = Tensor::from_host(f.get("param.s_net.2.bias").data, {64});
+  d.w4.value = Tensor::from_host(get_t("param.s_net.4.weight", E, 64), {64, E});
+  d.b4.value = Tensor::from_host(f.get("param.s_net.4.bias").data, {E});
+  d.fc_w.value = Tensor::from_host(get_t("param.s_fc.weight", 1024, 1024), {1024, 1024});
+  d.fc_b.value = Tensor::from_host(f.get("param.s_fc.bias").data, {1024});
+  d.unzip_w.value = Tensor::from_host(get_t("param.unzip.weight", C, E), {E, C});
+
+  const int P = 300, L = 400, R = 200;
+  const Tensor x = Tensor::from_host(get_t("in.content_points", C, P), {P, C});
+  const Tensor sf = Tensor::from_host(get_t("in.style_features", C, L), {L, C});
+  const Tensor c32 = Tensor::from_host(get_t("in.composited_32", E, R), {R, E});
+  const Tensor acc = Tensor::from_host(f.get("in.acc").data, {R});
+  constexpr double kTol = 1e-5;
+  auto agree = [&](const std::vector<float>& got, const std::vector<double>& want, const std::string& what) {
+    const double e = scaled_error(got, want);
+    INFO(what << ": max |ours - reference| / max |reference| = " << e);
+    CHECK(e <= kTol);
+  };
+
+  // SICT, training mode, and the running statistics after it.
+  style::Sict::Context sctx;
+  const Tensor y = s.forward(x, true, &sctx);
+  agree(y.to_host(), want_t("out.sict_train", E, P), "sict_train");
+  s.update_running(sctx);
+  agree(s.running_mean.value.to_host(), to_double(f.get("out.running_mean_after").data), "running_mean_after");
+  agree(s.running_var.value.to_host(), to_double(f.get("out.running_var_after").data), "running_var_after");
+  // DST.
+  style::Dst::StyleContext stctx;
+  style::Dst::ApplyContext actx;
+  const style::StyleCode code = d.style_code(sf, &stctx);
+  agree(code.mean.to_host(), to_double(f.get("out.style_mean").data), "style_mean");
+  agree(code.std.to_host(), to_double(f.get("out.style_std").data), "style_std");
+  agree(code.T.to_host(), to_double(f.get("out.style_T").data), "style_T");
+  const Tensor out = d.apply(c32, acc, code, &actx);
+  agree(out.to_host(), want_t("out.dst", C, R), "dst");
+  // Gradients of <sict_train, grad_sict_out> + <dst, grad_dst_out>.
+  s.zero_grad();
+  d.zero_grad();
+  const Tensor dx = s.backward(sctx, Tensor::from_host(get_t("in.grad_sict_out", E, P), {P, E}), true);
+  const auto ag = d.apply_backward(actx, Tensor::from_host(get_t("in.grad_dst_out", C, R), {R, C}), true);
+  const Tensor ds = d.style_code_backward(stctx, ag.dT, ag.dmean, ag.dstd, true);
+  agree(dx.to_host(), want_t("grad.content_points", C, P), "grad.content_points");
+  agree(ds.to_host(), want_t("grad.style_features", C, L), "grad.style_features");
+  agree(ag.dc.to_host(), want_t("grad.composited_32", E, R), "grad.composited_32");
+  const auto gw = s.qkv_w.grad.to_host(), gb = s.qkv_b.grad.to_host();
+  for (int t = 0; t < 3; ++t) {
+    const auto want_w = want_t(std::string("grad.") + qkv[t] + ".weight", E, C);
+    std::vector<float> got_w(size_t(C) * E), got_b(gb.begin() + t * E, gb.begin() + (t + 1) * E);
+    for (int i = 0; i < C; ++i)
+      for (int o = 0; o < E; ++o) got_w[size_t(i) * E + o] = gw[size_t(i) * 96 + t * E + o];
+    agree(got_w, want_w, std::string("grad.") + qkv[t] + ".weight");
+    agree(got_b, to_double(f.get(std::string("grad.") + qkv[t] + ".bias").data), std::string("grad.") + qkv[t] + ".bias");
+  }
+  agree(d.w0.grad.to_host(), want_t("grad.s_net.0.weight", 128, C), "grad.s_net.0.weight");
+  agree(d.b0.grad.to_host(), to_double(f.get("grad.s_net.0.bias").data), "grad.s_net.0.bias");
+  agree(d.w2.grad.to_host(), want_t("grad.s_net.2.weight", 64, 128), "grad.s_net.2.weight");
+  agree(d.b2.grad.to_host(), to_double(f.get("grad.s_net.2.bias").data), "grad.s_net.2.bias");
+  agree(d.w4.grad.to_host(), want_t("grad.s_net.4.weight", E, 64), "grad.s_net.4.weight");
+  agree(d.b4.grad.to_host(), to_double(f.get("grad.s_net.4.bias").data), "grad.s_net.4.bias");
+  agree(d.fc_w.grad.to_host(), want_t("grad.s_fc.weight", 1024, 1024), "grad.s_fc.weight");
+  agree(d.fc_b.grad.to_host(), to_double(f.get("grad.s_fc.bias").data), "grad.s_fc.bias");
+  agree(d.unzip_w.grad.to_host(), want_t("grad.unzip.weight", C, E), "grad.unzip.weight");
+
+  // Evaluation mode with given running statistics; point 0 alone; logits up to ~1e5.
+  s.running_mean.value = Tensor::from_host(f.get("in.eval_running_mean").data, {C});
+  s.running_var.value = Tensor::from_host(f.get("in.eval_running_var").data, {C});
+  agree(s.forward(x, false, nullptr).to_host(), want_t("out.sict_eval", E, P), "sict_eval");
+  const auto x0 = get_t("in.content_points", C, P);
+  const Tensor first = Tensor::from_host(std::vector<float>(x0.begin(), x0.begin() + C), {1, C});
+  agree(s.forward(first, false, nullptr).to_host(), to_double(f.get("out.sict_eval_first_point_alone").data),
+        "sict_eval_first_point_alone");
+  for (int i = 0; i < C; ++i)
+    for (int o = 0; o < 2 * E; ++o) qkv_w[size_t(i) * 96 + o] *= 100.0f;
+  s.qkv_w.value = Tensor::from_host(qkv_w, {C, 96});
+  // Logits of ~1e5 computed in float32 carry an absolute rounding of ~1e-2 (q and k each hold ~7 digits),
+  // so near-tied keys may share a saturated row slightly differently than in float64: this one tensor is
+  // held to 1e-3 of its scale (measured: 1.8e-4), the rest to 1e-5.
+  const auto big = s.forward(x, false, nullptr).to_host();
+  CHECK(testing::all_finite(big));
+  const double e_big = scaled_error(big, want_t("out.sict_eval_large_logits", E, P));
+  INFO("sict_eval_large_logits: max |ours - reference| / max |reference| = " << e_big);
+  CHECK(e_big <= 1e-3);
+}
+
+// ---- hard cases ----------------------------------------------------------------------------------------
+TEST_CASE("attention logits of +-1e4 and +-1e5 stay finite: forward exact, backward finite") {
+  const int K = 9;
+  const auto x = testing::random_normal(size_t(K) * C, 40);
+  for (float scale : {1e2f, 1e3f}) {
+    style::Sict s = style::Sict::create(style::SictMode::VolumeAdaptive, 0, 41);
+    auto w = s.qkv_w.value.to_host();
+    for (int i = 0; i < C; ++i)
+      for (int o = 0; o < 2 * E; ++o) w[size_t(i) * 96 + o] *= scale;  // q and k: logits ~ scale^2 / 10
+    s.qkv_w.value = Tensor::from_host(w, {C, 96});
+    style::Sict::Context ctx;
+    const Tensor y = s.forward(Tensor::from_host(x, {K, C}), true, &ctx);
+    const auto qkv = ctx.qkv.to_host();
+    double max_logit = 0;
+    for (int r = 0; r < K; ++r)
+      for (int i = 0; i < E; ++i)
+        for (int j = 0; j < E; ++j)
+          max_logit = std::max(max_logit, std::abs(double(qkv[size_t(r) * 96 + i]) * qkv[size_t(r) * 96 + E + j]));
+    INFO("largest |logit| " << max_logit);
+    CHECK(max_logit > (scale > 500 ? 1e5 : 1e3));
+    const auto want = ref::sict(to_double(x), K, to_double(w), to_double(s.qkv_b.value.to_host()),
+                                ref::Mode::VolumeAdaptive, true, std::vector<double>(C, 0.0), std::vector<double>(C, 1.0));
+    check_close(y.to_host(), want, 1e-3, 1e-4, "saturated attention");
+    s.zero_grad();
+    const Tensor dx = s.backward(ctx, Tensor::from_host(testing::random_normal(size_t(K) * E, 42), {K, E}), true);
+    CHECK(testing::all_finite(dx.to_host()));
+    CHECK(testing::all_finite(s.qkv_w.grad.to_host()));
+  }
+}
+
+TEST_CASE("constant features (batch std -> 0) give finite outputs and gradients") {
+  const int K = 16;
+  std::vector<float> row = testing::random_normal(C, 50, 3.0f), x;
+  for (int r = 0; r < K; ++r) x.insert(x.end(), row.begin(), row.end());
+  style::Sict s = style::Sict::create(style::SictMode::VolumeAdaptive, 0, 51);
+  style::Sict::Context ctx;
+  const Tensor y = s.forward(Tensor::from_host(x, {K, C}), true, &ctx);
+  // Every point normalises to 0, so each output is the attention of the bias alone: all rows equal.
+  const auto want = ref::sict(to_double(x), K, to_double(s.qkv_w.value.to_host()), to_double(s.qkv_b.value.to_host()),
+                              ref::Mode::VolumeAdaptive, true, {}, {});
+  check_close(y.to_host(), want, 1e-4, 1e-5, "constant features");
+  s.zero_grad();
+  const Tensor dx = s.backward(ctx, Tensor::from_host(testing::random_normal(size_t(K) * E, 52), {K, E}), true);
+  CHECK(testing::all_finite(dx.to_host()));
+  s.update_running(ctx);
+  CHECK(testing::all_finite(s.running_var.value.to_host()));
+}
+
+TEST_CASE("a flat-colour style (zero std, rank-deficient covariance) gives a finite T and finite gradients") {
+  const int L = 64, R = 8;
+  std::vector<float> row = testing::random_uniform(C, 60, 0.0f, 2.0f), s;
+  for (int r = 0; r < L; ++r) s.insert(s.end(), row.begin(), row.end());
+  style::Dst d = style::Dst::create(true, 0, 61);
+  style::Dst::StyleContext sctx;
+  style::Dst::ApplyContext actx;
+  const style::StyleCode code = d.style_code(Tensor::from_host(s, {L, C}), &sctx);
+  // The mean of L equal floats rounds, so the deviations (and the std) are ~1e-7 of the values, not 0.
+  const auto std_ = code.std.to_host();
+  CHECK(*std::max_element(std_.begin(), std_.end()) < 1e-5f);
+  const ref::Code rc = ref::style_code(to_double(s), L, ref_params(d));
+  check_close(code.T.to_host(), rc.T, 1e-4, 1e-6, "T of a flat style");
+  const auto c = testing::random_normal(size_t(R) * E, 62);
+  const auto acc = testing::random_uniform(R, 63, 0.2f, 1.0f);
+  const Tensor y = d.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, &actx);
+  // std 0: the styled map is the style's mean times each ray's opacity.
+  check_close(y.to_host(), ref::dst_apply(to_double(c), to_double(acc), R, rc, ref_params(d).unzip, true), 1e-5, 1e-6,
+              "flat style output");
+  d.zero_grad();
+  const auto ag = d.apply_backward(actx, Tensor::from_host(testing::random_normal(size_t(R) * C, 64), {R, C}), true);
+  const Tensor ds = d.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, true);
+  CHECK(testing::all_finite(ds.to_host()));
+  CHECK(testing::all_finite(d.fc_w.grad.to_host()));
+  CHECK(testing::all_finite(d.unzip_w.grad.to_host()));
+}
+
+TEST_CASE("rays with w_r = 0 get no style bias; a transparent ray renders exactly 0") {
+  const int L = 20, R = 4;
+  style::Dst d = style::Dst::create(true, 0, 70);
+  const style::StyleCode code = d.style_code(Tensor::from_host(testing::random_normal(size_t(L) * C, 71, 1.0f, 2.0f), {L, C}), nullptr);
+  std::vector<float> c(size_t(R) * E, 0.0f);
+  const auto some = testing::random_normal(E, 72);
+  std::copy(some.begin(), some.end(), c.begin() + E);  // ray 1: values but no opacity (not physical; checks the bias)
+  const std::vector<float> acc = {0.0f, 0.0f, 1.0f, 0.5f};
+  const auto y = d.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, nullptr).to_host();
+  for (int o = 0; o < C; ++o) CHECK(y[size_t(o)] == 0.0f);  // ray 0: nothing at all
+  style::Dst nob = d;
+  nob.bias = false;
+  const auto y_nob = nob.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, nullptr).to_host();
+  for (int o = 0; o < C; ++o) CHECK(y[size_t(C + o)] == doctest::Approx(y_nob[size_t(C + o)]).epsilon(1e-6));
+}
+
+TEST_CASE("sampling invariance: a point's evaluation output is the same alone, in any batch; vanilla IN is not") {
+  const int K = 40;
+  const auto x = testing::random_normal(size_t(K) * C, 80, 1.0f, 0.5f);
+  for (style::SictMode m : {style::SictMode::VolumeAdaptive, style::SictMode::VanillaIn}) {
+    style::Sict s = style::Sict::create(m, 0, 81);
+    const auto all = s.forward(Tensor::from_host(x, {K, C}), false, nullptr).to_host();
+    const std::vector<float> half(x.begin() + size_t(K / 2) * C, x.end());
+    const auto part = s.forward(Tensor::from_host(half, {K - K / 2, C}), false, nullptr).to_host();
+    double diff = 0;
+    for (size_t i = 0; i < part.size(); ++i) diff = std::max(diff, double(std::abs(part[i] - all[size_t(K / 2) * E + i])));
+    if (m == style::SictMode::VolumeAdaptive) {
+      CHECK(diff == 0.0);
+      // A batch of one point, in evaluation and in training (training: it normalises to 0, finite).
+      const std::vector<float> one(x.begin(), x.begin() + C);
+      const auto alone = s.forward(Tensor::from_host(one, {1, C}), false, nullptr).to_host();
+      for (int i = 0; i < E; ++i) CHECK(alone[size_t(i)] == all[size_t(i)]);
+      style::Sict::Context ctx;
+      const auto trained = s.forward(Tensor::from_host(one, {1, C}), true, &ctx).to_host();
+      CHECK(testing::all_finite(trained));
+      s.update_running(ctx);
+      CHECK(testing::all_finite(s.running_var.value.to_host()));
+    } else {
+      CHECK(diff > 1e-3);  // the ablation's flaw, by design
+    }
+  }
+}
