@@ -23,5 +23,7 @@ int bench_gemm(const BenchOptions& opt);  // bench/bench_gemm.cpp
 int bench_conv(const BenchOptions& opt);  // bench/bench_conv.cpp
 int bench_ops(const BenchOptions& opt);   // bench/bench_ops.cpp: every NN op's perf mode (GB/s or GFLOP/s)
 int bench_patch(const BenchOptions& opt); // bench/bench_patch.cpp: one patch-training step, part by part
+int bench_patch_style(const BenchOptions& opt);  // bench/bench_patch_style.cpp: one stage-3 step, part by part
+int bench_dst(const BenchOptions& opt);   // bench/bench_dst.cpp: deferred vs per-point style transformation
 
 }  // namespace stylerf::bench

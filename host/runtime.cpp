@@ -228,12 +228,17 @@ cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
     return o.str();
   };
   if (bytes > device_.max_alloc_bytes) throw Error(limits() + " (request exceeds the per-buffer limit)");
+  auto count = [&](cl_mem m) {
+    live_bytes_ += bytes;
+    peak_live_bytes_ = std::max(peak_live_bytes_, live_bytes_);
+    return m;
+  };
   const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
   if (auto it = pool_.find(cls); it != pool_.end() && !it->second.empty()) {
     cl_mem m = it->second.back();
     it->second.pop_back();
     pooled_bytes_ -= cls;
-    return m;
+    return count(m);
   }
   cl_int err = CL_SUCCESS;
   cl_mem m = clCreateBuffer(context_, CL_MEM_READ_WRITE, cls, nullptr, &err);
@@ -242,11 +247,12 @@ cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
     m = clCreateBuffer(context_, CL_MEM_READ_WRITE, cls, nullptr, &err);
   }
   if (err != CL_SUCCESS) throw Error(limits() + ": clCreateBuffer returned " + cl_error_name(err));
-  return m;
+  return count(m);
 }
 
 void Runtime::release(cl_mem mem, size_t bytes) {
   if (!mem) return;
+  live_bytes_ -= std::min(live_bytes_, bytes);
   const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
   if (pooled_bytes_ + cls > pool_cap_bytes_) {
     clReleaseMemObject(mem);

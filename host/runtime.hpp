@@ -59,6 +59,11 @@ class Runtime {
   void release(cl_mem mem, size_t bytes);
   void trim_buffer_pool();  // frees every cached buffer
   size_t pooled_bytes() const { return pooled_bytes_; }
+  // Bytes held by live tensors (allocate() minus release(), as requested, pool rounding aside) and their
+  // high-water mark since the last reset_peak(): what benches report as an algorithm's peak memory.
+  size_t live_bytes() const { return live_bytes_; }
+  size_t peak_live_bytes() const { return peak_live_bytes_; }
+  void reset_peak() { peak_live_bytes_ = live_bytes_; }
 
   void finish();
 
@@ -86,6 +91,7 @@ class Runtime {
   std::map<std::string, cl_kernel> kernels_;    // key: program + '\n' + options + '\n' + name
   std::map<size_t, std::vector<cl_mem>> pool_;  // key: rounded size in bytes
   size_t pooled_bytes_ = 0, pool_cap_bytes_ = 0;
+  size_t live_bytes_ = 0, peak_live_bytes_ = 0;
   bool profiling_ = false;
   std::vector<std::pair<std::string, cl_event>> pending_events_;
   std::map<std::string, KernelTiming> totals_;

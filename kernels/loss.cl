@@ -79,3 +79,18 @@ __kernel void style_loss_stat_grads(__global const float* ma, __global const flo
   dmean[i] = scale * mean_diff(ma[i], la[i], mb[i], lb[i]);
   dstd[i] = scale * (sa[i] - sb[i]);
 }
+
+// ---- masked losses: the positions of a feature map where a mask is on ------------------------------------
+// x [C, HW] (one image), idx [M] positions -> out [C, M]. Global (M, C).
+__kernel void gather_positions(__global const float* x, __global const int* idx, __global float* out, int hw, int m) {
+  const int i = get_global_id(0), c = get_global_id(1);
+  if (i >= m) return;
+  out[(long)c * m + i] = x[(long)c * hw + idx[i]];
+}
+
+// The transpose: dx[c, idx[i]] = d[c, i]; dx must start at zero (positions are distinct). Global (M, C).
+__kernel void scatter_positions(__global const float* d, __global const int* idx, __global float* dx, int hw, int m) {
+  const int i = get_global_id(0), c = get_global_id(1);
+  if (i >= m) return;
+  dx[(long)c * hw + idx[i]] = d[(long)c * m + i];
+}

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Set up and run the main job on built-in defaults (nothing from ../shared is needed):
 # list OpenCL devices, make a content and a style image, stylize with AdaIN, train and render the density
-# stage on a generated scene, then its feature stage (VGG feature grid + decoder, fast profile), print the
-# GEMM summary.
+# stage on a generated scene, then its feature stage (VGG feature grid + decoder, fast profile) and its
+# style stage (SICT + DST on generated styles, compared with 2D AdaIN on a held-out style), print the GEMM
+# summary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -13,7 +14,7 @@ mkdir -p "$OUT"
 echo "== devices"
 "$S" devices
 echo "== demo images (procedural content and style, made by stylerf)"
-"$S" demo-images -o "$OUT"
+"$S" demo-images -o "$OUT" --styles 5
 echo "== 2D AdaIN with the real VGG-19 encoder and AdaIN decoder"
 "$S" adain --content "$OUT/content.png" --style "$OUT/style.png" --size 256 -o "$OUT/adain.png"
 "$S" adain --content "$OUT/content.png" --style "$OUT/style.png" --size 256 --alpha 0.5 -o "$OUT/adain_alpha0.5.png"
@@ -27,6 +28,10 @@ echo "== feature stage on the same scene (train-features -> render: decoded RGB,
 "$S" train-features --density "$OUT/density.ckpt" --iters 300 --log-every 100 --force -o "$OUT/features.ckpt"
 "$S" render --ckpt "$OUT/features.ckpt" --views test -o "$OUT/features_test"
 "$S" render --ckpt "$OUT/features.ckpt" --views path --frames 24 -o "$OUT/features_path"
+echo "== style stage on the same scene (train-style on 4 generated styles, 1 held out -> eval-style vs 2D AdaIN)"
+"$S" train-style --features "$OUT/features.ckpt" --styles "$OUT/styles" --holdout-styles 1 --iters 40 --patch 64 \
+    --log-every 10 --eval-every 20 --force -o "$OUT/style.ckpt"
+"$S" eval-style --ckpt "$OUT/style.ckpt" --views 2 --images "$OUT/style_eval"
 echo "== GEMM summary (quick shapes; full table: $S bench gemm)"
 "$S" bench gemm --quick --repeats 2
 echo "== outputs in $OUT"

@@ -18,6 +18,7 @@
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/density_trainer.hpp"
 #include "lib/train/feature_trainer.hpp"
+#include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -25,48 +26,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path work_dir() {
-  static fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / ("stylerf_test_features_" + std::to_string(::getpid()));
-    fs::remove_all(d);
-    fs::create_directories(d);
-    return d;
-  }();
-  return dir;
-}
-
-const scene::Scene& small_scene() {
-  static scene::Scene s = [] {
-    scene::MakeSceneOptions mo;
-    mo.size = 48;
-    mo.views = 20;
-    const std::string dir = (work_dir() / "scene").string();
-    scene::make_scene(dir, mo);
-    return scene::load_scene(dir);
-  }();
-  return s;
-}
-
-// A small density stage (relu, opaque early), trained once per process.
-const model::Geometry& geometry() {
-  static model::Geometry g = [] {
-    auto cfg = train::default_density_config(small_scene());
-    cfg.model.density_rank = {8, 8, 8};
-    cfg.model.app_rank = {8, 8, 8};
-    cfg.model.hidden = 32;
-    cfg.model.act = field::DensityActivation::Relu;
-    cfg.schedule.iters = 80;
-    cfg.schedule.voxels_init = 24 * 24 * 24;
-    cfg.schedule.voxels_final = 32 * 32 * 32;
-    cfg.schedule.upsample_at = {50};
-    cfg.schedule.mask_at = {50};
-    cfg.batch = 1024;
-    train::DensityTrainer t(small_scene(), cfg);
-    while (!t.done()) t.step();
-    return t.model().geo;
-  }();
-  return g;
-}
+fs::path work_dir() { return testing::small_work_dir(); }
+using testing::small_scene;
+const model::Geometry& geometry() { return testing::small_geometry(); }
 
 train::FeatureTrainConfig small_config(model::DecoderProfile profile, int iters) {
   auto cfg = train::default_feature_config(small_scene(), profile);

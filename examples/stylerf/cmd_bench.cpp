@@ -1,4 +1,4 @@
-// stylerf bench <gemm|conv|ops|field|density|targets|patch> [--json FILE] [--repeats N] [--quick] [--device D]
+// stylerf bench <gemm|conv|ops|field|density|targets|patch|dst> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <iostream>
@@ -15,7 +15,7 @@ namespace {
 int run_bench(int argc, char** argv) {
   std::string which, device, parts;
   stylerf::bench::BenchOptions opt;
-  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch> [options]");
+  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
@@ -23,7 +23,7 @@ int run_bench(int argc, char** argv) {
       "knob-budget", po::value(&opt.knob_budget_s), "density: training seconds per knob row (default 300, --quick 60)")(
       "parts", po::value(&parts), "density: comma list of lego, fern, knobs (default all)")(
       "ckpt", po::value(&opt.ckpt), "patch: density or feature checkpoint whose geometry to render")(
-      "stage", po::value(&opt.stage)->default_value(2), "patch: training stage (2)")(
+      "stage", po::value(&opt.stage)->default_value(2), "patch: training stage (2 features, 3 style)")(
       "profile", po::value(&opt.profile)->default_value("fast"), "patch: decoder profile, fast | paper")(
       "size", po::value(&opt.size)->default_value(256), "patch: side in pixels (multiple of 8)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
@@ -43,7 +43,8 @@ int run_bench(int argc, char** argv) {
               << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n"
               << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n"
               << "  targets  stage-2 target reads: per-ray gather fwd/bwd, patch read (GB/s)\n"
-              << "  patch    one stage-2 patch step part by part (s, GFLOP/s): --profile fast|paper --size 256\n";
+              << "  patch    one patch step part by part (s, GFLOP/s): --stage 2|3 --profile fast|paper --size 256\n"
+              << "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
@@ -64,7 +65,8 @@ int run_bench(int argc, char** argv) {
   if (which == "density") return stylerf::bench::bench_density(opt);
   if (which == "targets") return stylerf::bench::bench_targets(opt);
   if (which == "patch") return stylerf::bench::bench_patch(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch)\n";
+  if (which == "dst") return stylerf::bench::bench_dst(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);

@@ -1,6 +1,7 @@
 // stylerf demo-images -o DIR [--size N]: writes content.png (a ray-traced scene) and style.png (a painterly
 // pattern), both made by stylerf itself, so the demo needs nothing downloaded besides the weights.
 #include <boost/program_options.hpp>
+#include <filesystem>
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
@@ -21,10 +22,11 @@ stylerf::io::Image to_io(const stylerf::demo::RgbImage& src) {
 
 int run_demo_images(int argc, char** argv) {
   std::string out_dir;
-  int size = 256;
+  int size = 256, styles = 0;
   po::options_description desc("stylerf demo-images -o DIR [options]");
   desc.add_options()("help,h", "show this help")("out,o", po::value(&out_dir), "output folder")(
-      "size", po::value(&size)->default_value(256), "image side in pixels");
+      "size", po::value(&size)->default_value(256), "image side in pixels")(
+      "styles", po::value(&styles)->default_value(0), "also write N style variants to DIR/styles (style training)");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
@@ -36,6 +38,14 @@ int run_demo_images(int argc, char** argv) {
   stylerf::io::save_png(out_dir + "/content.png", to_io(stylerf::demo::render_content_image(size, size)));
   stylerf::io::save_png(out_dir + "/style.png", to_io(stylerf::demo::make_style_image(size, size)));
   std::cout << "wrote " << out_dir << "/content.png and " << out_dir << "/style.png (" << size << "x" << size << ")\n";
+  if (styles < 0 || styles > 64) throw std::runtime_error("--styles must be in [0, 64]");
+  if (styles > 0) {
+    std::filesystem::create_directories(out_dir + "/styles");
+    for (int v = 0; v < styles; ++v)
+      stylerf::io::save_png(out_dir + "/styles/style_" + std::to_string(v) + ".png",
+                            to_io(stylerf::demo::make_style_image(size, size, v)));
+    std::cout << "wrote " << styles << " style variants to " << out_dir << "/styles\n";
+  }
   return 0;
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 
 #include "host/error.hpp"
@@ -14,6 +15,19 @@
 namespace stylerf::io {
 
 using host::Error;
+
+std::string image_unreadable_reason(const std::string& path) {
+  if (!std::filesystem::exists(path)) return "file does not exist";
+  int w = 0, h = 0, comp = 0;
+  if (stbi_info(path.c_str(), &w, &h, &comp)) return (w > 0 && h > 0) ? "" : "zero size";
+  std::ifstream f(path, std::ios::binary);
+  char head[12] = {};
+  f.read(head, sizeof head);
+  if (std::string(head, 4) == "RIFF" && std::string(head + 8, 4) == "WEBP")
+    return "a WebP image (whatever its extension); PNG, JPEG, BMP and TGA are supported";
+  const char* why = stbi_failure_reason();
+  return std::string("not a supported image (") + (why ? why : "unknown format") + ")";
+}
 
 Image load_image(const std::string& path, const std::array<float, 3>* background, std::vector<float>* alpha) {
   namespace fs = std::filesystem;

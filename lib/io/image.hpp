@@ -25,6 +25,10 @@ struct Image {
 Image load_image(const std::string& path, const std::array<float, 3>* background = nullptr,
                  std::vector<float>* alpha = nullptr);
 
+// "" when `path` holds an image load_image can decode (header check only), else the reason (missing,
+// an unsupported format such as WebP, corrupt): folders of images use it to skip what cannot be read.
+std::string image_unreadable_reason(const std::string& path);
+
 // Resamples to width x height, each axis separately: shrinking averages the source area each output
 // pixel covers (fractional coverage at the edges; no aliasing), enlarging is bilinear with pixel centres
 // aligned (x_src = (x_dst + 0.5) * scale - 0.5) and edges repeated.

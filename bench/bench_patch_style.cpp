@@ -1,0 +1,209 @@
+// `stylerf bench patch --stage 3 --profile fast|paper --size 256 [--ckpt CKPT] [--json F]`: one style step
+// (StyleRF stage 3) at size x size pixels, part by part, each timed with the queue drained (best of
+// --repeats after a warm-up step):
+//   forward:  render (march, density, weights, keep, compositing of the 32 SICT channels), field (grid
+//             components + basis per kept sample), SICT, DST (style code + apply), decoder, VGG (style
+//             image, true patch, stylised patch; to relu4_1);
+//   backward: VGG (to the input), decoder, DST (apply + style branch), composite, SICT, optimiser.
+// GFLOP/s for the GEMM-bound parts (convs; SICT's q/k/v and attention; DST's products).
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "bench/bench.hpp"
+#include "bench/bench_setup.hpp"
+#include "host/error.hpp"
+#include "host/files.hpp"
+#include "host/runtime.hpp"
+#include "lib/io/checkpoint.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/nn/adam.hpp"
+#include "lib/nn/layout.hpp"
+#include "lib/nn/linear.hpp"
+#include "lib/train/style_losses.hpp"
+
+namespace stylerf::bench {
+
+using host::Error;
+using host::Tensor;
+
+namespace {
+
+double now_ms() {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// SictHead's work with the queue drained between the field lookup and SICT, to time them apart.
+class TimedSictHead : public model::SampleHead {
+ public:
+  TimedSictHead(const model::FeatureField& f, style::Sict& s) : field_(f), sict_(s) {}
+  int channels() const override { return style::Sict::kEmbed; }
+  Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const override {
+    auto& rt = host::Runtime::instance();
+    rt.finish();
+    const double t0 = now_ms();
+    const Tensor x = nn::linear_forward(field_.head.forward(pos, dirs, nullptr), field_.basis.value, Tensor());
+    rt.finish();
+    const double t1 = now_ms();
+    auto c = std::make_unique<model::SictHead::SictContext>();
+    Tensor y = sict_.forward(x, true, &c->sict);
+    rt.finish();
+    field_ms = t1 - t0;
+    sict_ms = now_ms() - t1;
+    points = x.dim(0);
+    *ctx = std::move(c);
+    return y;
+  }
+  void backward(const Context& ctx, const Tensor& dvalues) override {
+    auto& rt = host::Runtime::instance();
+    rt.finish();
+    const double t0 = now_ms();
+    sict_.backward(dynamic_cast<const model::SictHead::SictContext&>(ctx).sict, dvalues, false);
+    rt.finish();
+    sict_bwd_ms = now_ms() - t0;
+  }
+  void collect_params(std::vector<nn::Param*>& out) override { sict_.collect_params(out); }
+  mutable double field_ms = 0, sict_ms = 0, sict_bwd_ms = 0;
+  mutable int64_t points = 0;
+
+ private:
+  const model::FeatureField& field_;
+  style::Sict& sict_;
+};
+
+}  // namespace
+
+int bench_patch_style(const BenchOptions& opt) {
+  auto& rt = host::Runtime::instance();
+  if (opt.size < 8 || opt.size % 8) throw Error("bench patch: --size must be a positive multiple of 8");
+  const auto profile = model::parse_decoder_profile(opt.profile);
+  const int S = opt.quick ? 64 : opt.size, repeats = opt.quick ? 1 : opt.repeats;
+  BenchOptions o = opt;
+  o.size = S;
+  const Setup st = setup_from(o);
+  model::FeatureFieldConfig fc;
+  fc.rank = st.rank;
+  model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
+                                                  style::SictMode::VolumeAdaptive, true, 1);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
+  int w = 0, h = 0;
+  const scene::Rays rays = model::block_rays(st.scene, st.cam, m.stride(), w, h);
+  const int64_t R = int64_t(w) * h;
+  const Tensor o_t = Tensor::from_host(rays.origins, {R, 3}, "patch origins");
+  const Tensor d_t = Tensor::from_host(rays.directions, {R, 3}, "patch directions");
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<float> gtv(size_t(3) * S * S), sv(size_t(3) * 256 * 256);
+  for (auto& x : gtv) x = u(rng);
+  for (auto& x : sv) x = u(rng);
+  const Tensor gt = Tensor::from_host(gtv, {1, 3, S, S}, "bench target patch");
+  const Tensor style_img = Tensor::from_host(sv, {1, 3, 256, 256}, "bench style image");
+  std::cout << "device: " << rt.device().describe() << "\n"
+            << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
+            << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
+            << m.features.decoder.spec().describe() << "\n  geometry: " << st.source << "\n  best of " << repeats
+            << " after a warm-up step\n";
+  const char* names[] = {"render fwd", "field fwd",  "SICT fwd",     "DST fwd",      "decoder fwd", "VGG fwd",
+                         "VGG bwd",    "decoder bwd", "DST bwd",      "composite bwd", "SICT bwd",    "optimizer"};
+  constexpr int kParts = 12;
+  std::vector<double> best(kParts, 1e300);
+  double best_total = 1e300;
+  int64_t samples = 0, kept = 0;
+  for (int rep = 0; rep <= repeats; ++rep) {
+    double p[kParts] = {};
+    auto lap = [&](double& t) {
+      rt.finish();
+      const double n = now_ms();
+      const double d = n - t;
+      t = n;
+      return d;
+    };
+    m.zero_grad();
+    rt.finish();
+    const double start = now_ms();
+    double t = start;
+    TimedSictHead head(m.features.field, m.sict);
+    model::RayContext rctx;
+    model::RayOptions ro;
+    ro.jitter = true;
+    ro.seed = uint32_t(rep);
+    const model::RayResult r = model::render_rays(m.features.geo, head, o_t, d_t, ro, &rctx);
+    p[0] = lap(t) - head.field_ms - head.sict_ms;
+    p[1] = head.field_ms;
+    p[2] = head.sict_ms;
+    const nn::VggFeatures st_taps = vgg.forward(style_img, 4, false);
+    const double vgg_style_ms = lap(t);
+    style::Dst::StyleContext sctx;
+    const style::StyleCode code = m.dst.style_code(model::style_rows(st_taps), &sctx);
+    style::Dst::ApplyContext actx;
+    Tensor y = m.dst.apply(r.value, r.kept_acc, code, &actx);
+    p[3] = lap(t);
+    nn::ConvStack::Ctx dctx;
+    const Tensor rgb = m.features.decoder.forward(nn::rows_to_image(y, h, w), &dctx);
+    p[4] = lap(t);
+    const nn::VggFeatures ft = vgg.forward(gt, 4, false);
+    const nn::VggFeatures fo = vgg.forward(rgb, 4, true);
+    nn::VggFeatures g;
+    train::style_losses(fo, ft[3], st_taps, nullptr, {}, &g);
+    p[5] = lap(t) + vgg_style_ms;
+    const Tensor drgb = vgg.backward(g);
+    vgg.release();
+    p[6] = lap(t);
+    const Tensor dmap = m.features.decoder.backward(dctx, drgb, true);
+    p[7] = lap(t);
+    const auto ag = m.dst.apply_backward(actx, nn::rows_to_image_backward(dmap), true);
+    m.dst.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, false);
+    p[8] = lap(t);
+    model::render_rays_backward(m.features.geo, head, rctx, ag.dc, Tensor(), nullptr);
+    p[9] = lap(t) - head.sict_bwd_ms;
+    p[10] = head.sict_bwd_ms;
+    adam.step(m.params(), 1.0f);
+    p[11] = lap(t);
+    samples = r.samples;
+    kept = r.kept;
+    if (rep == 0) continue;  // warm-up: kernel compiles
+    for (int i = 0; i < kParts; ++i) best[i] = std::min(best[i], p[i]);
+    best_total = std::min(best_total, t - start);
+  }
+  const double dec = stack_flops(m.features.decoder, h, w);
+  const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
+  // SICT per point: q/k/v 2*256*96, attention ~ 4 * 32 * 32 (logits and weighted sum); backward ~2x.
+  const double sict = double(kept) * (2.0 * 256 * 96 + 4.0 * 32 * 32);
+  const double L = 64.0 * 64.0;  // relu3_1 positions of the 256 x 256 style
+  const double dst = L * 2.0 * (256 * 128 + 128 * 64 + 64 * 32) + L * 2.0 * 32 * 32 + 2.0 * 1024 * 1024 +
+                     double(R) * 2.0 * (32 * 256 + 256);
+  const double flops[kParts] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), 2 * dec,
+                                2 * dst, 0, 2 * sict, 0};
+  nlohmann::json rows = nlohmann::json::array();
+  std::cout << std::left << std::setw(14) << "part" << std::right << std::setw(10) << "s" << std::setw(12) << "GFLOP"
+            << std::setw(12) << "GFLOP/s" << "\n";
+  double total_flops = 0;
+  for (int i = 0; i < kParts; ++i) {
+    const double s = best[i] / 1e3;
+    total_flops += flops[i];
+    std::cout << std::left << std::setw(14) << names[i] << std::right << std::fixed << std::setprecision(3)
+              << std::setw(10) << s << std::setprecision(1) << std::setw(12) << flops[i] / 1e9 << std::setw(12)
+              << (flops[i] > 0 && s > 0 ? flops[i] / 1e9 / s : 0.0) << "\n";
+    rows.push_back({{"part", names[i]}, {"seconds", s}, {"gflop", flops[i] / 1e9},
+                    {"gflop_s", flops[i] > 0 && s > 0 ? flops[i] / 1e9 / s : 0.0}});
+  }
+  std::cout << std::left << std::setw(14) << "step" << std::right << std::setprecision(3) << std::setw(10)
+            << best_total / 1e3 << std::setprecision(1) << std::setw(12) << total_flops / 1e9 << "\n"
+            << "samples " << samples << " (" << std::setprecision(1) << double(samples) / double(R) << " per ray), kept "
+            << kept << " (SICT points)\n";
+  if (!opt.json_path.empty()) {
+    nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
+                        {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
+                        {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
+                        {"step_seconds", best_total / 1e3}, {"parts", rows}};
+    host::write_file_atomic(opt.json_path, j.dump(2) + "\n");
+    std::cout << "wrote " << opt.json_path << "\n";
+  }
+  return 0;
+}
+
+}  // namespace stylerf::bench

@@ -1,0 +1,79 @@
+// stylerf eval-style --ckpt STYLE_CKPT [--styles DIR] [--views N] [--images DIR]: the style stage's
+// yardstick. For the checkpoint's held-out styles (never trained on; or every image of --styles), the
+// content and style losses of our stylised test views beside those of 2D AdaIN applied to the true views,
+// by the same VGG and mask (lib/train/style_eval.hpp), per style and on average, with their ratio.
+#include <boost/program_options.hpp>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "host/error.hpp"
+#include "lib/scene/scene_meta.hpp"
+#include "lib/train/style_eval.hpp"
+#include "lib/train/style_trainer.hpp"
+
+namespace po = boost::program_options;
+
+namespace {
+
+using stylerf::host::Error;
+
+int run_eval_style(int argc, char** argv) {
+  namespace train = stylerf::train;
+  std::string ckpt, styles_dir, images, device;
+  int views = 5;
+  po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
+  desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
+      "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
+      "views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
+      "images", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
+      "device", po::value(&device), "OpenCL device");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || ckpt.empty()) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  if (views < 0) throw Error("--views must be >= 0");
+  if (!images.empty()) std::filesystem::create_directories(images);
+  stylerf::cli::init_runtime(device, false);
+  const auto ck = stylerf::io::load_checkpoint(ckpt, "style");
+  const auto model = stylerf::model::StyleModel::load(ck);
+  const nlohmann::json scene_meta = ck.meta.value("scene", nlohmann::json::object());
+  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
+  const auto scene = stylerf::scene::load_scene(stylerf::scene::scene_dir_from_meta(scene_meta), lo);
+  std::vector<std::string> styles;
+  if (!styles_dir.empty()) {
+    styles = train::StyleSet::from_dir(styles_dir, 0, &std::cout).train;
+  } else {
+    styles = train::StyleSet::from_json(ck.meta.at("styles")).holdout;
+    if (styles.empty()) throw Error("checkpoint " + ckpt + " held out no styles; pass --styles DIR");
+  }
+  auto vgg = stylerf::nn::VggEncoder::load_default();
+  auto adain = stylerf::style::AdainModel::load_default();
+  train::StyleEvalOptions opt;
+  opt.views = views;
+  opt.image_dir = images;
+  opt.log = &std::cout;
+  const auto rows = train::evaluate_styles(model, vgg, adain, scene, styles, opt);
+  double oc = 0, os = 0, ac = 0, as = 0;
+  std::cout << std::fixed << std::setprecision(3) << "style                                     ours: content   style"
+            << "   AdaIN: content   style\n";
+  for (const auto& r : rows) {
+    std::cout << std::left << std::setw(40) << r.style.substr(0, 40) << std::right << std::setw(15) << r.ours_content
+              << std::setw(9) << r.ours_style << std::setw(16) << r.adain_content << std::setw(9) << r.adain_style << "\n";
+    oc += r.ours_content, os += r.ours_style, ac += r.adain_content, as += r.adain_style;
+  }
+  const double k = double(std::max<size_t>(1, rows.size()));
+  std::cout << "mean over " << rows.size() << " styles: ours content " << oc / k << " style " << os / k
+            << "; AdaIN content " << ac / k << " style " << as / k << "\n"
+            << "style loss ours / AdaIN = " << (os / k) / (as / k) << "  (content ours / AdaIN = " << (oc / k) / (ac / k)
+            << ")" << std::endl;
+  return 0;
+}
+
+stylerf::cli::Register reg("eval-style", "held-out styles: our stylised views vs 2D AdaIN, by the same VGG losses",
+                           run_eval_style);
+}  // namespace

@@ -1,0 +1,157 @@
+// stylerf train-style --features CKPT --styles DIR [--holdout-styles N] [--profile fast|paper]
+//                     [--minutes M | --iters N] -o CKPT [--resume]:
+// the style stage (StyleRF stage 3) over a feature checkpoint: SICT + DST trained on many style images,
+// the decoder fine-tuned, the grids frozen. Progress lines print the losses, the held-out styles' losses
+// every --eval-every steps, s/it and ETA; checkpoints are atomic and store which styles were trained on.
+#include <boost/program_options.hpp>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "host/error.hpp"
+#include "host/runtime.hpp"
+#include "lib/scene/scene.hpp"
+#include "lib/scene/scene_meta.hpp"
+#include "lib/train/style_trainer.hpp"
+
+namespace po = boost::program_options;
+namespace fs = std::filesystem;
+
+namespace {
+
+using stylerf::host::Error;
+
+int run_train_style(int argc, char** argv) {
+  namespace train = stylerf::train;
+  namespace model = stylerf::model;
+  std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias";
+  int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0;
+  int patch = 256;
+  double minutes = 0;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
+  uint64_t seed = 0;
+  bool resume = false, force = false, timing = false;
+  po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
+  desc.add_options()("help,h", "show this help")("features", po::value(&features_path), "feature-stage checkpoint")(
+      "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
+      "holdout-styles", po::value(&holdout)->default_value(12), "styles held out of training (evaluated, never trained on)")(
+      "output,o", po::value(&out), "style checkpoint to write")(
+      "profile", po::value(&profile_name), "fast | paper: must be the feature checkpoint's (checked)")(
+      "iters", po::value(&iters), "iterations (default 25000, the paper's)")(
+      "minutes", po::value(&minutes), "train for this much time (replaces --iters)")(
+      "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
+      "sict", po::value(&sict_name)->default_value("volume-adaptive"),
+      "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
+      "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
+      "warm-start", po::value(&warm)->default_value(0),
+      "first N steps in 2D on stage 2's cached relu3_1 targets (no rendering; fast profile)")(
+      "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
+      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
+      "seed", po::value(&seed)->default_value(0), "random seed")(
+      "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
+      "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
+      "log-every", po::value(&log_every)->default_value(10), "iterations between progress lines")(
+      "eval-every", po::value(&eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
+      "eval-styles", po::value(&eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
+      "ckpt-every", po::value(&ckpt_every)->default_value(200), "iterations between checkpoints")(
+      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "timing", po::bool_switch(&timing), "print per-kernel times at the end");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || out.empty() || (!resume && (features_path.empty() || styles_dir.empty()))) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  if (vm.count("iters") && iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(iters) + ")");
+  if (vm.count("minutes") && !(minutes > 0 && std::isfinite(minutes)))
+    throw Error("--minutes must be a positive number of minutes");
+  if (minutes > 0 && iters > 0) throw Error("--minutes and --iters exclude each other");
+  if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
+  if (warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
+    throw Error("--warm-start, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
+  for (float lr : {lr_stylizer, lr_decoder})
+    if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
+  if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
+  const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
+  if (!resume && fs::exists(out) && !force)
+    throw Error("-o " + out + " exists: pass --resume to continue it or --force to overwrite it");
+  {
+    const fs::path parent = fs::absolute(out).parent_path();
+    if (!fs::is_directory(parent)) throw Error("-o " + out + ": directory " + parent.string() + " does not exist");
+    if (fs::is_directory(out)) throw Error("-o " + out + " is a directory");
+  }
+  stylerf::cli::init_runtime(device, timing);
+
+  std::unique_ptr<stylerf::io::Checkpoint> ck;
+  ck = std::make_unique<stylerf::io::Checkpoint>(resume ? stylerf::io::load_checkpoint(out, "style")
+                                                        : stylerf::io::load_checkpoint(features_path, "features"));
+  const nlohmann::json scene_meta = ck->meta.value("scene", nlohmann::json::object());
+  const std::string dir = stylerf::scene::scene_dir_from_meta(scene_meta);
+  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
+  lo.log = &std::cout;
+  const auto scene = stylerf::scene::load_scene(dir, lo);
+  stylerf::scene::check_same_scene(scene_meta, scene, lo.downsample, resume ? out : features_path);
+
+  std::unique_ptr<train::StyleTrainer> trainer;
+  if (resume) {
+    trainer = std::make_unique<train::StyleTrainer>(scene, *ck, &std::cout);
+    std::cout << "resuming from " << out << " at iteration " << trainer->iteration() << "\n";
+    if (iters > 0) trainer->set_total_iters(iters);
+    if (trainer->done() && minutes <= 0)
+      throw Error("--resume: checkpoint " + out + " is already at iteration " + std::to_string(trainer->iteration()) +
+                  "; pass a larger --iters to continue");
+  } else {
+    model::FeatureModel fm = model::FeatureModel::load(*ck);
+    if (!profile_name.empty() && model::parse_decoder_profile(profile_name) != fm.profile)
+      throw Error("--profile " + profile_name + ": feature checkpoint " + features_path + " was trained with the " +
+                  model::decoder_profile_name(fm.profile) + " profile (its decoder is fixed by it)");
+    train::StyleTrainConfig cfg;
+    cfg.sict = sict_mode;
+    cfg.dst_bias = dst_name == "bias";
+    if (iters > 0) cfg.iters = iters;
+    cfg.patch = patch;
+    cfg.lr_stylizer = lr_stylizer;
+    cfg.lr_decoder = lr_decoder;
+    cfg.warm_start = warm;
+    cfg.seed = seed;
+    auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
+    trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
+  }
+  const auto& cfg = trainer->config();
+  auto& m = trainer->model();
+  std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
+            << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
+            << (cfg.dst_bias ? "with" : "without") << " bias\n"
+            << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
+            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
+            << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
+            << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
+            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder << "; grids frozen; "
+            << m.param_count() / 1e6 << "M trained parameters"
+            << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first" : "")
+            << std::endl;
+
+  train::StyleRunOptions ro;
+  ro.log = &std::cout;
+  ro.log_every = log_every;
+  ro.eval_every = eval_every;
+  ro.eval_styles = eval_styles;
+  ro.checkpoint = out;
+  ro.checkpoint_every = ckpt_every;
+  ro.time_budget_s = minutes * 60.0;
+  ro.scene_meta = scene_meta;
+  if (minutes > 0 && !resume) trainer->set_total_iters(1000000);  // refitted from the measured rate
+  const auto sum = train::run_style_training(*trainer, ro);
+  std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
+            << " s (" << std::setprecision(2) << sum.seconds / std::max(1, sum.iterations) << " s/it); checkpoint "
+            << out << std::endl;
+  if (timing) std::cout << stylerf::host::Runtime::instance().timing_report();
+  return 0;
+}
+
+stylerf::cli::Register reg("train-style", "style stage: SICT + DST over a feature checkpoint, many style images",
+                           run_train_style);
+}  // namespace

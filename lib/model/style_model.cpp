@@ -1,0 +1,203 @@
+#include "lib/model/style_model.hpp"
+
+#include <algorithm>
+
+#include "host/error.hpp"
+#include "host/gemm.hpp"
+#include "lib/nn/layout.hpp"
+#include "lib/nn/linear.hpp"
+
+namespace stylerf::model {
+
+using host::Error;
+using nlohmann::json;
+
+// ---- SICT head ---------------------------------------------------------------------------------------------
+Tensor SictHead::forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const {
+  // Per kept sample: F grid components -> 256 features (the basis, no bias) -> SICT.
+  const Tensor comps = field_.head.forward(pos, dirs, nullptr);
+  const Tensor x = nn::linear_forward(comps, field_.basis.value, Tensor());
+  if (!ctx) return sict_.forward(x, training_, nullptr);
+  auto c = std::make_unique<SictContext>();
+  Tensor y = sict_.forward(x, training_, &c->sict);
+  c->sict.x = Tensor();  // the field is frozen: no dx, so x need not be kept
+  *ctx = std::move(c);
+  return y;
+}
+
+void SictHead::backward(const Context& ctx, const Tensor& dvalues) {
+  const auto& c = dynamic_cast<const SictContext&>(ctx);
+  sict_.backward(c.sict, dvalues, false);
+}
+
+// ---- model -------------------------------------------------------------------------------------------------
+StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed) {
+  StyleModel m;
+  m.features = std::move(features);
+  // Samples with weight below 1e-3 are dropped before SICT (the authors' style stage): fewer points, and
+  // SICT's batch statistics describe the visible surface rather than the faint haze around it.
+  m.features.geo.weight_threshold = std::max(m.features.geo.weight_threshold, kStyleWeightThreshold);
+  for (nn::Param* p : m.features.decoder.params()) p->group = kGroupStyleDecoder;
+  m.sict = style::Sict::create(sict_mode, kGroupStylizer, seed * 2 + 1, "style.sict.");
+  m.dst = style::Dst::create(dst_bias, kGroupStylizer, seed * 2 + 2, "style.dst.");
+  return m;
+}
+
+StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tensor& dirs, bool training,
+                                               uint32_t jitter_seed, Context* ctx) const {
+  if (training && !ctx) throw Error("style model: a training render needs a context");
+  // The head holds a mutable reference for backward; forward itself changes nothing.
+  auto head = std::make_unique<SictHead>(features.field, const_cast<style::Sict&>(sict), training);
+  RayOptions opt;
+  opt.jitter = training;
+  opt.seed = jitter_seed;
+  const RayResult r = render_rays(features.geo, *head, origins, dirs, opt, ctx ? &ctx->rays : nullptr);
+  if (ctx) ctx->head = std::move(head);
+  Content c;
+  c.c = r.value;
+  c.kept_acc = r.kept_acc;
+  c.acc = r.acc;
+  c.samples = r.samples;
+  c.kept = r.kept;
+  return c;
+}
+
+Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode& code, int h, int w,
+                                 Context* ctx) const {
+  if (int64_t(h) * w != content.c.dim(0))
+    throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
+                std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
+  Tensor y = dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr);
+  // Empty space keeps stage 2's (unstyled) background feature, which the decoder learned to draw as the
+  // background colour; the masked losses never look there.
+  if (features.field.background.value.defined())
+    render::background_forward(y, content.acc, features.field.background.value);
+  const Tensor map = nn::rows_to_image(y, h, w);
+  if (ctx) {
+    ctx->h = h;
+    ctx->w = w;
+  }
+  return features.decoder.forward(map, ctx ? &ctx->decoder : nullptr);
+}
+
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
+  const Tensor dmap = features.decoder.backward(ctx.decoder, drgb, true);
+  const Tensor dy = nn::rows_to_image_backward(dmap);
+  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
+  render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
+  return g;
+}
+
+namespace {
+// SICT then DST per kept sample (256 channels out): the per-point order of the deferred-vs-per-point proof.
+class PerPointStyledHead : public SampleHead {
+ public:
+  PerPointStyledHead(const FeatureField& field, const style::Sict& sict, const style::Dst& dst,
+                     const style::StyleCode& code)
+      : sict_head_(field, const_cast<style::Sict&>(sict), false), dst_(dst), code_(code) {}
+  int channels() const override { return style::Dst::kChannels; }
+  Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>*) const override {
+    return dst_.apply_per_point(sict_head_.forward(pos, dirs, nullptr), code_);
+  }
+  void backward(const Context&, const Tensor&) override { throw Error("per-point styled head: inference only"); }
+  void collect_params(std::vector<nn::Param*>&) override {}
+
+ private:
+  SictHead sict_head_;
+  const style::Dst& dst_;
+  const style::StyleCode& code_;
+};
+}  // namespace
+
+RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tensor& dirs,
+                                              const style::StyleCode& code) const {
+  const PerPointStyledHead head(features.field, sict, dst, code);
+  return render_rays(features.geo, head, origins, dirs, RayOptions{}, nullptr);
+}
+
+StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
+                                                            int chunk) const {
+  if (chunk < 1) throw Error("style model: chunk must be >= 1");
+  int w = 0, h = 0;
+  const scene::Rays rays = block_rays(scene, cam, stride(), w, h);
+  const int64_t n = int64_t(w) * h;
+  std::vector<float> c(size_t(n) * style::Sict::kEmbed);
+  std::vector<float> kept_acc(static_cast<size_t>(n)), acc(static_cast<size_t>(n));
+  CameraContent out;
+  out.width = w;
+  out.height = h;
+  for (int64_t b = 0; b < n; b += chunk) {
+    const int64_t R = std::min<int64_t>(chunk, n - b);
+    std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
+    std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
+    const Content part = render_content(Tensor::from_host(o, {R, 3}, "render origins"),
+                                        Tensor::from_host(d, {R, 3}, "render directions"), false, 0, nullptr);
+    const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+    std::copy(pc.begin(), pc.end(), c.begin() + b * style::Sict::kEmbed);
+    std::copy(pk.begin(), pk.end(), kept_acc.begin() + b);
+    std::copy(pa.begin(), pa.end(), acc.begin() + b);
+    out.content.samples += part.samples;
+    out.content.kept += part.kept;
+  }
+  out.content.c = Tensor::from_host(c, {n, style::Sict::kEmbed}, "camera content");
+  out.content.kept_acc = Tensor::from_host(kept_acc, {n}, "camera kept opacity");
+  out.content.acc = Tensor::from_host(acc, {n}, "camera opacity");
+  return out;
+}
+
+std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w,
+                                              int cam_h) const {
+  const Tensor img = decode_styled(cc.content, code, cc.height, cc.width, nullptr);
+  const int H = int(img.dim(2)), W = int(img.dim(3));
+  if (H < cam_h || W < cam_w)
+    throw Error("style model: the decoder gave " + std::to_string(W) + "x" + std::to_string(H) + " pixels for a " +
+                std::to_string(cam_w) + "x" + std::to_string(cam_h) + " view");
+  const auto v = img.to_host();
+  std::vector<float> rgb(size_t(3) * cam_w * cam_h);
+  const size_t plane = size_t(H) * W;
+  for (int y = 0; y < cam_h; ++y)
+    for (int x = 0; x < cam_w; ++x)
+      for (int ch = 0; ch < 3; ++ch)
+        rgb[(size_t(y) * cam_w + x) * 3 + ch] = std::clamp(v[ch * plane + size_t(y) * W + x], 0.0f, 1.0f);
+  return rgb;
+}
+
+void StyleModel::collect_params(std::vector<nn::Param*>& out) {
+  sict.collect_params(out);
+  dst.collect_params(out);
+  features.decoder.collect_params(out);
+}
+
+void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
+
+void StyleModel::save(io::Checkpoint& ck) {
+  features.save(ck);  // geometry, field, decoder ("model.*")
+  sict.save(ck, "");
+  dst.save(ck, "");
+  ck.meta["style_model"] = {{"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}};
+}
+
+StyleModel StyleModel::load(const io::Checkpoint& ck) {
+  if (!ck.meta.contains("style_model"))
+    throw Error("checkpoint " + ck.path + " has no style model (kind '" + ck.kind +
+                "'; train one with `stylerf train-style`)");
+  style::SictMode mode;
+  bool bias = true;
+  try {
+    mode = style::parse_sict_mode(ck.meta.at("style_model").at("sict").get<std::string>());
+    bias = ck.meta.at("style_model").at("dst_bias").get<bool>();
+  } catch (const json::exception& e) {
+    throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
+  }
+  StyleModel m = create(FeatureModel::load(ck), mode, bias, 0);
+  m.sict.load(ck, "");
+  m.dst.load(ck, "");
+  return m;
+}
+
+Tensor style_rows(const nn::VggFeatures& taps) {
+  if (!taps[2].defined()) throw Error("style_rows: the relu3_1 tap was not computed");
+  return nn::image_to_rows(taps[2]);
+}
+
+}  // namespace stylerf::model

@@ -1,0 +1,108 @@
+// Stage 3's model: stage 2's feature model (frozen geometry and feature field; its decoder fine-tuned) and
+// the stylizer (lib/style: SICT per kept sample, DST on the rendered map). One styled render:
+//   rays -> march/density/weights/keep (frozen) -> per kept sample: grid components -> basis (256) ->
+//   SICT (32) -> weighted sum over kept samples -> c [R, 32] and kept opacity w_r ->
+//   DST(c, w_r; the style's code) [R, 256] (+ (1 - acc) x the stage-2 background feature, unstyled) ->
+//   map [1, 256, h, w] -> decoder -> RGB.
+// The content part (up to c and w_r) does not depend on the style: render it once and apply any number of
+// styles (zero-shot use, interpolation), which is what render_content / decode_styled split.
+//
+// Parameters: "style.sict.*" and "style.dst.*" (group kGroupStylizer), the decoder's "decoder.*" (group
+// kGroupStyleDecoder); the field's parameters are not listed (frozen).
+#pragma once
+#include <string>
+
+#include "lib/io/checkpoint.hpp"
+#include "lib/model/feature_model.hpp"
+#include "lib/nn/vgg.hpp"
+#include "lib/style/dst.hpp"
+#include "lib/style/sict.hpp"
+
+namespace stylerf::model {
+
+enum StyleGroup { kGroupStylizer = 0, kGroupStyleDecoder = 1 };
+constexpr float kStyleWeightThreshold = 1e-3f;  // samples below this weight never reach SICT
+
+// The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
+class SictHead : public SampleHead {
+ public:
+  SictHead(const FeatureField& field, style::Sict& sict, bool training)
+      : field_(field), sict_(sict), training_(training) {}
+  int channels() const override { return style::Sict::kEmbed; }
+  Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const override;
+  // Accumulates into SICT's parameters (the field is frozen: no gradient flows further).
+  void backward(const Context& ctx, const Tensor& dvalues) override;
+  void collect_params(std::vector<nn::Param*>& out) override { sict_.collect_params(out); }
+  // The batch statistics of the last training forward's context, for Sict::update_running.
+  struct SictContext : Context {
+    style::Sict::Context sict;
+  };
+
+ private:
+  const FeatureField& field_;
+  style::Sict& sict_;
+  bool training_;
+};
+
+class StyleModel : public nn::Module {
+ public:
+  FeatureModel features;  // geometry and field frozen; the decoder is fine-tuned
+  style::Sict sict;
+  style::Dst dst;
+
+  // A fresh stylizer over a trained feature model (seeded); the decoder's parameters move to group
+  // kGroupStyleDecoder.
+  static StyleModel create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed);
+  int stride() const { return features.stride(); }
+
+  // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
+  struct Content {
+    Tensor c, kept_acc, acc;
+    int64_t samples = 0, kept = 0;
+  };
+  struct Context {
+    RayContext rays;
+    std::unique_ptr<SictHead> head;  // bound to this model's sict; backward needs the same head
+    style::Dst::ApplyContext dst;
+    nn::ConvStack::Ctx decoder;
+    int h = 0, w = 0;
+  };
+  // origins/dirs [R, 3] with R = h * w rays (row-major block centres at the profile's stride). training:
+  // SICT uses batch statistics and ctx must be given.
+  Content render_content(const Tensor& origins, const Tensor& dirs, bool training, uint32_t jitter_seed,
+                         Context* ctx) const;
+  // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
+  Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
+  // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
+  // dstd) for the style branch (Dst::style_code_backward).
+  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb);
+
+  // The deferred-vs-per-point proof's other side: DST applied to every kept sample's SICT output (weight
+  // 1 each: unzip(T c_i) * std + mean), then the 256 channels composited. Inference only; equals
+  // dst.apply(render_content(...).c, kept_acc) up to rounding, at (kept samples per ray) x the memory.
+  RayResult render_styled_per_point(const Tensor& origins, const Tensor& dirs, const style::StyleCode& code) const;
+
+  // Inference over a whole camera: content in chunks of rays (SICT with running statistics, so chunking
+  // changes nothing), one DST and decoder pass over the map.
+  struct CameraContent {
+    int width = 0, height = 0;  // the map's (ceil(W/s), ceil(H/s))
+    Content content;
+  };
+  CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096) const;
+  // RGB interleaved [H*W*3] in [0,1] (clamped) of a camera's content under a style code, cut to the
+  // camera's size.
+  std::vector<float> stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w, int cam_h) const;
+
+  void collect_params(std::vector<nn::Param*>& out) override;
+  void collect_buffers(std::vector<nn::StateBuffer*>& out) override;
+
+  // Checkpoint kind "style": the feature model's tensors and meta, the stylizer under "style.*", and
+  // meta["style_model"] (SICT mode, DST bias).
+  void save(io::Checkpoint& ck);
+  static StyleModel load(const io::Checkpoint& ck);
+};
+
+// A style image's relu3_1 features as rows [h*w, 256] for Dst::style_code, from VGG taps.
+Tensor style_rows(const nn::VggFeatures& taps);
+
+}  // namespace stylerf::model

@@ -1,0 +1,103 @@
+#include "lib/train/style_eval.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <iomanip>
+#include <ostream>
+
+#include "host/error.hpp"
+#include "lib/io/image.hpp"
+#include "lib/train/style_losses.hpp"
+#include "lib/train/style_trainer.hpp"
+
+namespace stylerf::train {
+
+using host::Error;
+using host::Tensor;
+
+namespace {
+// Planar [1, 3, He, We] from interleaved [H][W][3], top-left He x We.
+Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We) {
+  std::vector<float> v(size_t(3) * He * We);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < He; ++y)
+      for (int x = 0; x < We; ++x) v[(size_t(c) * He + y) * We + x] = rgb[(size_t(y) * W + x) * 3 + c];
+  return Tensor::from_host(v, {1, 3, He, We}, "evaluation image");
+}
+}  // namespace
+
+std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
+                                          const scene::Scene& scene, const std::vector<std::string>& styles,
+                                          const StyleEvalOptions& opt) {
+  const int n = int(scene.test.size());
+  if (n == 0) throw Error("evaluate styles: the scene has no test views");
+  const int count = (opt.views <= 0 || opt.views >= n) ? n : opt.views;
+  const bool masked = m.features.geo.has_background;
+  const StyleLossWeights w;
+  std::vector<StyleEvalRow> rows(styles.size());
+  std::vector<nn::VggFeatures> style_taps;
+  std::vector<style::StyleCode> codes;
+  std::vector<Tensor> style_imgs;
+  for (const auto& s : styles) {
+    style_imgs.push_back(load_style_image(s, 256, 256, nullptr));
+    style_taps.push_back(vgg.forward(style_imgs.back(), 4, false));
+    codes.push_back(m.dst.style_code(model::style_rows(style_taps.back()), nullptr));
+  }
+  for (int vi = 0; vi < count; ++vi) {
+    const scene::View& v = scene.test[size_t(int64_t(vi) * n / count)];
+    if (v.rgb.empty()) throw Error("evaluate styles: test view " + v.image_path + " has no image loaded");
+    const int W = v.camera.width, H = v.camera.height, We = W / 8 * 8, He = H / 8 * 8;
+    const auto cc = m.render_camera_content(scene, v.camera);
+    const Tensor truth = planar_crop(v.rgb, W, He, We);
+    const nn::VggFeatures ft = vgg.forward(truth, 4, false);
+    OpacityMask mask;
+    if (masked) {
+      // The opacity of each pixel's block, cut like the images.
+      const auto acc = cc.content.acc.to_host();
+      const int s = m.stride();
+      std::vector<float> full(size_t(He) * We);
+      for (int y = 0; y < He; ++y)
+        for (int x = 0; x < We; ++x) full[size_t(y) * We + x] = acc[size_t(y / s) * cc.width + x / s];
+      mask = opacity_mask(full, He, We, He, We);
+      if (mask.empty()) continue;
+    }
+    for (size_t si = 0; si < styles.size(); ++si) {
+      const auto ours_rgb = m.stylize_camera(cc, codes[si], W, H);
+      const Tensor ours = planar_crop(ours_rgb, W, He, We);
+      Tensor ad = style::adain_stylize(adain, truth, style_imgs[si], 1.0f);
+      {
+        auto a = ad.to_host();
+        for (float& x : a) x = std::clamp(x, 0.0f, 1.0f);
+        ad.upload(a);
+      }
+      const StyleLossValues lo = style_losses(vgg.forward(ours, 4, false), ft[3], style_taps[si], masked ? &mask : nullptr, w, nullptr);
+      const StyleLossValues la = style_losses(vgg.forward(ad, 4, false), ft[3], style_taps[si], masked ? &mask : nullptr, w, nullptr);
+      StyleEvalRow& r = rows[si];
+      r.style = std::filesystem::path(styles[si]).stem().string();
+      r.ours_content += lo.content / count;
+      r.ours_style += lo.style / count;
+      r.adain_content += la.content / count;
+      r.adain_style += la.style / count;
+      if (!opt.image_dir.empty() && vi == 0) {
+        io::Image sheet;
+        sheet.width = 3 * We;
+        sheet.height = He;
+        sheet.data.assign(size_t(3) * sheet.width * He, 0.0f);
+        const Tensor parts[3] = {truth, ours, ad};
+        for (int k = 0; k < 3; ++k) {
+          const auto p = parts[k].to_host();
+          for (int c = 0; c < 3; ++c)
+            for (int y = 0; y < He; ++y)
+              for (int x = 0; x < We; ++x)
+                sheet.at(c, y, k * We + x) = std::clamp(p[(size_t(c) * He + y) * We + x], 0.0f, 1.0f);
+        }
+        io::save_png(opt.image_dir + "/" + r.style + ".png", sheet);
+      }
+    }
+    if (opt.log)
+      *opt.log << "  view " << vi + 1 << "/" << count << " done (" << styles.size() << " styles)" << std::endl;
+  }
+  return rows;
+}
+
+}  // namespace stylerf::train

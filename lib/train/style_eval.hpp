@@ -1,0 +1,29 @@
+// The style stage's yardstick (issue floors): for held-out styles and test views, the content and style
+// losses (lib/train/style_losses.hpp, the training weights) of our stylised renders and, measured by the
+// same VGG with the same mask, of 2D AdaIN applied to the ground-truth views (the per-frame baseline).
+// On scenes with a background both are masked by the rendered opacity. Images are cut to multiples of 8
+// (VGG's three poolings); the style image is resized to 256 x 256 (the authors' test transform).
+#pragma once
+#include <string>
+#include <vector>
+
+#include "lib/model/style_model.hpp"
+#include "lib/scene/scene.hpp"
+#include "lib/style/adain.hpp"
+
+namespace stylerf::train {
+
+struct StyleEvalRow {
+  std::string style;
+  double ours_content = 0, ours_style = 0, adain_content = 0, adain_style = 0;  // means over the views
+};
+struct StyleEvalOptions {
+  int views = 5;            // test views, evenly spaced (0: all)
+  std::string image_dir;    // non-empty: writes <style>_view<i>.png (truth | ours | AdaIN) for the first view
+  std::ostream* log = nullptr;
+};
+std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
+                                          const scene::Scene& scene, const std::vector<std::string>& styles,
+                                          const StyleEvalOptions& opt);
+
+}  // namespace stylerf::train

@@ -1,0 +1,425 @@
+#include "lib/train/style_trainer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <ostream>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/features/target_cache.hpp"
+#include "lib/features/target_gather.hpp"
+#include "lib/io/image.hpp"
+#include "lib/nn/layout.hpp"
+#include "lib/nn/ops.hpp"
+#include "lib/train/progress.hpp"
+
+namespace stylerf::train {
+
+using host::Error;
+using host::Tensor;
+using nlohmann::json;
+
+// ---- config and style sets --------------------------------------------------------------------------------
+json StyleTrainConfig::to_json() const {
+  return {{"sict", style::sict_mode_name(sict)},
+          {"dst_bias", dst_bias},
+          {"iters", iters},
+          {"patch", patch},
+          {"style_size", style_size},
+          {"style_crop", style_crop},
+          {"lr_stylizer", lr_stylizer},
+          {"lr_decoder", lr_decoder},
+          {"beta1", beta1},
+          {"beta2", beta2},
+          {"lr_decay_ratio", lr_decay_ratio},
+          {"content_weight", weights.content},
+          {"style_weight", weights.style},
+          {"warm_start", warm_start},
+          {"running_init_patches", running_init_patches},
+          {"seed", seed}};
+}
+
+StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
+  StyleTrainConfig c;
+  c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
+  c.dst_bias = j.at("dst_bias").get<bool>();
+  c.iters = j.at("iters").get<int>();
+  c.patch = j.at("patch").get<int>();
+  c.style_size = j.at("style_size").get<int>();
+  c.style_crop = j.at("style_crop").get<int>();
+  c.lr_stylizer = j.at("lr_stylizer").get<float>();
+  c.lr_decoder = j.at("lr_decoder").get<float>();
+  c.beta1 = j.at("beta1").get<float>();
+  c.beta2 = j.at("beta2").get<float>();
+  c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
+  c.weights.content = j.at("content_weight").get<float>();
+  c.weights.style = j.at("style_weight").get<float>();
+  c.warm_start = j.at("warm_start").get<int>();
+  c.running_init_patches = j.at("running_init_patches").get<int>();
+  c.seed = j.at("seed").get<uint64_t>();
+  return c;
+}
+
+StyleSet StyleSet::from_dir(const std::string& dir, int holdout, std::ostream* log) {
+  namespace fs = std::filesystem;
+  if (!fs::is_directory(dir)) throw Error("style folder " + dir + " does not exist or is not a folder");
+  std::vector<std::string> all;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".jpg" || ext == ".jpeg" || ext == ".png") all.push_back(e.path().string());
+  }
+  std::sort(all.begin(), all.end());
+  // Files that cannot be decoded are left out, each named with its reason (a WebP saved as .jpg, say):
+  // one bad file must not stop a run of hours at the step that draws it.
+  std::vector<std::string> readable;
+  for (const auto& p : all) {
+    const std::string why = io::image_unreadable_reason(p);
+    if (why.empty()) {
+      readable.push_back(p);
+    } else if (log) {
+      *log << "style folder: skipping " << p << ": " << why << std::endl;
+    }
+  }
+  all.swap(readable);
+  if (holdout < 0) throw Error("--holdout-styles must be >= 0");
+  if (int(all.size()) < holdout + 1)
+    throw Error("style folder " + dir + " has " + std::to_string(all.size()) + " images (.jpg/.png); " +
+                std::to_string(holdout) + " held out leaves none to train on");
+  StyleSet s;
+  std::vector<bool> held(all.size(), false);
+  for (int i = 0; i < holdout; ++i) held[size_t((2 * int64_t(i) + 1) * int64_t(all.size()) / (2 * holdout))] = true;
+  for (size_t i = 0; i < all.size(); ++i) (held[i] ? s.holdout : s.train).push_back(all[i]);
+  return s;
+}
+
+json StyleSet::to_json() const { return {{"train", train}, {"holdout", holdout}}; }
+
+StyleSet StyleSet::from_json(const json& j) {
+  StyleSet s;
+  s.train = j.at("train").get<std::vector<std::string>>();
+  s.holdout = j.at("holdout").get<std::vector<std::string>>();
+  return s;
+}
+
+Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
+  if (crop > size || crop % 8) throw Error("style crop " + std::to_string(crop) + " must be a multiple of 8 <= " + std::to_string(size));
+  const io::Image full = io::resize(io::load_image(path), size, size);
+  int x0 = (size - crop) / 2, y0 = (size - crop) / 2;
+  if (rng && crop < size) {
+    std::uniform_int_distribution<int> u(0, size - crop);
+    x0 = u(*rng);
+    y0 = u(*rng);
+  }
+  io::Image out;
+  out.width = out.height = crop;
+  out.data.resize(size_t(3) * crop * crop);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < crop; ++y)
+      for (int x = 0; x < crop; ++x) out.at(c, y, x) = full.at(c, y0 + y, x0 + x);
+  return io::to_tensor(out);
+}
+
+namespace {
+std::string stem(const std::string& p) { return std::filesystem::path(p).stem().string(); }
+}  // namespace
+
+// ---- trainer ----------------------------------------------------------------------------------------------
+StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles,
+                           const StyleTrainConfig& cfg, std::ostream* log)
+    : scene_(&scene), cfg_(cfg), styles_(std::move(styles)) {
+  if (cfg_.warm_start > 0 && features.profile != model::DecoderProfile::Fast)
+    throw Error("train-style: --warm-start needs the fast profile (the cached relu3_1 targets are at its map "
+                "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
+  model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed);
+  init(log);
+  init_running_stats(log);
+}
+
+StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log) : scene_(&scene) {
+  try {
+    const json& t = ck.meta.at("trainer");
+    cfg_ = StyleTrainConfig::from_json(t.at("config"));
+    iteration_ = t.at("iteration").get<int>();
+    styles_ = StyleSet::from_json(ck.meta.at("styles"));
+  } catch (const json::exception& e) {
+    throw Error("checkpoint " + ck.path + ": no style-trainer state to resume from (" + e.what() + ")");
+  }
+  model_ = model::StyleModel::load(ck);
+  init(log);
+  adam_.load(ck, "", model_.params());
+}
+
+void StyleTrainer::init(std::ostream* log) {
+  adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
+  vgg_ = nn::VggEncoder::load_default();
+  if (cfg_.warm_start > iteration_) {
+    features::TargetCacheOptions to;
+    to.log = log;
+    targets_ = features::load_or_compute_targets(*scene_, vgg_, to);
+  }
+  const uint64_t s = cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration_);
+  patches_ = std::make_unique<features::PatchSampler>(*scene_, s + 1, cfg_.patch);
+  rng_.seed(s + 2);
+}
+
+void StyleTrainer::init_running_stats(std::ostream* log) {
+  if (cfg_.running_init_patches <= 0 || cfg_.sict != style::SictMode::VolumeAdaptive) return;
+  // The mean of the patches' batch statistics (each patch's kept samples, as a training step sees them).
+  const int C = style::Sict::kChannels;
+  std::vector<double> mean(C, 0.0), var(C, 0.0);
+  int n = 0;
+  for (int i = 0; i < cfg_.running_init_patches; ++i) {
+    const features::Patch p = patches_->next(model_.stride());
+    const int64_t R = int64_t(p.height / model_.stride()) * (p.width / model_.stride());
+    model::StyleModel::Context ctx;
+    model_.render_content(Tensor::from_host(p.rays.origins, {R, 3}), Tensor::from_host(p.rays.directions, {R, 3}),
+                          true, uint32_t(i), &ctx);
+    if (!ctx.rays.head) continue;  // nothing kept
+    const auto& sc = dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict;
+    const auto m = sc.mean.to_host(), v = sc.var.to_host();
+    for (int c = 0; c < C; ++c) {
+      mean[size_t(c)] += m[size_t(c)];
+      var[size_t(c)] += v[size_t(c)] * double(sc.points) / double(std::max<int64_t>(1, sc.points - 1));
+    }
+    ++n;
+  }
+  if (n == 0) return;
+  std::vector<float> mf(C), vf(C);
+  for (int c = 0; c < C; ++c) {
+    mf[size_t(c)] = float(mean[size_t(c)] / n);
+    vf[size_t(c)] = float(var[size_t(c)] / n);
+  }
+  model_.sict.running_mean.value.upload(mf);
+  model_.sict.running_var.value.upload(vf);
+  if (log) *log << "SICT running statistics initialised from the kept samples of " << n << " training patches" << std::endl;
+}
+
+StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+                                           style::Dst::StyleContext& sctx) {
+  StyleStepStats st;
+  const int s = model_.stride();
+  const features::Patch p = patches_->next(s);
+  const int h = p.height / s, w = p.width / s;
+  const int64_t R = int64_t(h) * w;
+  model::StyleModel::Context ctx;
+  const model::StyleModel::Content content =
+      model_.render_content(Tensor::from_host(p.rays.origins, {R, 3}, "patch origins"),
+                            Tensor::from_host(p.rays.directions, {R, 3}, "patch directions"), true,
+                            uint32_t(cfg_.seed * 7919 + uint64_t(k)), &ctx);
+  st.rays = R;
+  st.kept = content.kept;
+  OpacityMask mask;
+  const bool masked = model_.features.geo.has_background;
+  if (masked) {
+    mask = opacity_mask(content.acc.to_host(), h, w, p.height, p.width);
+    if (mask.empty() || !ctx.rays.head) {
+      st.skipped = true;
+      return st;
+    }
+  } else if (!ctx.rays.head) {
+    st.skipped = true;
+    return st;
+  }
+  const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
+  const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
+  const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
+  nn::VggFeatures grads;
+  const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
+  const Tensor drgb = vgg_.backward(grads);
+  vgg_.release();
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
+  model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
+  model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
+  st.content = lv.content;
+  st.style = lv.style;
+  return st;
+}
+
+StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+                                       style::Dst::StyleContext& sctx) {
+  (void)k;
+  StyleStepStats st;
+  st.warm = true;
+  const features::Patch p = patches_->next(4);
+  const int h = p.height / 4, w = p.width / 4;
+  const int64_t R = int64_t(h) * w;
+  // The cached relu3_1 of the patch's pixels: block centres (4j + 2) sit exactly on the map's pixel centres.
+  std::vector<int32_t> view(size_t(R), p.view);
+  std::vector<float> xy(size_t(2 * R));
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      xy[size_t(2 * (i * w + j))] = float(p.x0 + 4 * j + 2);
+      xy[size_t(2 * (i * w + j) + 1)] = float(p.y0 + 4 * i + 2);
+    }
+  const Tensor x = features::gather_targets(targets_.maps, Tensor::from_host(view, {R}), Tensor::from_host(xy, {R, 2}));
+  style::Sict::Context sc;
+  const Tensor c = model_.sict.forward(x, true, &sc);
+  Tensor ones({R}, "warm-start opacity");
+  ones.fill(1.0f);
+  style::Dst::ApplyContext actx;
+  const Tensor y = model_.dst.apply(c, ones, code, &actx);
+  nn::ConvStack::Ctx dctx;
+  const Tensor rgb = model_.features.decoder.forward(nn::rows_to_image(y, h, w), &dctx);
+  const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
+  const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
+  nn::VggFeatures grads;
+  const StyleLossValues lv = style_losses(out, truth[3], style_taps, nullptr, cfg_.weights, &grads);
+  const Tensor drgb = vgg_.backward(grads);
+  vgg_.release();
+  const Tensor dy = nn::rows_to_image_backward(model_.features.decoder.backward(dctx, drgb, true));
+  const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
+  model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
+  model_.sict.backward(sc, g.dc, false);
+  // The running statistics are left alone: they describe 3D samples, which these 2D maps only resemble.
+  st.content = lv.content;
+  st.style = lv.style;
+  st.rays = R;
+  return st;
+}
+
+StyleStepStats StyleTrainer::step() {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int k = iteration_ + 1;
+  if (styles_.train.empty()) throw Error("train-style: no training styles");
+  std::uniform_int_distribution<size_t> pick(0, styles_.train.size() - 1);
+  const std::string& path = styles_.train[pick(rng_)];
+  const Tensor simg = load_style_image(path, cfg_.style_size, cfg_.style_crop, &rng_);
+  const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
+  model_.zero_grad();
+  style::Dst::StyleContext sctx;
+  const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), &sctx);
+  StyleStepStats st = (k <= cfg_.warm_start) ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
+  st.style_name = stem(path);
+  if (!st.skipped) {
+    if (!std::isfinite(st.content + st.style))
+      throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
+                  "); try lower learning rates or another --seed");
+    const float lr_scale = std::pow(cfg_.lr_decay_ratio, float(k - 1) / float(std::max(1, cfg_.iters)));
+    adam_.step(model_.params(), lr_scale);
+  }
+  iteration_ = k;
+  if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {
+    const std::string bad = model_.first_nonfinite();
+    if (!bad.empty())
+      throw Error("train-style: '" + bad + "' holds NaN or infinite values after iteration " + std::to_string(k));
+  }
+  st.iteration = k;
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return st;
+}
+
+HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
+  HoldoutLoss h;
+  if (styles_.holdout.empty()) return h;
+  const int s = model_.stride();
+  const int W = scene_->width(), H = scene_->height();
+  const features::Patch p = patches_->at(0, ((W - patches_->width()) / 2) / 4 * 4, ((H - patches_->height()) / 2) / 4 * 4, s);
+  const int ph = p.height / s, pw = p.width / s;
+  const int64_t R = int64_t(ph) * pw;
+  const model::StyleModel::Content content =
+      model_.render_content(Tensor::from_host(p.rays.origins, {R, 3}), Tensor::from_host(p.rays.directions, {R, 3}),
+                            false, 0, nullptr);
+  const bool masked = model_.features.geo.has_background;
+  OpacityMask mask;
+  if (masked) {
+    mask = opacity_mask(content.acc.to_host(), ph, pw, p.height, p.width);
+    if (mask.empty()) return h;
+  }
+  const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
+  const int n = (max_styles > 0) ? std::min<int>(max_styles, int(styles_.holdout.size())) : int(styles_.holdout.size());
+  for (int i = 0; i < n; ++i) {
+    const Tensor simg = load_style_image(styles_.holdout[size_t(i)], cfg_.style_crop, cfg_.style_crop, nullptr);
+    const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
+    const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), nullptr);
+    const Tensor rgb = model_.decode_styled(content, code, ph, pw, nullptr);
+    const nn::VggFeatures out = vgg_.forward(rgb, 4, false);
+    const StyleLossValues lv = style_losses(out, truth[3], taps, masked ? &mask : nullptr, cfg_.weights, nullptr);
+    h.content += lv.content;
+    h.style += lv.style;
+    ++h.styles;
+  }
+  h.content /= n;
+  h.style /= n;
+  return h;
+}
+
+void StyleTrainer::save(const std::string& path, const json& scene_meta) {
+  const std::string bad = model_.first_nonfinite();
+  if (!bad.empty())
+    throw Error("train-style: '" + bad + "' holds NaN or infinite values at iteration " + std::to_string(iteration_) +
+                "; checkpoint " + path + " not written");
+  io::Checkpoint ck;
+  ck.kind = "style";
+  model_.save(ck);
+  ck.meta["scene"] = scene_meta;
+  ck.meta["styles"] = styles_.to_json();
+  ck.meta["trainer"] = {{"config", cfg_.to_json()}, {"iteration", iteration_}};
+  adam_.save(ck, "");
+  io::save_checkpoint(path, ck);
+}
+
+// ---- run loop ----------------------------------------------------------------------------------------------
+StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
+  StyleRunSummary sum;
+  double win_s = 0, win_c = 0, win_st = 0;
+  int win_n = 0, win_l = 0, win_skip = 0;
+  double next_refit_s = 0;
+  auto save = [&] {
+    if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta);
+  };
+  auto holdout = [&](int it) {
+    if (!opt.log || trainer.styles().holdout.empty()) return;
+    const auto t0 = std::chrono::steady_clock::now();
+    sum.last_holdout = trainer.evaluate_holdout(opt.eval_styles);
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    *opt.log << std::fixed << std::setprecision(4) << "  held-out (" << sum.last_holdout.styles
+             << " styles never trained on) at it " << it << ": content " << sum.last_holdout.content << "  style "
+             << sum.last_holdout.style << std::setprecision(1) << "  (" << s << " s)" << std::endl;
+  };
+  if (trainer.iteration() == 0 && opt.eval_every > 0) holdout(0);
+  while (!trainer.done()) {
+    const StyleStepStats st = trainer.step();
+    ++sum.iterations;
+    sum.seconds += st.seconds;
+    win_s += st.seconds;
+    ++win_n;
+    if (st.skipped) {
+      ++win_skip;
+    } else {
+      win_c += st.content, win_st += st.style, ++win_l;
+    }
+    const int total = trainer.config().iters;
+    if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
+      const double per_it = win_s / win_n;
+      std::ostringstream l;
+      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "");
+      if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
+      if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
+      l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
+        << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
+      *opt.log << l.str() << std::endl;
+      win_s = win_c = win_st = 0;
+      win_n = win_l = win_skip = 0;
+    }
+    if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
+    if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
+    if (opt.time_budget_s > 0) {
+      if (sum.seconds >= opt.time_budget_s) break;
+      if (sum.iterations >= 5 && sum.seconds >= next_refit_s) {
+        const double per_it = sum.seconds / sum.iterations;
+        trainer.set_total_iters(trainer.iteration() + std::max(1, int((opt.time_budget_s - sum.seconds) / per_it)));
+        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
+      }
+    }
+  }
+  if (opt.eval_every > 0 && trainer.iteration() % opt.eval_every != 0) holdout(trainer.iteration());
+  save();
+  return sum;
+}
+
+}  // namespace stylerf::train

@@ -1,0 +1,235 @@
+// The style stage on the model layer, on a generated scene:
+//  - the deferred-vs-per-point proof: DST on the rendered map equals DST on every kept sample followed by
+//    compositing (1e-4 of the map's scale), and transparent rays render exactly 0 both ways;
+//  - style training: losses finite, the stylizer and the decoder move, the feature field does not, SICT's
+//    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start and
+//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train;
+//  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
+//  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
+//    a feature checkpoint where a style one is needed.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/demo/procedural_images.hpp"
+#include "lib/io/image.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/train/style_losses.hpp"
+#include "lib/train/style_trainer.hpp"
+#include "tests/small_scene.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using host::Tensor;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Four procedural style images and one WebP file wearing a .jpg name.
+std::string style_dir() {
+  static std::string dir = [] {
+    const fs::path d = testing::small_work_dir() / "styles";
+    fs::create_directories(d);
+    for (int v = 0; v < 4; ++v) {
+      const demo::RgbImage src = demo::make_style_image(64, 64, v);
+      io::Image img;
+      img.width = src.width;
+      img.height = src.height;
+      img.data = src.data;
+      io::save_png((d / ("style_" + std::to_string(v) + ".png")).string(), img);
+    }
+    std::ofstream((d / "webp_in_disguise.jpg").string(), std::ios::binary) << std::string("RIFF\x10\0\0\0WEBPVP8 ", 16);
+    return d.string();
+  }();
+  return dir;
+}
+
+model::FeatureModel small_features(model::DecoderProfile profile) {
+  model::FeatureFieldConfig fc;
+  fc.rank = {8, 8, 8};
+  return model::FeatureModel::create(testing::small_geometry(), fc, profile, 3);
+}
+
+train::StyleTrainConfig small_config(int iters) {
+  train::StyleTrainConfig c;
+  c.iters = iters;
+  c.patch = 48;
+  c.style_size = 64;
+  c.style_crop = 32;
+  c.running_init_patches = 2;
+  c.seed = 4;
+  return c;
+}
+
+double max_abs(const std::vector<float>& v) {
+  double m = 0;
+  for (float x : v) m = std::max(m, double(std::abs(x)));
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("deferred style transformation equals per-point transformation then compositing") {
+  model::StyleModel sm = model::StyleModel::create(small_features(model::DecoderProfile::Paper),
+                                                   style::SictMode::VolumeAdaptive, true, 5);
+  sm.sict.running_mean.value = Tensor::from_host(testing::random_normal(256, 6, 0.05f), {256});
+  sm.sict.running_var.value = Tensor::from_host(testing::random_uniform(256, 7, 0.01f, 0.05f), {256});
+  const style::StyleCode code =
+      sm.dst.style_code(Tensor::from_host(testing::random_uniform(64 * 256, 8, 0.0f, 3.0f), {64, 256}), nullptr);
+  int w = 0, h = 0;
+  const auto rays = model::block_rays(testing::small_scene(), testing::small_scene().test[0].camera, 1, w, h);
+  const int64_t R = int64_t(w) * h;
+  const Tensor o = Tensor::from_host(rays.origins, {R, 3}), d = Tensor::from_host(rays.directions, {R, 3});
+  const auto content = sm.render_content(o, d, false, 0, nullptr);
+  REQUIRE(content.kept > 0);
+  const auto deferred = sm.dst.apply(content.c, content.kept_acc, code, nullptr).to_host();
+  const model::RayResult pp = sm.render_styled_per_point(o, d, code);
+  CHECK(pp.kept == content.kept);
+  const auto per_point = pp.value.to_host();
+  REQUIRE(per_point.size() == deferred.size());
+  double err = 0;
+  for (size_t i = 0; i < deferred.size(); ++i) err = std::max(err, std::abs(double(deferred[i]) - per_point[i]));
+  const double rel = err / max_abs(per_point);
+  INFO("max |deferred - per-point| / max |per-point| = " << rel << " over " << R << " rays, " << content.kept
+                                                          << " kept samples");
+  CHECK(rel <= 1e-4);
+  // Rays that keep nothing render exactly 0 both ways (the bias scales with w_r = 0).
+  const auto kacc = content.kept_acc.to_host();
+  int empty = 0, nonzero = 0;
+  for (int64_t r = 0; r < R; ++r) {
+    if (kacc[size_t(r)] != 0.0f) continue;
+    ++empty;
+    for (int c = 0; c < 256; ++c)
+      nonzero += (deferred[size_t(r * 256 + c)] != 0.0f) + (per_point[size_t(r * 256 + c)] != 0.0f);
+  }
+  CHECK(empty > 0);  // the generated scene's corners miss the object
+  CHECK(nonzero == 0);
+}
+
+TEST_CASE("style training moves the stylizer and decoder, never the field; checkpoints round-trip and resume") {
+  std::ostringstream log;
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1, &log);
+  CHECK(styles.train.size() == 3);
+  CHECK(styles.holdout.size() == 1);
+  CHECK(log.str().find("webp_in_disguise.jpg") != std::string::npos);
+  CHECK(log.str().find("WebP") != std::string::npos);
+
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, small_config(4),
+                        nullptr);
+  auto& m = t.model();
+  const auto grid0 = m.features.field.head.grid_param().value.to_host();
+  const auto basis0 = m.features.field.basis.value.to_host();
+  const auto qkv0 = m.sict.qkv_w.value.to_host(), fc0 = m.dst.fc_w.value.to_host();
+  const auto dec0 = m.features.decoder.params()[0]->value.to_host();
+  const auto rm0 = m.sict.running_mean.value.to_host();
+  int trained = 0;
+  while (!t.done()) {
+    const auto st = t.step();
+    if (st.skipped) continue;
+    ++trained;
+    CHECK(std::isfinite(st.content));
+    CHECK(std::isfinite(st.style));
+    CHECK(st.style > 0);
+  }
+  CHECK(trained > 0);
+  CHECK(m.features.field.head.grid_param().value.to_host() == grid0);
+  CHECK(m.features.field.basis.value.to_host() == basis0);
+  CHECK(m.sict.qkv_w.value.to_host() != qkv0);
+  CHECK(m.dst.fc_w.value.to_host() != fc0);
+  CHECK(m.features.decoder.params()[0]->value.to_host() != dec0);
+  CHECK(m.sict.running_mean.value.to_host() != rm0);
+  const auto hold = t.evaluate_holdout();
+  CHECK(hold.styles == 1);
+  CHECK(std::isfinite(hold.content + hold.style));
+
+  const std::string path = (testing::small_work_dir() / "style.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  const auto ck = io::load_checkpoint(path, "style");
+  const auto loaded = model::StyleModel::load(ck);
+  const auto& cam = testing::small_scene().test[0].camera;
+  const Tensor simg = train::load_style_image(styles.holdout[0], 32, 32, nullptr);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
+  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
+                                  cam.width, cam.height);
+  const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
+                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
+  CHECK(a == b);
+  CHECK(testing::all_finite(a));
+
+  train::StyleTrainer r(testing::small_scene(), ck, nullptr);
+  CHECK(r.iteration() == 4);
+  CHECK(r.styles().holdout == styles.holdout);
+  r.set_total_iters(5);
+  CHECK(std::isfinite(r.step().style));
+}
+
+TEST_CASE("the 2D warm start and the ablation switches train") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  {
+    auto cfg = small_config(3);
+    cfg.warm_start = 2;
+    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    const auto s1 = t.step(), s2 = t.step(), s3 = t.step();
+    CHECK(s1.warm);
+    CHECK(s2.warm);
+    CHECK_FALSE(s3.warm);
+    CHECK(std::isfinite(s1.style + s2.style));
+  }
+  testing::expect_error(
+      [&] {
+        auto cfg = small_config(1);
+        cfg.warm_start = 1;
+        train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
+      },
+      "fast profile");
+  for (auto [mode, bias] : {std::pair{style::SictMode::VanillaIn, true}, std::pair{style::SictMode::None, true},
+                            std::pair{style::SictMode::VolumeAdaptive, false}}) {
+    auto cfg = small_config(2);
+    cfg.sict = mode;
+    cfg.dst_bias = bias;
+    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    while (!t.done()) {
+      const auto st = t.step();
+      CHECK(std::isfinite(st.content + st.style));
+    }
+    CHECK(t.model().first_nonfinite().empty());
+  }
+}
+
+TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {
+  const auto none = train::opacity_mask(std::vector<float>(16, 0.0f), 4, 4, 16, 16);
+  CHECK(none.empty());
+  std::vector<float> acc(16, 0.0f);
+  acc[5] = 1.0f;
+  const auto one = train::opacity_mask(acc, 4, 4, 16, 16);
+  CHECK_FALSE(one.empty());
+  CHECK(one.count[0] > 0);
+  CHECK(one.count[0] < 256);  // bilinear spread around one block, not the whole image
+  const int H = 16, W = 16, C = 5;
+  const auto x = testing::random_normal(size_t(C) * H * W, 90);
+  const Tensor xt = Tensor::from_host(x, {1, C, H, W});
+  const Tensor gx = train::gather_positions(xt, one.idx[0]);
+  const auto d = testing::random_normal(size_t(gx.numel()), 91);
+  const Tensor sd = train::scatter_positions(Tensor::from_host(d, gx.shape()), one.idx[0], H, W);
+  const double lhs = testing::dot(testing::to_double(gx.to_host()), testing::to_double(d));
+  const double rhs = testing::dot(testing::to_double(x), testing::to_double(sd.to_host()));
+  CHECK(lhs == doctest::Approx(rhs).epsilon(1e-5));
+  nn::VggFeatures f;
+  testing::expect_error([&] { train::style_losses(f, Tensor(), f, &none, {}, nullptr); }, "keeps no position");
+}
+
+TEST_CASE("bad inputs name the file or folder and what is wrong") {
+  testing::expect_error([] { train::StyleSet::from_dir("/nonexistent/styles", 0); }, "/nonexistent/styles");
+  testing::expect_error([] { train::StyleSet::from_dir(style_dir(), 4); }, "leaves none to train on");
+  // A feature checkpoint is not a style checkpoint.
+  io::Checkpoint ck;
+  ck.kind = "features";
+  auto fm = small_features(model::DecoderProfile::Paper);
+  fm.save(ck);
+  ck.path = "features.ckpt";
+  testing::expect_error([&] { model::StyleModel::load(ck); }, "train-style");
+}
