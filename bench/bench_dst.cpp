@@ -117,8 +117,8 @@ int bench_dst(const BenchOptions& opt) {
         for (auto& c : ctxs) {
           if (c.rays.kept_layout.count == 0) continue;
           const Tensor y = sm.dst.apply_per_point(c.rays.kept_values, code);
+          out->clear();  // only the newest chunk's map stays alive
           out->push_back(render::composite_values_forward(c.rays.kept_layout, c.rays.kept_w, y).value);
-          if (out->size() > 1) out->front() = Tensor();  // only the newest chunk stays alive
         }
       },
       &pp_out);
@@ -127,8 +127,8 @@ int bench_dst(const BenchOptions& opt) {
         for (auto& c : ctxs) {
           if (c.rays.kept_layout.count == 0) continue;
           const auto comp = render::composite_values_forward(c.rays.kept_layout, c.rays.kept_w, c.rays.kept_values);
+          out->clear();
           out->push_back(sm.dst.apply(comp.value, comp.acc, code, nullptr));
-          if (out->size() > 1) out->front() = Tensor();
         }
       },
       &def_out);

@@ -12,6 +12,7 @@ int bench_ops(const BenchOptions& opt) {
   bench_ops_spatial(opt);
   bench_ops_norm(opt);
   bench_ops_layout(opt);
+  bench_ops_style(opt);
   return 0;
 }
 
