@@ -61,6 +61,23 @@ __kernel void running_stats_update(__global float* running_mean, __global float*
 // (logits of +-1e5 saturate to a one-hot row, as they should).
 inline float row_max(float qi, float kmax, float kmin) { return qi >= 0.0f ? qi * kmax : qi * kmin; }
 
+// Horizontal reductions of 16 lanes.
+inline float hsum16(float16 v) {
+  const float8 a = v.lo + v.hi;
+  const float4 b = a.lo + a.hi;
+  return b.x + b.y + b.z + b.w;
+}
+inline float hmax16(float16 v) {
+  const float8 a = fmax(v.lo, v.hi);
+  const float4 b = fmax(a.lo, a.hi);
+  return fmax(fmax(b.x, b.y), fmax(b.z, b.w));
+}
+inline float hmin16(float16 v) {
+  const float8 a = fmin(v.lo, v.hi);
+  const float4 b = fmin(a.lo, a.hi);
+  return fmin(fmin(b.x, b.y), fmin(b.z, b.w));
+}
+
 // Global: rows. qkv [K, 3E] (q | k | v), out [K, E]. A row's 32 keys and values live in two float16
 // each, so each exp and multiply-add works on 16 lanes (scalar code ran at ~1.6 GFLOP/s on PoCL).
 __kernel void channel_attention_forward(__global const float* qkv, __global float* out, int rows) {
@@ -69,19 +86,12 @@ __kernel void channel_attention_forward(__global const float* qkv, __global floa
   __global const float* r = qkv + (long)n * 3 * E;
   const float16 k0 = vload16(0, r + E), k1 = vload16(1, r + E);
   const float16 v0 = vload16(0, r + 2 * E), v1 = vload16(1, r + 2 * E);
-  const float16 kx = fmax(k0, k1), kn = fmin(k0, k1);
-  const float8 kx8 = fmax(kx.lo, kx.hi), kn8 = fmin(kn.lo, kn.hi);
-  const float4 kx4 = fmax(kx8.lo, kx8.hi), kn4 = fmin(kn8.lo, kn8.hi);
-  const float kmax = fmax(fmax(kx4.x, kx4.y), fmax(kx4.z, kx4.w));
-  const float kmin = fmin(fmin(kn4.x, kn4.y), fmin(kn4.z, kn4.w));
+  const float kmax = hmax16(fmax(k0, k1)), kmin = hmin16(fmin(k0, k1));
   for (int i = 0; i < E; ++i) {
     const float qi = r[i];
     const float m = row_max(qi, kmax, kmin);
     const float16 e0 = exp(fma((float16)qi, k0, (float16)(-m))), e1 = exp(fma((float16)qi, k1, (float16)(-m)));
-    const float16 z16 = e0 + e1, a16 = e0 * v0 + e1 * v1;
-    const float8 z8 = z16.lo + z16.hi, a8 = a16.lo + a16.hi;
-    const float4 z4 = z8.lo + z8.hi, a4 = a8.lo + a8.hi;
-    out[(long)n * E + i] = (a4.x + a4.y + a4.z + a4.w) / (z4.x + z4.y + z4.z + z4.w);
+    out[(long)n * E + i] = hsum16(e0 * v0 + e1 * v1) / hsum16(e0 + e1);
   }
 }
 
@@ -96,32 +106,22 @@ __kernel void channel_attention_backward(__global const float* qkv, __global con
   __global const float* g = dout + (long)n * E;
   const float16 k0 = vload16(0, r + E), k1 = vload16(1, r + E);
   const float16 v0 = vload16(0, r + 2 * E), v1 = vload16(1, r + 2 * E);
-  const float16 kx = fmax(k0, k1), kn = fmin(k0, k1);
-  const float8 kx8 = fmax(kx.lo, kx.hi), kn8 = fmin(kn.lo, kn.hi);
-  const float4 kx4 = fmax(kx8.lo, kx8.hi), kn4 = fmin(kn8.lo, kn8.hi);
-  const float kmax = fmax(fmax(kx4.x, kx4.y), fmax(kx4.z, kx4.w));
-  const float kmin = fmin(fmin(kn4.x, kn4.y), fmin(kn4.z, kn4.w));
+  const float kmax = hmax16(fmax(k0, k1)), kmin = hmin16(fmin(k0, k1));
   float16 dk0 = 0.0f, dk1 = 0.0f, dv0 = 0.0f, dv1 = 0.0f;
   __global float* d = dqkv + (long)n * 3 * E;
   for (int i = 0; i < E; ++i) {
     const float qi = r[i], gi = g[i];
     const float m = row_max(qi, kmax, kmin);
     const float16 p0 = exp(fma((float16)qi, k0, (float16)(-m))), p1 = exp(fma((float16)qi, k1, (float16)(-m)));
-    const float16 z16 = p0 + p1, a16 = p0 * v0 + p1 * v1;
-    const float8 z8 = z16.lo + z16.hi, a8 = a16.lo + a16.hi;
-    const float4 z4 = z8.lo + z8.hi, a4 = a8.lo + a8.hi;
-    const float inv_z = 1.0f / (z4.x + z4.y + z4.z + z4.w);
-    const float o = (a4.x + a4.y + a4.z + a4.w) * inv_z;
+    const float inv_z = 1.0f / hsum16(p0 + p1);
+    const float o = hsum16(p0 * v0 + p1 * v1) * inv_z;
     const float16 pg0 = p0 * (inv_z * gi), pg1 = p1 * (inv_z * gi);
     dv0 += pg0;
     dv1 += pg1;
     const float16 ds0 = pg0 * (v0 - o), ds1 = pg1 * (v1 - o);
     dk0 = fma(ds0, (float16)qi, dk0);
     dk1 = fma(ds1, (float16)qi, dk1);
-    const float16 q16 = ds0 * k0 + ds1 * k1;
-    const float8 q8 = q16.lo + q16.hi;
-    const float4 q4 = q8.lo + q8.hi;
-    d[i] = q4.x + q4.y + q4.z + q4.w;
+    d[i] = hsum16(ds0 * k0 + ds1 * k1);
   }
   vstore16(dk0, 0, d + E);
   vstore16(dk1, 1, d + E);
