@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/frame_outputs.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/feature_pca.hpp"
@@ -37,16 +38,7 @@ namespace {
 using stylerf::host::Error;
 namespace model = stylerf::model;
 
-stylerf::io::Image to_image(const std::vector<float>& hwc, int w, int h) {
-  stylerf::io::Image img;
-  img.width = w;
-  img.height = h;
-  img.data.resize(hwc.size());
-  const size_t plane = size_t(w) * h;
-  for (size_t i = 0; i < plane; ++i)
-    for (int c = 0; c < 3; ++c) img.data[c * plane + i] = hwc[3 * i + c];
-  return img;
-}
+stylerf::io::Image to_image(const std::vector<float>& hwc, int w, int h) { return stylerf::cli::interleaved_image(hwc, w, h); }
 
 // What a frame gives, whichever stage rendered it.
 struct Frame {
@@ -87,11 +79,7 @@ stylerf::io::Image colourise_depth(const Frame& r) {
   return img;
 }
 
-std::string numbered(const fs::path& dir, const std::string& stem, int i, int digits, const std::string& ext) {
-  std::ostringstream o;
-  o << stem << std::setw(digits) << std::setfill('0') << i << ext;
-  return (dir / o.str()).string();
-}
+using stylerf::cli::numbered;
 
 void save_outputs(const Frame& r, const std::string& png, const std::string& exr, const std::string& depth_png,
                   const std::string& pca_png) {
@@ -149,8 +137,6 @@ class FrameRenderer {
   std::unique_ptr<model::FeatureModel> features_;
   std::unique_ptr<stylerf::eval::FeaturePca> pca_;
 };
-
-bool have_ffmpeg() { return std::system("command -v ffmpeg >/dev/null 2>&1") == 0; }
 
 int run_render(int argc, char** argv) {
   std::string ckpt, views = "test", out, scene_dir, device;
@@ -230,18 +216,7 @@ int run_render(int argc, char** argv) {
                    numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
       if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
     }
-    if (have_ffmpeg()) {
-      const std::string mp4 = (fs::path(out) / "video.mp4").string();
-      stylerf::host::write_atomic_with(mp4, [&](const std::string& tmp) {
-        const std::string cmd = "ffmpeg -loglevel error -y -framerate 30 -i '" + out +
-                                "/frame_%04d.png' -pix_fmt yuv420p -f mp4 '" + tmp + "'";
-        if (std::system(cmd.c_str()) != 0) throw Error("ffmpeg failed: " + cmd);
-      });
-      std::cout << "video: " << mp4 << "\n";
-    } else {
-      std::cout << "ffmpeg not on PATH: frames only (ffmpeg -y -framerate 30 -i " << out
-                << "/frame_%04d.png -pix_fmt yuv420p video.mp4)\n";
-    }
+    stylerf::cli::write_video(out, "frame_%04d.png", "video.mp4", 30, std::cout);
   }
   std::cout << "rendered in " << std::fixed << std::setprecision(1)
             << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s -> " << out << "\n";

@@ -1,11 +1,13 @@
 #include "lib/model/style_model.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
+#include "lib/nn/ops.hpp"
 
 namespace stylerf::model {
 
@@ -57,6 +59,7 @@ StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tens
   c.c = r.value;
   c.kept_acc = r.kept_acc;
   c.acc = r.acc;
+  c.depth = r.depth;
   c.samples = r.samples;
   c.kept = r.kept;
   return c;
@@ -67,11 +70,14 @@ Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode&
   if (int64_t(h) * w != content.c.dim(0))
     throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
                 std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
-  Tensor y = dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr);
+  return decode_rows(dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr), content.acc, h, w, ctx);
+}
+
+Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, Context* ctx) const {
   // Empty space keeps stage 2's (unstyled) background feature, which the decoder learned to draw as the
   // background colour; the masked losses never look there.
   if (features.field.background.value.defined())
-    render::background_forward(y, content.acc, features.field.background.value);
+    render::background_forward(y, acc, features.field.background.value);
   const Tensor map = nn::rows_to_image(y, h, w);
   if (ctx) {
     ctx->h = h;
@@ -116,38 +122,47 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
 }
 
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
-                                                            int chunk) const {
+                                                            int chunk, const RegionHead* region) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
   int w = 0, h = 0;
   const scene::Rays rays = block_rays(scene, cam, stride(), w, h);
   const int64_t n = int64_t(w) * h;
   std::vector<float> c(size_t(n) * style::Sict::kEmbed);
-  std::vector<float> kept_acc(static_cast<size_t>(n)), acc(static_cast<size_t>(n));
+  std::vector<float> kept_acc(static_cast<size_t>(n)), acc(static_cast<size_t>(n)), depth(static_cast<size_t>(n));
   CameraContent out;
   out.width = w;
   out.height = h;
+  if (region) out.region_mask.assign(static_cast<size_t>(n), 0.0f);
   for (int64_t b = 0; b < n; b += chunk) {
     const int64_t R = std::min<int64_t>(chunk, n - b);
     std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
     std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
-    const Content part = render_content(Tensor::from_host(o, {R, 3}, "render origins"),
-                                        Tensor::from_host(d, {R, 3}, "render directions"), false, 0, nullptr);
+    const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
+    const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
+    const Content part = render_content(origins, dirs, false, 0, nullptr);
     const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+    const auto pd = part.depth.to_host();
     std::copy(pc.begin(), pc.end(), c.begin() + b * style::Sict::kEmbed);
     std::copy(pk.begin(), pk.end(), kept_acc.begin() + b);
     std::copy(pa.begin(), pa.end(), acc.begin() + b);
+    std::copy(pd.begin(), pd.end(), depth.begin() + b);
     out.content.samples += part.samples;
     out.content.kept += part.kept;
+    if (region) {
+      // The same rays, the same kept samples (no jitter), the indicator as the value.
+      const auto inside = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+      for (int64_t r = 0; r < R; ++r)
+        out.region_mask[size_t(b + r)] = pk[size_t(r)] > 1e-6f ? std::clamp(inside[size_t(r)] / pk[size_t(r)], 0.0f, 1.0f) : 0.0f;
+    }
   }
   out.content.c = Tensor::from_host(c, {n, style::Sict::kEmbed}, "camera content");
   out.content.kept_acc = Tensor::from_host(kept_acc, {n}, "camera kept opacity");
   out.content.acc = Tensor::from_host(acc, {n}, "camera opacity");
+  out.content.depth = Tensor::from_host(depth, {n}, "camera depth");
   return out;
 }
 
-std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w,
-                                              int cam_h) const {
-  const Tensor img = decode_styled(cc.content, code, cc.height, cc.width, nullptr);
+std::vector<float> StyleModel::crop_rgb(const Tensor& img, int cam_w, int cam_h) {
   const int H = int(img.dim(2)), W = int(img.dim(3));
   if (H < cam_h || W < cam_w)
     throw Error("style model: the decoder gave " + std::to_string(W) + "x" + std::to_string(H) + " pixels for a " +
@@ -157,9 +172,68 @@ std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const sty
   const size_t plane = size_t(H) * W;
   for (int y = 0; y < cam_h; ++y)
     for (int x = 0; x < cam_w; ++x)
-      for (int ch = 0; ch < 3; ++ch)
-        rgb[(size_t(y) * cam_w + x) * 3 + ch] = std::clamp(v[ch * plane + size_t(y) * W + x], 0.0f, 1.0f);
+      for (int ch = 0; ch < 3; ++ch) {
+        const float p = v[ch * plane + size_t(y) * W + x];
+        if (std::isnan(p)) throw Error("style model: the decoded image has NaN pixels");
+        rgb[(size_t(y) * cam_w + x) * 3 + ch] = std::clamp(p, 0.0f, 1.0f);
+      }
   return rgb;
+}
+
+std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w,
+                                              int cam_h) const {
+  return crop_rgb(decode_styled(cc.content, code, cc.height, cc.width, nullptr), cam_w, cam_h);
+}
+
+std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, const style::StyleCode& inside,
+                                                      const style::StyleCode& outside, int cam_w, int cam_h) const {
+  const int64_t n = int64_t(cc.width) * cc.height;
+  if (int64_t(cc.region_mask.size()) != n) throw Error("style model: this content was rendered without a region");
+  const auto c = cc.content.c.to_host(), k = cc.content.kept_acc.to_host();
+  const int E = style::Sict::kEmbed;
+  std::vector<float> c_in(c.size()), c_out(c.size()), k_in(k.size()), k_out(k.size());
+  for (int64_t r = 0; r < n; ++r) {
+    const float m = cc.region_mask[size_t(r)];
+    for (int e = 0; e < E; ++e) {
+      c_in[size_t(r * E + e)] = m * c[size_t(r * E + e)];
+      c_out[size_t(r * E + e)] = (1.0f - m) * c[size_t(r * E + e)];
+    }
+    k_in[size_t(r)] = m * k[size_t(r)];
+    k_out[size_t(r)] = (1.0f - m) * k[size_t(r)];
+  }
+  Tensor y = dst.apply(Tensor::from_host(c_in, {n, E}, "content inside"), Tensor::from_host(k_in, {n}, "opacity inside"),
+                       inside, nullptr);
+  const Tensor y_out = dst.apply(Tensor::from_host(c_out, {n, E}, "content outside"),
+                                 Tensor::from_host(k_out, {n}, "opacity outside"), outside, nullptr);
+  nn::axpby(1.0f, y_out, 1.0f, y);
+  return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr), cam_w, cam_h);
+}
+
+void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const {
+  if (!features.geo.has_background) return;
+  if (rgb.size() != size_t(3) * cam_w * cam_h) throw Error("over_background: the image is not " + std::to_string(cam_w) + "x" + std::to_string(cam_h));
+  const auto acc = cc.content.acc.to_host();
+  const float s = float(stride());
+  const auto& bg = features.geo.background;
+  auto at = [&](int x, int y) {
+    x = std::clamp(x, 0, cc.width - 1);
+    y = std::clamp(y, 0, cc.height - 1);
+    return acc[size_t(y) * cc.width + x];
+  };
+  for (int y = 0; y < cam_h; ++y)
+    for (int x = 0; x < cam_w; ++x) {
+      // Block j's ray passes through pixel coordinate s (j + 0.5).
+      const float fx = (x + 0.5f) / s - 0.5f, fy = (y + 0.5f) / s - 0.5f;
+      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+      const float u = fx - x0, v = fy - y0;
+      const float a = std::clamp((1 - u) * (1 - v) * at(x0, y0) + u * (1 - v) * at(x0 + 1, y0) +
+                                     (1 - u) * v * at(x0, y0 + 1) + u * v * at(x0 + 1, y0 + 1),
+                                 0.0f, 1.0f);
+      for (int c = 0; c < 3; ++c) {
+        float& p = rgb[(size_t(y) * cam_w + x) * 3 + c];
+        p = p * a + bg[size_t(c)] * (1 - a);
+      }
+    }
 }
 
 void StyleModel::collect_params(std::vector<nn::Param*>& out) {

@@ -14,6 +14,7 @@
 
 #include "lib/io/checkpoint.hpp"
 #include "lib/model/feature_model.hpp"
+#include "lib/model/region.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/style/sict.hpp"
@@ -58,6 +59,7 @@ class StyleModel : public nn::Module {
   // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
   struct Content {
     Tensor c, kept_acc, acc;
+    Tensor depth;  // [R] sum w t over all samples (not divided by acc)
     int64_t samples = 0, kept = 0;
   };
   struct Context {
@@ -73,6 +75,8 @@ class StyleModel : public nn::Module {
                          Context* ctx) const;
   // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
   Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
+  // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
+  Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
   // dstd) for the style branch (Dst::style_code_backward).
   style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb);
@@ -87,13 +91,30 @@ class StyleModel : public nn::Module {
   struct CameraContent {
     int width = 0, height = 0;  // the map's (ceil(W/s), ceil(H/s))
     Content content;
+    // With a region: per ray the fraction of its kept weight inside the region (the region's indicator
+    // composited with the scene's weights, divided by the kept opacity; 0 where nothing was kept).
+    std::vector<float> region_mask;
   };
-  CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096) const;
+  // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
+  CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
+                                      const RegionHead* region = nullptr) const;
   // RGB interleaved [H*W*3] in [0,1] (clamped) of a camera's content under a style code, cut to the
   // camera's size.
   std::vector<float> stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w, int cam_h) const;
+  // Compositional transfer (the paper's): the DST outputs of two styles blended on the feature map by the
+  // region mask m, m yA + (1 - m) yB, then decoded. Since DST is linear in (c, w_r) this is computed as
+  // DST_A(m c, m w_r) + DST_B((1 - m) c, (1 - m) w_r): two applies, no extra map-sized kernel.
+  std::vector<float> stylize_camera_regions(const CameraContent& cc, const style::StyleCode& inside,
+                                            const style::StyleCode& outside, int cam_w, int cam_h) const;
 
+  // Scenes with a background colour: rgb (interleaved, cam_w x cam_h) composited over it by the rendered
+  // opacity (bilinear from the block centres), a = acc: rgb a + bg (1 - a). The decoder draws empty space
+  // from stage 2's background feature, but stage 3's masked losses never look there, so its colour drifts
+  // while the style is trained; this puts the scene's own background back. No-op without a background.
+  void over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const;
   void collect_params(std::vector<nn::Param*>& out) override;
+  // The full-resolution camera's inference outputs: decoder RGB [1, 3, H', W'] cut and clamped.
+  static std::vector<float> crop_rgb(const Tensor& img, int cam_w, int cam_h);
   void collect_buffers(std::vector<nn::StateBuffer*>& out) override;
 
   // Checkpoint kind "style": the feature model's tensors and meta, the stylizer under "style.*", and

@@ -106,24 +106,6 @@ StyleSet StyleSet::from_json(const json& j) {
   return s;
 }
 
-Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
-  if (crop > size || crop % 8) throw Error("style crop " + std::to_string(crop) + " must be a multiple of 8 <= " + std::to_string(size));
-  const io::Image full = io::resize(io::load_image(path), size, size);
-  int x0 = (size - crop) / 2, y0 = (size - crop) / 2;
-  if (rng && crop < size) {
-    std::uniform_int_distribution<int> u(0, size - crop);
-    x0 = u(*rng);
-    y0 = u(*rng);
-  }
-  io::Image out;
-  out.width = out.height = crop;
-  out.data.resize(size_t(3) * crop * crop);
-  for (int c = 0; c < 3; ++c)
-    for (int y = 0; y < crop; ++y)
-      for (int x = 0; x < crop; ++x) out.at(c, y, x) = full.at(c, y0 + y, x0 + x);
-  return io::to_tensor(out);
-}
-
 namespace {
 std::string stem(const std::string& p) { return std::filesystem::path(p).stem().string(); }
 }  // namespace

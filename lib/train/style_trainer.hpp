@@ -26,6 +26,7 @@
 #include "lib/features/feature_sampler.hpp"
 #include "lib/features/feature_targets.hpp"
 #include "lib/model/style_model.hpp"
+#include "lib/style/style_image.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
@@ -61,9 +62,7 @@ struct StyleSet {
   static StyleSet from_json(const nlohmann::json& j);
 };
 
-// A style image as the training step uses it: resized to size x size, then a crop x crop crop at a random
-// corner (crop == size: the whole image). [1, 3, crop, crop].
-host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng);
+using style::load_style_image;  // lib/style/style_image.hpp
 
 struct StyleStepStats {
   int iteration = 0;

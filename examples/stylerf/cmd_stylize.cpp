@@ -1,0 +1,365 @@
+// stylerf stylize --ckpt STYLE_CKPT --style IMG [--style IMG ...] --views test|path [options] -o DIR:
+// zero-shot stylisation with a trained style checkpoint: no optimisation, any style image.
+//   - one --style (or several without --mix, or a folder): one output set per style (DIR, or DIR/<style>/
+//     for several): frames (test_NNN.png | frame_NNNN.png), video.mp4 when ffmpeg is on PATH;
+//   - --mix w1,w2,...: the styles' transforms interpolated into one set (DIR);
+//   - --mix-grid A,B,C,D: the paper's 4-corner sheet of one view (DIR/mix_grid.png, 5 x 5 bilinear mix);
+//   - --region SPEC --style-inside A --style-outside B: compositional transfer, plus the mask PNGs.
+// Per view, once for all styles: the content render (SICT, composited), depth_NNNN.exr (depth along the
+// ray in ray-space units, at the rendered map's resolution). DIR/metrics.json: the styles (cache keys),
+// the time to encode the styles, to the first frame, frames/s after it, and per view and style the content
+// and style losses (test views: also 2D AdaIN of the true view, by the same VGG and mask).
+#include <boost/program_options.hpp>
+#include <chrono>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/stylize_losses.hpp"
+#include "host/error.hpp"
+#include "host/files.hpp"
+#include "lib/io/exr.hpp"
+#include "lib/io/image.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/scene/camera_path.hpp"
+#include "lib/scene/scene_meta.hpp"
+#include "lib/style/style_encoder.hpp"
+
+namespace po = boost::program_options;
+namespace fs = std::filesystem;
+
+namespace {
+
+using stylerf::host::Error;
+using Clock = std::chrono::steady_clock;
+namespace model = stylerf::model;
+namespace style = stylerf::style;
+namespace cli = stylerf::cli;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, sep)) out.push_back(item);
+  return out;
+}
+
+std::vector<float> parse_weights(const std::string& s) {
+  std::vector<float> w;
+  for (const auto& item : split(s, ',')) {
+    size_t used = 0;
+    float x = 0;
+    try {
+      x = std::stof(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size()) throw Error("--mix: '" + item + "' is not a number");
+    w.push_back(x);
+  }
+  return w;
+}
+
+// A --style argument: an image, or a folder whose readable images are taken in name order (others are
+// named and skipped).
+std::vector<std::string> expand_styles(const std::vector<std::string>& args) {
+  std::vector<std::string> out;
+  for (const auto& a : args) {
+    std::error_code ec;
+    if (!fs::is_directory(a, ec)) {
+      const std::string why = stylerf::io::image_unreadable_reason(a);
+      if (!why.empty()) throw Error("--style " + a + ": " + why);
+      out.push_back(a);
+      continue;
+    }
+    std::vector<std::string> files;
+    for (const auto& e : fs::directory_iterator(a)) {
+      if (!e.is_regular_file()) continue;
+      const std::string why = stylerf::io::image_unreadable_reason(e.path().string());
+      if (why.empty())
+        files.push_back(e.path().string());
+      else
+        std::cout << "  skipping " << e.path().string() << ": " << why << "\n";
+    }
+    if (files.empty()) throw Error("--style " + a + ": the folder holds no readable image");
+    std::sort(files.begin(), files.end());
+    out.insert(out.end(), files.begin(), files.end());
+  }
+  return out;
+}
+
+// The camera at --size: the longer side becomes `size`, the aspect kept.
+stylerf::scene::Camera sized(const stylerf::scene::Camera& c, int size) {
+  if (size <= 0) return c;
+  const int w = c.width >= c.height ? size : std::max(1, int(std::lround(double(size) * c.width / c.height)));
+  const int h = c.width >= c.height ? std::max(1, int(std::lround(double(size) * c.height / c.width))) : size;
+  return c.resized(w, h);
+}
+
+struct Job {  // one output set: a name, a folder, the code(s)
+  std::string name, dir;
+  style::StyleCode code, outside;  // outside: regions only
+  std::string style_path;          // for the style loss (empty: mixed, regions)
+};
+
+void write_depth(const model::StyleModel::CameraContent& cc, const std::string& path) {
+  const auto acc = cc.content.acc.to_host(), d = cc.content.depth.to_host();
+  std::vector<float> depth(acc.size());
+  for (size_t i = 0; i < acc.size(); ++i) depth[i] = acc[i] > 1e-6f ? d[i] / acc[i] : 0.0f;
+  stylerf::io::write_exr(path, depth, cc.width, cc.height, 1);
+}
+
+// The 5 x 5 sheet: corners A (top left), B (top right), C (bottom left), D (bottom right), bilinear
+// weights between them.
+void mix_grid(const model::StyleModel& m, const model::StyleModel::CameraContent& cc, const std::vector<style::StyleCode>& c,
+              int W, int H, bool over_bg, const std::string& png) {
+  constexpr int kN = 5;
+  stylerf::io::Image sheet;
+  sheet.width = kN * W;
+  sheet.height = kN * H;
+  sheet.data.assign(size_t(3) * sheet.width * sheet.height, 1.0f);
+  for (int gy = 0; gy < kN; ++gy)
+    for (int gx = 0; gx < kN; ++gx) {
+      const float u = gx / float(kN - 1), v = gy / float(kN - 1);
+      const style::StyleCode code =
+          style::mix_codes(c, {(1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v}, "--mix-grid");
+      auto rgb = m.stylize_camera(cc, code, W, H);
+      if (over_bg) m.over_background(rgb, cc, W, H);
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x)
+          for (int ch = 0; ch < 3; ++ch) sheet.at(ch, gy * H + y, gx * W + x) = rgb[(size_t(y) * W + x) * 3 + ch];
+      std::cout << "  grid " << gy * kN + gx + 1 << "/" << kN * kN << "\r" << std::flush;
+    }
+  stylerf::io::save_png(png, sheet);
+  std::cout << "\nsheet: " << png << "\n";
+}
+
+int run_stylize(int argc, char** argv) {
+  std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid_arg, region_spec, inside, outside, cache;
+  std::vector<std::string> style_args;
+  int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30;
+  bool no_losses = false, decoded_background = false;
+  po::options_description desc("stylerf stylize --ckpt STYLE_CKPT --style IMG --views test|path -o DIR [options]");
+  desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
+      "style", po::value(&style_args), "style image or folder of images (repeatable)")(
+      "views", po::value(&views)->default_value("path"), "test (held-out views, with losses beside 2D AdaIN) or path")(
+      "frames", po::value(&frames)->default_value(120), "frames of the camera path")(
+      "max-views", po::value(&max_views)->default_value(0), "render this many evenly spaced views (0: all)")(
+      "size", po::value(&size)->default_value(0), "longer image side in pixels (0: the scene's)")(
+      "mix", po::value(&mix), "weights w1,w2,... (one per --style, sum 1): interpolate the styles")(
+      "mix-grid", po::value(&mix_grid_arg), "A,B,C,D: the 5x5 four-corner interpolation sheet of the first view")(
+      "region", po::value(&region_spec), "box:x0,y0,z0,x1,y1,z1 | sphere:x,y,z,r | depth:d0,d1 (scene coordinates)")(
+      "style-inside", po::value(&inside), "style inside --region")("style-outside", po::value(&outside),
+                                                                     "style outside --region")(
+      "output,o", po::value(&out), "output directory")(
+      "scene", po::value(&scene_dir), "scene directory (default: the one the checkpoint was trained on)")(
+      "cache", po::value(&cache), "style-code cache folder ('none': memory only; default: the user cache)")(
+      "no-losses", po::bool_switch(&no_losses), "skip the per-view VGG losses")(
+      "decoded-background", po::bool_switch(&decoded_background),
+      "scenes with a background colour: keep the decoder's empty space instead of compositing over the colour")(
+      "fps", po::value(&fps)->default_value(30), "video frame rate")(
+      "chunk", po::value(&chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
+      "device", po::value(&device), "OpenCL device");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || ckpt.empty()) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  // ---- options, checked before anything is loaded ----
+  if (views != "test" && views != "path") throw Error("--views must be test or path (got '" + views + "')");
+  if (frames < 1 || frames > 100000) throw Error("--frames must be in [1, 100000]");
+  if (max_views < 0) throw Error("--max-views must be >= 0");
+  if (size < 0 || size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
+  if (chunk < 1) throw Error("--chunk must be >= 1");
+  if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
+  if (out.empty()) throw Error("-o DIR is required");
+  const bool regions = !region_spec.empty();
+  if (regions != (!inside.empty() && !outside.empty()))
+    throw Error("--region needs both --style-inside and --style-outside, and they need --region");
+  if (!mix_grid_arg.empty() && (regions || !mix.empty()))
+    throw Error("--mix-grid renders its own sheet: do not combine it with --mix or --region");
+  std::vector<std::string> grid_styles = mix_grid_arg.empty() ? std::vector<std::string>{} : split(mix_grid_arg, ',');
+  if (!mix_grid_arg.empty() && grid_styles.size() != 4) throw Error("--mix-grid takes four images A,B,C,D");
+  std::vector<std::string> styles;
+  if (regions) {
+    if (!style_args.empty()) throw Error("with --region, give the styles as --style-inside and --style-outside");
+    styles = expand_styles({inside, outside});
+    if (styles.size() != 2) throw Error("--style-inside and --style-outside each take one image");
+  } else if (!grid_styles.empty()) {
+    styles = expand_styles(grid_styles);
+  } else {
+    if (style_args.empty()) throw Error("give a style image with --style (or --mix-grid, or --region)");
+    styles = expand_styles(style_args);
+  }
+  std::vector<float> weights;
+  if (!mix.empty()) {
+    weights = parse_weights(mix);
+    if (weights.size() != styles.size())
+      throw Error("--mix has " + std::to_string(weights.size()) + " weights for " + std::to_string(styles.size()) + " styles");
+  }
+
+  // ---- loading (not counted in the timings) ----
+  cli::init_runtime(device, false);
+  const auto ck = stylerf::io::load_checkpoint(ckpt, "");
+  if (ck.kind != "style")
+    throw Error("checkpoint " + ckpt + " holds a '" + ck.kind + "' stage, not a trained stylizer; train one with "
+                "`stylerf train-style --features " + ckpt + "`");
+  const auto m = model::StyleModel::load(ck);
+  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
+  auto lo = stylerf::scene::load_options_from_meta(smeta);
+  lo.load_images = views == "test" && !no_losses;
+  if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
+  const auto scene = stylerf::scene::load_scene(scene_dir, lo);
+  stylerf::scene::check_same_scene(smeta, scene, lo.downsample, ckpt);
+  auto vgg = stylerf::nn::VggEncoder::load_default();
+  std::unique_ptr<cli::ViewLosses> losses;
+  if (!no_losses) losses = std::make_unique<cli::ViewLosses>(m, vgg, views == "test");
+
+  std::vector<stylerf::scene::Camera> cams;
+  std::vector<int> ids;
+  if (views == "test") {
+    if (scene.test.empty()) throw Error("scene " + scene.root + " has no held-out views; use --views path");
+    for (const auto& v : scene.test) cams.push_back(v.camera);
+  } else {
+    cams = stylerf::scene::default_path(scene, frames);
+  }
+  {
+    const int n = int(cams.size()), k = max_views > 0 ? std::min(max_views, n) : n;
+    std::vector<stylerf::scene::Camera> picked;
+    for (int j = 0; j < k; ++j) ids.push_back(int(int64_t(j) * n / k)), picked.push_back(sized(cams[ids.back()], size));
+    cams = picked;
+  }
+  std::unique_ptr<model::RegionHead> region;
+  if (regions)
+    region = std::make_unique<model::RegionHead>(model::Region::parse(region_spec, cams),
+                                                 model::RegionSpace::of(m.features.geo, scene));
+  fs::create_directories(out);
+
+  // ---- the work: encode the styles, then each view ----
+  const auto t_work = Clock::now();
+  style::StyleEncoder enc(m.dst, vgg, cache == "none" ? "" : cache.empty() ? style::StyleEncoder::default_cache_dir() : cache);
+  nlohmann::json style_rows = nlohmann::json::array();
+  std::vector<style::StyleCode> codes;
+  for (const auto& s : styles) {
+    const auto t = Clock::now();
+    const auto e = enc.encode(s);
+    codes.push_back(e.code);
+    style_rows.push_back({{"path", s}, {"key", e.key}, {"from_cache", e.from_cache}, {"encode_s", seconds_since(t)}});
+    std::cout << "style " << s << (e.from_cache ? " (cached)" : "") << ": " << std::fixed << std::setprecision(3)
+              << seconds_since(t) << " s\n";
+  }
+  const double encode_s = seconds_since(t_work);
+  if (!grid_styles.empty()) {
+    const auto& cam = cams.front();
+    const auto cc = m.render_camera_content(scene, cam, chunk);
+    mix_grid(m, cc, codes, cam.width, cam.height, !decoded_background, (fs::path(out) / "mix_grid.png").string());
+    stylerf::host::write_file_atomic((fs::path(out) / "metrics.json").string(),
+                                     nlohmann::json{{"styles", style_rows}, {"encode_s", encode_s},
+                                                    {"sheet_s", seconds_since(t_work)}}.dump(2) + "\n");
+    return 0;
+  }
+  std::vector<Job> jobs;
+  if (regions) {
+    jobs.push_back({"regions", out, codes[0], codes[1], ""});
+  } else if (!weights.empty()) {
+    jobs.push_back({"mix", out, style::mix_codes(codes, weights), {}, ""});
+  } else {
+    for (size_t i = 0; i < styles.size(); ++i) {
+      const std::string name = fs::path(styles[i]).stem().string();
+      jobs.push_back({name, styles.size() == 1 ? out : (fs::path(out) / name).string(), codes[i], {}, styles[i]});
+    }
+  }
+  for (const auto& j : jobs) fs::create_directories(j.dir);
+  if (losses)
+    for (const auto& j : jobs) losses->add_style(j.style_path);
+
+  const bool test = views == "test";
+  double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
+  int frames_done = 0;
+  nlohmann::json per_view = nlohmann::json::array();
+  for (size_t vi = 0; vi < cams.size(); ++vi) {
+    const auto& cam = cams[vi];
+    auto t = Clock::now();
+    const auto cc = m.render_camera_content(scene, cam, chunk, region.get());
+    content_s += seconds_since(t);
+    const std::string stem = test ? "test_" : "frame_";
+    const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
+    write_depth(cc, cli::numbered(out, "depth_", idx, digits, ".exr"));
+    if (region) {
+      stylerf::io::save_png(cli::numbered(out, "mask_", idx, digits, ".png"),
+                            cli::grey_image(cc.region_mask, cc.width, cc.height));
+    }
+    nlohmann::json row = {{"view", idx}, {"styles", nlohmann::json::object()}};
+    if (losses) {
+      const auto tl = Clock::now();
+      losses->begin_view(scene, test ? &scene.test[size_t(ids[vi])] : nullptr, cam, cc);
+      loss_s += seconds_since(tl);
+    }
+    for (size_t ji = 0; ji < jobs.size(); ++ji) {
+      const Job& j = jobs[ji];
+      auto rgb = region ? m.stylize_camera_regions(cc, j.code, j.outside, cam.width, cam.height)
+                        : m.stylize_camera(cc, j.code, cam.width, cam.height);
+      if (!decoded_background) m.over_background(rgb, cc, cam.width, cam.height);
+      const std::string png = cli::numbered(j.dir, stem, idx, digits, ".png");
+      stylerf::io::save_png(png, cli::interleaved_image(rgb, cam.width, cam.height));
+      ++frames_done;
+      const double now = seconds_since(t_work) - loss_s;  // losses are timed apart
+      if (first_frame_s < 0) first_frame_s = now;
+      frame_time_after = now - first_frame_s;
+      if (losses) {
+        const auto tl = Clock::now();
+        row["styles"][j.name] = losses->measure(rgb, cam.width, ji);
+        loss_s += seconds_since(tl);
+      }
+    }
+    per_view.push_back(row);
+    std::cout << "  view " << vi + 1 << "/" << cams.size() << "  " << std::fixed << std::setprecision(2)
+              << (frames_done > 1 ? (frames_done - 1) / std::max(1e-9, frame_time_after) : 0.0)
+              << " frames/s" << std::endl;
+  }
+  const double fps_after = frames_done > 1 ? (frames_done - 1) / std::max(1e-9, frame_time_after) : 0.0;
+  nlohmann::json vids = nlohmann::json::array();
+  if (cams.size() > 1)
+    for (const auto& j : jobs)
+      if (cli::write_video(j.dir, test ? "test_%03d.png" : "frame_%04d.png", "video.mp4", fps, std::cout))
+        vids.push_back((fs::path(j.dir) / "video.mp4").string());
+  nlohmann::json doc = {
+      {"checkpoint", ckpt},
+      {"scene", scene.root},
+      {"views", views},
+      {"size", {cams.front().width, cams.front().height}},
+      {"styles", style_rows},
+      {"outputs", nlohmann::json::array()},
+      {"timing",
+       {{"encode_styles_s", encode_s},
+        {"first_frame_s", first_frame_s},
+        {"frames", frames_done},
+        {"frames_per_s_after_first", fps_after},
+        {"content_render_s_per_view", content_s / double(cams.size())},
+        {"losses_s", loss_s},
+        {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
+                 "excluded from frames/s"}}},
+      {"videos", vids},
+      {"per_view", per_view}};
+  for (const auto& j : jobs) doc["outputs"].push_back({{"name", j.name}, {"dir", j.dir}});
+  if (region) doc["region"] = region_spec;
+  if (!weights.empty()) doc["mix"] = weights;
+  if (losses) doc["mean_losses"] = losses->means();
+  stylerf::host::write_file_atomic((fs::path(out) / "metrics.json").string(), doc.dump(2) + "\n");
+  std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
+            << first_frame_s << " s; then " << fps_after << " frames/s (" << frames_done << " frames)\n";
+  if (losses) std::cout << losses->summary();
+  std::cout << "-> " << out << "/metrics.json\n";
+  return 0;
+}
+
+cli::Register reg("stylize", "zero-shot stylisation: any style image, interpolation, 3D region composition",
+                  run_stylize);
+}  // namespace

@@ -1,0 +1,36 @@
+#include "lib/style/style_image.hpp"
+
+#include <cmath>
+
+#include "host/error.hpp"
+#include "lib/io/image.hpp"
+
+namespace stylerf::style {
+
+using host::Error;
+
+host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
+  if (size < 8 || crop > size || crop < 8 || crop % 8)
+    throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
+                std::to_string(size) + "]");
+  const io::Image full = io::resize(io::load_image(path), size, size);
+  int x0 = (size - crop) / 2, y0 = (size - crop) / 2;
+  if (rng && crop < size) {
+    std::uniform_int_distribution<int> u(0, size - crop);
+    x0 = u(*rng);
+    y0 = u(*rng);
+  }
+  io::Image out;
+  out.width = out.height = crop;
+  out.data.resize(size_t(3) * crop * crop);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < crop; ++y)
+      for (int x = 0; x < crop; ++x) {
+        const float v = full.at(c, y0 + y, x0 + x);
+        if (!std::isfinite(v)) throw Error("style image " + path + ": decoded to values that are not finite");
+        out.at(c, y, x) = v;
+      }
+  return io::to_tensor(out);
+}
+
+}  // namespace stylerf::style
