@@ -4,12 +4,14 @@
 //     attention forward / backward (GFLOP/s: 4 * 32 * 32 multiply-adds per point forward, ~3x that
 //     backward, plus 1024 exponentials counted as one FLOP each);
 //   - DST: the style code of a 256x256 style's relu3_1 (L = 4096 positions) forward / backward and its
-//     application to 64x64 rays forward / backward (GFLOP/s from the GEMM shapes).
+//     application to 64x64 rays forward / backward (GFLOP/s from the GEMM shapes);
+//   - the region indicator of zero-shot composition (kernels/region.cl; GB/s).
 #include <algorithm>
 #include <cstdio>
 
 #include "bench/bench_ops_parts.hpp"
 #include "bench/timing.hpp"
+#include "lib/model/region.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/style/sict.hpp"
@@ -59,6 +61,13 @@ void bench_ops_style(const BenchOptions& opt) {
   const double apply_flops = double(R) * 2.0 * (E * C + C);
   row("DST apply fwd", "[4096,32]->256", best_of(reps, [&] { d.apply(c, acc, code, &actx); }), apply_flops, 0);
   row("DST apply bwd", "[4096,256]", best_of(reps, [&] { d.apply_backward(actx, dy, true); }), 2 * apply_flops, 0);
+  // Zero-shot composition: the region indicator of K samples (NDC space, a sphere): 12 B read + 4 written.
+  const Tensor pos = Tensor::full({K, 3}, 0.1f);
+  model::RegionSpace space;
+  space.ndc = true;
+  const model::Region sphere = model::Region::parse("sphere:0,0,-2,1", {});
+  row("region indicator", "[K,3]->[K]", best_of(reps, [&] { model::region_indicator(pos, sphere, space); }), 0,
+      16.0 * K);
 }
 
 }  // namespace stylerf::bench

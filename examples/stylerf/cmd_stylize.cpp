@@ -27,6 +27,7 @@
 #include "lib/scene/camera_path.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/style/style_encoder.hpp"
+#include "lib/style/style_image.hpp"
 
 namespace po = boost::program_options;
 namespace fs = std::filesystem;
@@ -77,17 +78,8 @@ std::vector<std::string> expand_styles(const std::vector<std::string>& args) {
       out.push_back(a);
       continue;
     }
-    std::vector<std::string> files;
-    for (const auto& e : fs::directory_iterator(a)) {
-      if (!e.is_regular_file()) continue;
-      const std::string why = stylerf::io::image_unreadable_reason(e.path().string());
-      if (why.empty())
-        files.push_back(e.path().string());
-      else
-        std::cout << "  skipping " << e.path().string() << ": " << why << "\n";
-    }
+    std::vector<std::string> files = style::style_images_in(a, &std::cout);
     if (files.empty()) throw Error("--style " + a + ": the folder holds no readable image");
-    std::sort(files.begin(), files.end());
     out.insert(out.end(), files.begin(), files.end());
   }
   return out;

@@ -113,6 +113,15 @@ std::array<double, 3> RegionSpace::world(const std::array<double, 3>& pos) const
   return {-p[0] * z * sx, -p[1] * z * sy, z};
 }
 
+bool RegionSpace::at_infinity(const std::array<double, 3>& pos) const {
+  return ndc && lo[2] + 0.5 * (pos[2] + 1.0) * (double(hi[2]) - lo[2]) >= 1.0;
+}
+
+bool RegionSpace::contains(const Region& r, const std::array<double, 3>& pos) const {
+  if (at_infinity(pos)) return r.kind == Region::Slab && std::isinf(r.p[7]) && r.p[7] > 0;
+  return r.contains(world(pos));
+}
+
 host::Tensor region_indicator(const host::Tensor& pos, const Region& region, const RegionSpace& space) {
   if (pos.ndim() != 2 || pos.dim(1) != 3) throw Error("region_indicator: positions must be [K, 3]");
   const int64_t K = pos.dim(0);

@@ -39,9 +39,12 @@ struct RegionSpace {
   bool ndc = false;
   float sx = 1, sy = 1, near = 1;
   static RegionSpace of(const Geometry& g, const scene::Scene& scene);
-  // World point of a normalised position (double, for references and tests); may be non-finite at the
-  // NDC far end.
+  // World point of a normalised position (double, for references and tests). NDC positions at the far end
+  // (ray-space z >= 1) are infinitely far: at_infinity says so and world() must not be used for them.
   std::array<double, 3> world(const std::array<double, 3>& pos) const;
+  bool at_infinity(const std::array<double, 3>& pos) const;
+  // The double-precision reference of the kernel: whether the point at a normalised position is inside.
+  bool contains(const Region& r, const std::array<double, 3>& pos) const;
 };
 
 // pos [K,3] normalised to the box -> [K] of 0/1.

@@ -1,6 +1,9 @@
 #include "lib/style/style_image.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
 
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
@@ -31,6 +34,30 @@ host::Tensor load_style_image(const std::string& path, int size, int crop, std::
         out.at(c, y, x) = v;
       }
   return io::to_tensor(out);
+}
+
+std::vector<std::string> style_images_in(const std::string& dir, std::ostream* log) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw Error("style folder " + dir + " does not exist or is not a folder");
+  std::vector<std::string> all;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".jpg" || ext == ".jpeg" || ext == ".png") all.push_back(e.path().string());
+  }
+  std::sort(all.begin(), all.end());
+  std::vector<std::string> readable;
+  for (const auto& p : all) {
+    const std::string why = io::image_unreadable_reason(p);
+    if (why.empty()) {
+      readable.push_back(p);
+    } else if (log) {
+      *log << "style folder: skipping " << p << ": " << why << std::endl;
+    }
+  }
+  return readable;
 }
 
 }  // namespace stylerf::style

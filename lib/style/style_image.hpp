@@ -4,12 +4,20 @@
 // Errors name the file: unreadable or unsupported (e.g. a CMYK JPEG or WebP), or values that are not finite.
 #pragma once
 #include <random>
+#include <ostream>
 #include <string>
+#include <vector>
 
 #include "host/tensor.hpp"
 
 namespace stylerf::style {
 
 host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng);
+
+// The style images of a folder in name order: files named .jpg/.jpeg/.png (any case) that decode. Files
+// that cannot be decoded (a WebP saved as .jpg, a text file renamed) are left out, each named with its
+// reason on `log`: one bad file must not stop a run of hours at the step that draws it. Throws when `dir`
+// is not a folder.
+std::vector<std::string> style_images_in(const std::string& dir, std::ostream* log);
 
 }  // namespace stylerf::style

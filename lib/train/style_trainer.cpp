@@ -64,28 +64,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
 }
 
 StyleSet StyleSet::from_dir(const std::string& dir, int holdout, std::ostream* log) {
-  namespace fs = std::filesystem;
-  if (!fs::is_directory(dir)) throw Error("style folder " + dir + " does not exist or is not a folder");
-  std::vector<std::string> all;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (!e.is_regular_file()) continue;
-    std::string ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    if (ext == ".jpg" || ext == ".jpeg" || ext == ".png") all.push_back(e.path().string());
-  }
-  std::sort(all.begin(), all.end());
-  // Files that cannot be decoded are left out, each named with its reason (a WebP saved as .jpg, say):
-  // one bad file must not stop a run of hours at the step that draws it.
-  std::vector<std::string> readable;
-  for (const auto& p : all) {
-    const std::string why = io::image_unreadable_reason(p);
-    if (why.empty()) {
-      readable.push_back(p);
-    } else if (log) {
-      *log << "style folder: skipping " << p << ": " << why << std::endl;
-    }
-  }
-  all.swap(readable);
+  std::vector<std::string> all = style::style_images_in(dir, log);
   if (holdout < 0) throw Error("--holdout-styles must be >= 0");
   if (int(all.size()) < holdout + 1)
     throw Error("style folder " + dir + " has " + std::to_string(all.size()) + " images (.jpg/.png); " +

@@ -1,0 +1,313 @@
+// Zero-shot use of a style model (lib/model/region.hpp, lib/style/style_encoder.hpp, StyleModel's camera
+// calls):
+//  - the region indicator kernel against a double-precision reference (box, sphere, depth slab; plain and
+//    NDC ray spaces), including the NDC far end (infinitely far points) and the spec parser's errors;
+//  - the rendered region mask on a generated scene: the whole box gives 1 wherever anything was kept, an
+//    empty region 0; the composed render is the per-pixel blend m yA + (1 - m) yB of the two styles' DST
+//    maps, and equals the single-style render when the mask is all 1;
+//  - style codes: interpolation weights, the memory and disk caches (identical values; a damaged entry is
+//    recomputed), different images give different keys;
+//  - hard style images: 1x1 grey, 16-bit PNG, CMYK JPEG (tests/data/styles) give finite codes and images;
+//    a text file named .png is an error naming the file; a style folder skips it;
+//  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+
+#include "host/error.hpp"
+#include "lib/io/image.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/style/style_encoder.hpp"
+#include "lib/style/style_image.hpp"
+#include "tests/small_scene.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using host::Tensor;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_FIXTURES) + "/styles/" + name; }
+
+// Random normalised positions, a few exactly on the NDC far end (pos z = 1 with the box's hi z = 1).
+std::vector<float> random_positions(int n, uint64_t seed) {
+  std::vector<float> p = testing::random_uniform(size_t(3) * n, seed, -1.1f, 1.1f);
+  for (int i = 0; i < n; i += 17) p[size_t(3 * i + 2)] = 1.0f;
+  return p;
+}
+
+// Counts disagreements with the double reference, ignoring points within 1e-4 of the boundary (float
+// rounding of the position may fall either side there).
+int mismatches(const std::vector<float>& pos, const std::vector<float>& got, const model::Region& r,
+               const model::RegionSpace& space) {
+  int bad = 0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    const std::array<double, 3> p{pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]};
+    const bool want = space.contains(r, p);
+    bool near_edge = false;
+    for (int a = 0; a < 3 && !near_edge; ++a)
+      for (double e : {-1e-4, 1e-4}) {
+        auto q = p;
+        q[a] += e;
+        if (space.contains(r, q) != want) near_edge = true;
+      }
+    if (!near_edge && (got[i] == 1.0f) != want) ++bad;
+    if (got[i] != 0.0f && got[i] != 1.0f) ++bad;
+  }
+  return bad;
+}
+
+model::StyleModel small_style_model() {
+  model::FeatureFieldConfig fc;
+  fc.rank = {8, 8, 8};
+  model::StyleModel m = model::StyleModel::create(
+      model::FeatureModel::create(testing::small_geometry(), fc, model::DecoderProfile::Fast, 3),
+      style::SictMode::VolumeAdaptive, true, 5);
+  m.sict.running_mean.value = Tensor::from_host(testing::random_normal(256, 6, 0.05f), {256});
+  m.sict.running_var.value = Tensor::from_host(testing::random_uniform(256, 7, 0.01f, 0.05f), {256});
+  return m;
+}
+
+style::StyleCode random_code(uint64_t seed) {
+  style::StyleCode c;
+  c.mean = Tensor::from_host(testing::random_normal(256, seed, 0.5f), {256});
+  c.std = Tensor::from_host(testing::random_uniform(256, seed + 1, 0.1f, 1.0f), {256});
+  c.T = Tensor::from_host(testing::random_normal(32 * 32, seed + 2, 0.3f), {32, 32});
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("region indicator matches the double reference in plain and NDC ray spaces") {
+  const int n = 20000;
+  const auto pos = random_positions(n, 11);
+  const Tensor tpos = Tensor::from_host(pos, {n, 3});
+  model::RegionSpace plain;
+  plain.lo = {-1.5f, -1.0f, -0.5f};
+  plain.hi = {1.5f, 1.0f, 1.0f};
+  model::RegionSpace ndc = plain;
+  ndc.ndc = true;
+  ndc.lo = {-1.2f, -1.1f, -1.0f};
+  ndc.hi = {1.2f, 1.1f, 1.0f};
+  ndc.sx = 0.6f;
+  ndc.sy = 0.45f;
+  ndc.near = 1.0f;
+  std::vector<scene::Camera> path(3);
+  for (int i = 0; i < 3; ++i) path[size_t(i)].c2w[0][3] = 0.1f * i;  // looking down -z
+  for (const auto& spec : {"box:-0.5,-0.4,-0.3,0.6,0.5,0.4", "sphere:0.2,-0.1,0.1,0.7", "depth:0.5,2.5",
+                           "depth:0.2,inf"}) {
+    const model::Region r = model::Region::parse(spec, path);
+    const std::string name = spec;
+    CAPTURE(name);
+    const auto got = model::region_indicator(tpos, r, plain).to_host();
+    CHECK(mismatches(pos, got, r, plain) == 0);
+    int inside = 0;
+    for (float v : got) inside += v == 1.0f;
+    CHECK(inside > 100);  // the test exercises both answers
+    CHECK(inside < n - 100);
+    // NDC: world depths from 0.5 (the near plane) to infinity.
+    const auto got_ndc = model::region_indicator(tpos, model::Region::parse(spec, path), ndc).to_host();
+    CHECK(mismatches(pos, got_ndc, r, ndc) == 0);
+  }
+  // Infinitely far NDC points (z = 1): in no box or sphere; inside a slab only when it reaches infinity.
+  const Tensor far = Tensor::from_host({0.0f, 0.0f, 1.0f, 0.3f, -0.2f, 1.0f}, {2, 3});
+  CHECK(model::region_indicator(far, model::Region::parse("box:-9,-9,-1e30,9,9,9", path), ndc).to_host() ==
+        std::vector<float>{0, 0});
+  CHECK(model::region_indicator(far, model::Region::parse("sphere:0,0,0,1e30", path), ndc).to_host() ==
+        std::vector<float>{0, 0});
+  CHECK(model::region_indicator(far, model::Region::parse("depth:0,5", path), ndc).to_host() ==
+        std::vector<float>{0, 0});
+  CHECK(model::region_indicator(far, model::Region::parse("depth:0,inf", path), ndc).to_host() ==
+        std::vector<float>{1, 1});
+  // An empty batch.
+  CHECK(model::region_indicator(Tensor::zeros({0, 3}), model::Region::parse("depth:0,5", path), ndc).numel() == 0);
+}
+
+TEST_CASE("region specs: clear errors") {
+  const std::vector<scene::Camera> path(2);
+  testing::expect_error([&] { model::Region::parse("cube:0,0,0,1", path); }, "unknown kind 'cube'");
+  testing::expect_error([&] { model::Region::parse("box:0,0,0,1,1", path); }, "6 numbers");
+  testing::expect_error([&] { model::Region::parse("box:0,0,0,1,-1,1", path); }, "lower corner");
+  testing::expect_error([&] { model::Region::parse("sphere:0,0,0,0", path); }, "radius");
+  testing::expect_error([&] { model::Region::parse("sphere:0,0,x,1", path); }, "'x' is not a number");
+  testing::expect_error([&] { model::Region::parse("sphere:0,0,nan,1", path); }, "'nan' is not a number");
+  testing::expect_error([&] { model::Region::parse("depth:3,1", path); }, "d0 < d1");
+  testing::expect_error([&] { model::Region::parse("depth:1,3", {}); }, "needs a camera path");
+  testing::expect_error([&] { model::Region::parse("sphere", path); }, "expected box:");
+}
+
+TEST_CASE("region masks and compositional transfer on a generated scene") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
+  const std::vector<scene::Camera> path{cam};
+  const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", path), space);
+  const model::RegionHead nothing(model::Region::parse("sphere:1e5,0,0,1", path), space);
+  const auto all = m.render_camera_content(sc, cam, 500, &everything);
+  const auto none = m.render_camera_content(sc, cam, 500, &nothing);
+  const auto kept = all.content.kept_acc.to_host();
+  int visible = 0;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    CHECK(none.region_mask[i] == 0.0f);
+    if (kept[i] > 1e-3f) {
+      ++visible;
+      CHECK(all.region_mask[i] == doctest::Approx(1.0).epsilon(1e-4));
+    }
+  }
+  CHECK(visible > 10);
+
+  // A half-space box: the blend, computed the direct way on the DST maps.
+  const auto half = m.render_camera_content(sc, cam, 500, std::make_unique<model::RegionHead>(
+      model::Region::parse("box:-1e6,-1e6,-1e6,0,1e6,1e6", path), space).get());
+  int partial = 0;
+  for (float v : half.region_mask) partial += v > 0.01f && v < 0.99f;
+  MESSAGE("rays partly inside the half-space: " << partial);
+  const style::StyleCode a = random_code(21), b = random_code(31);
+  const auto composed = m.stylize_camera_regions(half, a, b, cam.width, cam.height);
+  Tensor ya = m.dst.apply(half.content.c, half.content.kept_acc, a, nullptr);
+  const Tensor yb = m.dst.apply(half.content.c, half.content.kept_acc, b, nullptr);
+  auto va = ya.to_host();
+  const auto vb = yb.to_host();
+  for (size_t r = 0; r < half.region_mask.size(); ++r)
+    for (int c = 0; c < 256; ++c) {
+      const float mm = half.region_mask[r];
+      va[r * 256 + c] = mm * va[r * 256 + c] + (1 - mm) * vb[r * 256 + c];
+    }
+  const auto direct = model::StyleModel::crop_rgb(
+      m.decode_rows(Tensor::from_host(va, {int64_t(va.size() / 256), 256}), half.content.acc, half.height, half.width,
+                    nullptr),
+      cam.width, cam.height);
+  REQUIRE(direct.size() == composed.size());
+  double worst = 0;
+  for (size_t i = 0; i < direct.size(); ++i) worst = std::max(worst, double(std::abs(direct[i] - composed[i])));
+  CHECK(worst < 1e-4);
+  // All inside: the single-style render.
+  const auto inside_all = m.stylize_camera_regions(all, a, b, cam.width, cam.height);
+  const auto single = m.stylize_camera(all, a, cam.width, cam.height);
+  double worst_single = 0;
+  for (size_t i = 0; i < single.size(); ++i) {
+    // Rays with nothing kept are all "outside"; they carry only the background there, the same either way.
+    worst_single = std::max(worst_single, double(std::abs(single[i] - inside_all[i])));
+  }
+  CHECK(worst_single < 1e-4);
+  const auto plain = m.render_camera_content(sc, cam);
+  testing::expect_error([&] { m.stylize_camera_regions(plain, a, b, cam.width, cam.height); }, "without a region");
+}
+
+TEST_CASE("background compositing uses the rendered opacity") {
+  model::StyleModel m = small_style_model();
+  m.features.geo.has_background = true;
+  m.features.geo.background = {0.2f, 0.4f, 0.6f};
+  model::StyleModel::CameraContent cc;
+  cc.width = 2;
+  cc.height = 1;
+  cc.content.acc = Tensor::from_host({0.0f, 1.0f}, {2});
+  const int s = m.stride(), W = 2 * s, H = s;
+  std::vector<float> rgb(size_t(3) * W * H, 0.9f);
+  m.over_background(rgb, cc, W, H);
+  // Pixel 0 of row 0 lies left of block 0's centre: opacity clamps to block 0 (0) -> the background.
+  CHECK(rgb[0] == doctest::Approx(0.2f));
+  CHECK(rgb[2] == doctest::Approx(0.6f));
+  // The last pixel lies right of block 1's centre: opacity 1 -> unchanged.
+  CHECK(rgb[rgb.size() - 1] == doctest::Approx(0.9f));
+  m.features.geo.has_background = false;
+  std::vector<float> same(size_t(3) * W * H, 0.9f);
+  m.over_background(same, cc, W, H);
+  CHECK(same == std::vector<float>(size_t(3) * W * H, 0.9f));
+}
+
+TEST_CASE("style codes: interpolation weights") {
+  const style::StyleCode a = random_code(1), b = random_code(2);
+  const style::StyleCode only_a = style::mix_codes({a, b}, {1.0f, 0.0f});
+  CHECK(only_a.T.to_host() == a.T.to_host());
+  CHECK(only_a.std.to_host() == a.std.to_host());
+  const style::StyleCode half = style::mix_codes({a, b}, {0.5f, 0.5f});
+  const auto ha = a.mean.to_host(), hb = b.mean.to_host(), hh = half.mean.to_host();
+  for (size_t i = 0; i < hh.size(); ++i) CHECK(hh[i] == doctest::Approx(0.5 * ha[i] + 0.5 * hb[i]).epsilon(1e-6));
+  testing::expect_error([&] { style::mix_codes({a, b}, {0.5f}); }, "1 weights for 2 styles");
+  testing::expect_error([&] { style::mix_codes({a, b}, {0.7f, 0.7f}); }, "sum to 1");
+  testing::expect_error([&] { style::mix_codes({a, b}, {1.5f, -0.5f}); }, ">= 0");
+  testing::expect_error([&] { style::mix_codes({a, b}, {NAN, 1.0f}); }, "finite");
+  testing::expect_error([&] { style::mix_codes({}, {}); }, "no styles");
+}
+
+TEST_CASE("style encoder: hard images, memory and disk caches") {
+  const model::StyleModel m = small_style_model();
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  const fs::path dir = testing::small_work_dir() / "style_codes";
+  fs::remove_all(dir);
+  style::StyleEncoder enc(m.dst, vgg, dir.string());
+  std::vector<std::string> keys;
+  for (const auto& name : {"grey1x1.png", "rgb16.png", "cmyk.jpg"}) {
+    CAPTURE(name);
+    const auto e = enc.encode(fixture(name));
+    CHECK_FALSE(e.from_cache);
+    CHECK(testing::all_finite(e.code.T.to_host()));
+    CHECK(testing::all_finite(e.code.mean.to_host()));
+    CHECK(testing::all_finite(e.code.std.to_host()));
+    keys.push_back(e.key);
+    const auto again = enc.encode(fixture(name));
+    CHECK(again.from_cache);
+    CHECK(again.code.T.to_host() == e.code.T.to_host());
+    CHECK(fs::exists(dir / (e.key + ".safetensors")));
+  }
+  CHECK(keys[0] != keys[1]);
+  CHECK(keys[1] != keys[2]);
+  // A grey image has (almost) no spread: its std is tiny and the stylised image still finite.
+  {
+    const auto grey = enc.encode(fixture("grey1x1.png")).code;
+    double smax = 0;
+    for (float v : grey.std.to_host()) smax = std::max(smax, double(v));
+    CHECK(smax < 0.05);
+    const scene::Scene& sc = testing::small_scene();
+    const auto cc = m.render_camera_content(sc, sc.train[0].camera);
+    CHECK(testing::all_finite(m.stylize_camera(cc, grey, sc.train[0].camera.width, sc.train[0].camera.height)));
+  }
+  // 16-bit PNG: decoded at full precision (the fixture is ffmpeg's testsrc: saturated colours).
+  const Tensor img16 = style::load_style_image(fixture("rgb16.png"), 16, 16, nullptr);
+  CHECK(testing::all_finite(img16.to_host()));
+  // CMYK JPEG: converted to RGB (the fixture was RGB (16x, 16y, 128) before its CMYK conversion).
+  {
+    const io::Image cmyk = io::load_image(fixture("cmyk.jpg"));
+    REQUIRE(cmyk.width == 16);
+    CHECK(cmyk.at(0, 8, 12) == doctest::Approx(12 * 16 / 255.0).epsilon(0.15));
+    CHECK(cmyk.at(1, 8, 12) == doctest::Approx(8 * 16 / 255.0).epsilon(0.15));
+    CHECK(cmyk.at(2, 8, 12) == doctest::Approx(128 / 255.0).epsilon(0.15));
+  }
+  // A fresh encoder over the same folder reads the disk cache: identical codes.
+  {
+    style::StyleEncoder fresh(m.dst, vgg, dir.string());
+    const auto e = fresh.encode(fixture("rgb16.png"));
+    CHECK(e.from_cache);
+    CHECK(e.code.T.to_host() == enc.encode(fixture("rgb16.png")).code.T.to_host());
+    // A damaged entry is recomputed, not trusted.
+    std::ofstream((dir / (e.key + ".safetensors")).string(), std::ios::binary | std::ios::trunc) << "garbage";
+    style::StyleEncoder third(m.dst, vgg, dir.string());
+    const auto r = third.encode(fixture("rgb16.png"));
+    CHECK_FALSE(r.from_cache);
+    CHECK(r.code.T.to_host() == e.code.T.to_host());
+  }
+  // Another model's weights: another key.
+  {
+    model::StyleModel other = small_style_model();
+    other.dst = style::Dst::create(true, 0, 99, "style.dst.");
+    style::StyleEncoder enc2(other.dst, vgg, dir.string());
+    CHECK(enc2.encode(fixture("rgb16.png")).key != keys[1]);
+  }
+  // Not an image: the error names the file; a folder skips it.
+  const fs::path bad_dir = testing::small_work_dir() / "mixed_styles";
+  fs::create_directories(bad_dir);
+  std::ofstream((bad_dir / "notes.png").string()) << "this is text";
+  fs::copy_file(fixture("rgb16.png"), bad_dir / "good.png", fs::copy_options::overwrite_existing);
+  testing::expect_error([&] { enc.encode((bad_dir / "notes.png").string()); }, "notes.png");
+  std::ostringstream log;
+  const auto found = style::style_images_in(bad_dir.string(), &log);
+  REQUIRE(found.size() == 1);
+  CHECK(found[0].find("good.png") != std::string::npos);
+  CHECK(log.str().find("notes.png") != std::string::npos);
+  testing::expect_error([&] { style::style_images_in((bad_dir / "missing").string(), nullptr); }, "not a folder");
+}
