@@ -2,8 +2,9 @@
 # Set up and run the main job on built-in defaults (nothing from ../shared is needed):
 # list OpenCL devices, make a content and a style image, stylize with AdaIN, train and render the density
 # stage on a generated scene, then its feature stage (VGG feature grid + decoder, fast profile) and its
-# style stage (SICT + DST on generated styles, compared with 2D AdaIN on a held-out style), print the GEMM
-# summary.
+# style stage (SICT + DST on generated styles, compared with 2D AdaIN on a held-out style), then zero-shot
+# use of it (a style image never trained on along a camera path, a 4-corner interpolation sheet, two styles
+# composed by a 3D region), print the GEMM summary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -32,6 +33,13 @@ echo "== style stage on the same scene (train-style on 4 generated styles, 1 hel
 "$S" train-style --features "$OUT/features.ckpt" --styles "$OUT/styles" --holdout-styles 1 --iters 40 --patch 64 \
     --log-every 10 --eval-every 20 --force -o "$OUT/style.ckpt"
 "$S" eval-style --ckpt "$OUT/style.ckpt" --views 2 --images "$OUT/style_eval"
+echo "== zero-shot: a style never trained on along a path, a 4-corner sheet, two styles split by a sphere"
+# style_2 is the style train-style held out (printed in its log): never trained on.
+"$S" stylize --ckpt "$OUT/style.ckpt" --style "$OUT/styles/style_2.png" --views path --frames 24 -o "$OUT/zero_shot_path"
+"$S" stylize --ckpt "$OUT/style.ckpt" --views test --mix-grid \
+    "$OUT/styles/style_2.png,$OUT/styles/style_0.png,$OUT/styles/style_1.png,$OUT/styles/style_3.png" -o "$OUT/zero_shot_grid"
+"$S" stylize --ckpt "$OUT/style.ckpt" --region sphere:0,0,0,0.6 --style-inside "$OUT/styles/style_2.png" \
+    --style-outside "$OUT/styles/style_4.png" --views path --frames 12 --no-losses -o "$OUT/zero_shot_region"
 echo "== GEMM summary (quick shapes; full table: $S bench gemm)"
 "$S" bench gemm --quick --repeats 2
 echo "== outputs in $OUT"

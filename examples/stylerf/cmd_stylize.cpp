@@ -173,8 +173,10 @@ int run_stylize(int argc, char** argv) {
   if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
   if (out.empty()) throw Error("-o DIR is required");
   const bool regions = !region_spec.empty();
-  if (regions != (!inside.empty() && !outside.empty()))
-    throw Error("--region needs both --style-inside and --style-outside, and they need --region");
+  if (regions && (inside.empty() || outside.empty()))
+    throw Error("--region needs both --style-inside and --style-outside");
+  if (!regions && (!inside.empty() || !outside.empty()))
+    throw Error("--style-inside and --style-outside need --region");
   if (!mix_grid_arg.empty() && (regions || !mix.empty()))
     throw Error("--mix-grid renders its own sheet: do not combine it with --mix or --region");
   std::vector<std::string> grid_styles = mix_grid_arg.empty() ? std::vector<std::string>{} : split(mix_grid_arg, ',');
@@ -193,8 +195,7 @@ int run_stylize(int argc, char** argv) {
   std::vector<float> weights;
   if (!mix.empty()) {
     weights = parse_weights(mix);
-    if (weights.size() != styles.size())
-      throw Error("--mix has " + std::to_string(weights.size()) + " weights for " + std::to_string(styles.size()) + " styles");
+    style::check_mix_weights(weights, styles.size(), "--mix");
   }
 
   // ---- loading (not counted in the timings) ----

@@ -95,17 +95,20 @@ StyleEncoder::Encoded StyleEncoder::encode(const std::string& image_path) {
   return out;
 }
 
-StyleCode mix_codes(const std::vector<StyleCode>& codes, const std::vector<float>& weights, const std::string& what) {
-  if (codes.empty()) throw Error(what + ": no styles to mix");
-  if (weights.size() != codes.size())
-    throw Error(what + ": " + std::to_string(weights.size()) + " weights for " + std::to_string(codes.size()) +
-                " styles");
+void check_mix_weights(const std::vector<float>& weights, size_t count, const std::string& what) {
+  if (weights.size() != count)
+    throw Error(what + ": " + std::to_string(weights.size()) + " weights for " + std::to_string(count) + " styles");
   double total = 0;
   for (float w : weights) {
     if (!std::isfinite(w) || w < 0) throw Error(what + ": weights must be finite and >= 0");
     total += w;
   }
   if (std::abs(total - 1.0) > 1e-4) throw Error(what + ": weights must sum to 1 (they sum to " + std::to_string(total) + ")");
+}
+
+StyleCode mix_codes(const std::vector<StyleCode>& codes, const std::vector<float>& weights, const std::string& what) {
+  if (codes.empty()) throw Error(what + ": no styles to mix");
+  check_mix_weights(weights, codes.size(), what);
   auto blend = [&](auto field, const char* name) {
     std::vector<float> acc;
     host::Shape shape;

@@ -41,6 +41,8 @@ class StyleEncoder {
   std::map<std::string, StyleCode> memory_;
 };
 
+// Throws unless there are `count` weights, finite, >= 0, summing to 1 (within 1e-4); the error names `what`.
+void check_mix_weights(const std::vector<float>& weights, size_t count, const std::string& what);
 // sum_k w_k code_k. The weights must be finite, >= 0 and sum to 1 (within 1e-4); the error names `what`.
 StyleCode mix_codes(const std::vector<StyleCode>& codes, const std::vector<float>& weights,
                     const std::string& what = "--mix");
