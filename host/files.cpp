@@ -1,7 +1,13 @@
 #include "host/files.hpp"
 
+#include <atomic>
+#include <cerrno>
+#include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <signal.h>
 #include <sstream>
 #include <unistd.h>
 
@@ -9,19 +15,92 @@
 
 namespace stylerf::host {
 
+namespace {
+// Temporary paths being written, readable from a signal handler: fixed slots of fixed-size buffers, a slot
+// in use when its first byte is non-zero. Writers take the mutex; the handler only reads and unlinks
+// (async-signal-safe), so at worst it sees a slot being filled and skips or unlinks a not-yet-made file.
+constexpr int kSlots = 16, kPathMax = 4096;
+char g_temp_paths[kSlots][kPathMax];
+std::mutex g_temp_mutex;
+std::atomic<bool> g_handlers_installed{false};
+
+extern "C" void remove_temps_and_reraise(int sig) {
+  for (auto& p : g_temp_paths)
+    if (p[0]) ::unlink(p);
+  ::signal(sig, SIG_DFL);
+  ::raise(sig);
+}
+
+int register_temp(const std::string& path) {
+  if (path.size() + 1 > size_t(kPathMax)) return -1;
+  std::lock_guard<std::mutex> lock(g_temp_mutex);
+  for (int i = 0; i < kSlots; ++i)
+    if (!g_temp_paths[i][0]) {
+      std::memcpy(g_temp_paths[i], path.c_str(), path.size() + 1);
+      return i;
+    }
+  return -1;  // more than kSlots concurrent writes: this one is simply not cleaned on a signal
+}
+
+void unregister_temp(int slot) {
+  if (slot < 0) return;
+  std::lock_guard<std::mutex> lock(g_temp_mutex);
+  g_temp_paths[slot][0] = 0;
+}
+
+bool process_alive(long pid) { return pid > 0 && (::kill(pid_t(pid), 0) == 0 || errno == EPERM); }
+}  // namespace
+
+void install_temp_file_cleanup() {
+  if (g_handlers_installed.exchange(true)) return;
+  for (int sig : {SIGINT, SIGTERM}) {
+    struct sigaction old {};
+    ::sigaction(sig, nullptr, &old);
+    if (old.sa_handler != SIG_DFL) continue;  // the program (or a test runner) handles it: leave it
+    struct sigaction sa {};
+    sa.sa_handler = remove_temps_and_reraise;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(sig, &sa, nullptr);
+  }
+}
+
+int remove_stale_temps(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const std::string prefix = target.filename().string() + ".tmp-";
+  std::error_code ec;
+  int removed = 0;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string pid = name.substr(prefix.size());
+    if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) continue;
+    if (process_alive(std::stol(pid))) continue;
+    std::error_code rm;
+    if (fs::remove(it->path(), rm)) ++removed;
+  }
+  return removed;
+}
+
 void write_atomic_with(const std::string& path, const std::function<void(const std::string&)>& write) {
   namespace fs = std::filesystem;
   fs::path target(path);
   std::error_code ec;
   if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  install_temp_file_cleanup();
+  remove_stale_temps(path);  // what a killed earlier writer of this target left behind
+  const int slot = register_temp(tmp);
   try {
     write(tmp);
   } catch (...) {
     fs::remove(tmp, ec);
+    unregister_temp(slot);
     throw;
   }
   fs::rename(tmp, target, ec);
+  unregister_temp(slot);
   if (ec) {
     fs::remove(tmp, ec);
     throw Error("cannot write " + path + ": rename of the temporary file failed");

@@ -11,4 +11,12 @@ void write_file_atomic(const std::string& path, const std::string& bytes);
 void write_atomic_with(const std::string& path, const std::function<void(const std::string& tmp_path)>& write);
 std::string read_file(const std::string& path);  // throws Error naming the path when unreadable
 
+// Temporary files of atomic writes in progress are removed when the process gets SIGINT or SIGTERM (the
+// handler unlinks them, then lets the signal end the process as it would have). Installed once by the
+// first atomic write; programs may install it earlier. SIGKILL cannot be caught: see remove_stale_temps.
+void install_temp_file_cleanup();
+// Removes `path`.tmp-PID files left by processes that no longer run (a killed writer); returns how many.
+// Files of a live process (another writer of the same target) are left alone.
+int remove_stale_temps(const std::string& path);
+
 }  // namespace stylerf::host

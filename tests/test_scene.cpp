@@ -535,7 +535,7 @@ TEST_CASE("make-scene refuses to overwrite other data and replaces its own outpu
   host::write_file_atomic(t.str("precious/keep.txt"), "mine");
   MakeSceneOptions o;
   o.size = 8;
-  o.views = 3;
+  o.views = 6;
   CHECK(has(error_of([&] { make_scene(t.str("precious"), o); }), "refusing to overwrite"));
   CHECK(fs::exists(t.path / "precious" / "keep.txt"));
   make_scene(t.str("gen"), o);

@@ -2,6 +2,8 @@
 // 2D AdaIN style transfer with the pretrained VGG-19 encoder and decoder (set up with
 // `bash scripts/fetch_weights.sh`).
 #include <boost/program_options.hpp>
+#include <cctype>
+#include <filesystem>
 #include <chrono>
 #include <iostream>
 
@@ -26,7 +28,7 @@ int run_adain(int argc, char** argv) {
   bool profile = false;
   po::options_description desc("stylerf adain --content C --style S -o out.png [options]");
   desc.add_options()("help,h", "show this help")("content,c", po::value(&content), "content image (PNG/JPEG)")(
-      "style,s", po::value(&style), "style image (PNG/JPEG)")("output,o", po::value(&output), "output PNG")(
+      "style,s", po::value(&style), "style image (PNG/JPEG)")("output,o", po::value(&output), "output image (.png or .jpg)")(
       "alpha", po::value(&alpha)->default_value(1.0f), "stylisation strength in [0,1] (0: reconstruct the content)")(
       "size", po::value(&size)->default_value(512), "longer image side in pixels (sides rounded to multiples of 8)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
@@ -44,7 +46,15 @@ int run_adain(int argc, char** argv) {
     return 2;
   }
   if (!(alpha >= 0.0f && alpha <= 1.0f)) throw std::runtime_error("--alpha must be in [0, 1]");
-  if (size < 8) throw std::runtime_error("--size must be at least 8");
+  if (size < stylerf::style::kAdainMinSide || size > stylerf::style::kAdainMaxSide)
+    throw std::runtime_error("--size must be in [" + std::to_string(stylerf::style::kAdainMinSide) + ", " +
+                             std::to_string(stylerf::style::kAdainMaxSide) + "] (got " + std::to_string(size) + ")");
+  {  // the output's type before any work: .png or .jpg
+    std::string ext = std::filesystem::path(output).extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext != ".png" && ext != ".jpg" && ext != ".jpeg")
+      throw std::runtime_error("-o " + output + ": unknown image type '" + ext + "' (use .png or .jpg)");
+  }
 
   stylerf::cli::init_runtime(device, profile);
   // Images first: a wrong path is reported before the weights (80 MB) are read.
@@ -62,7 +72,7 @@ int run_adain(int argc, char** argv) {
       stylerf::style::adain_stylize(model, stylerf::io::to_tensor(c), stylerf::io::to_tensor(s), alpha));
   double t_run = seconds_since(t2);  // from_tensor reads back, so the device work is finished here
   for (float& v : out.data) v = std::min(1.0f, std::max(0.0f, v));
-  stylerf::io::save_png(output, out);
+  stylerf::io::save_image(output, out);
 
   std::cout << "wrote " << output << " (" << out.width << "x" << out.height << ", style " << s.width << "x" << s.height
             << ", alpha " << alpha << ")\n"

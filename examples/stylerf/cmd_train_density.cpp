@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <iostream>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
@@ -19,7 +20,9 @@ namespace {
 
 using stylerf::host::Error;
 
-// "27000000", "300^3" -> voxel count.
+// "27000000", "300^3" -> voxel count. Bounded by 1024^3: beyond it the VM planes alone outgrow a
+// device's largest allocation (TensoRF's largest default is 640^3, LLFF).
+constexpr long long kMaxSide = 1024;
 int64_t parse_voxels(const std::string& s, const std::string& flag) {
   try {
     size_t used = 0;
@@ -28,11 +31,15 @@ int64_t parse_voxels(const std::string& s, const std::string& flag) {
       if (s.substr(caret) != "^3") throw std::invalid_argument(s);
       const long long side = std::stoll(s.substr(0, caret), &used);
       if (used != caret || side < 2) throw std::invalid_argument(s);
+      if (side > kMaxSide) throw std::out_of_range(s);
       return side * side * side;
     }
     const long long v = std::stoll(s, &used);
     if (used != s.size() || v < 8) throw std::invalid_argument(s);
+    if (v > kMaxSide * kMaxSide * kMaxSide) throw std::out_of_range(s);
     return v;
+  } catch (const std::out_of_range&) {
+    throw Error(flag + ": '" + s + "' is beyond the largest grid supported (" + std::to_string(kMaxSide) + "^3 voxels)");
   } catch (const std::exception&) {
     throw Error(flag + ": '" + s + "' is not a voxel count (e.g. 27000000 or 300^3)");
   }
@@ -52,7 +59,7 @@ int run_train_density(int argc, char** argv) {
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1;
   double minutes = 0;
-  bool view_dep = false, resume = false, no_mask = false, profile = false;
+  bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
       "output,o", po::value(&out), "checkpoint file to write (safetensors)")(
@@ -75,6 +82,7 @@ int run_train_density(int argc, char** argv) {
       "lr-net", po::value(&lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
       "seed", po::value(&seed)->default_value(0), "random seed (init, rays, jitter)")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
+      "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
       "log-every", po::value(&log_every)->default_value(100), "iterations between progress lines")(
       "ckpt-every", po::value(&ckpt_every)->default_value(1000), "iterations between checkpoints")(
       "eval-views", po::value(&eval_views)->default_value(0), "held-out views for the final PSNR (0: all)")(
@@ -83,13 +91,32 @@ int run_train_density(int argc, char** argv) {
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
-  if (vm.count("help") || dir.empty() || out.empty()) {
+  if (vm.count("help") || argc <= 1) {
     std::cout << desc;
-    return (dir.empty() || out.empty()) && !vm.count("help") ? 2 : 0;
+    return vm.count("help") ? 0 : 2;
   }
-  if (iters < 0 || batch < 1 || log_every < 0) throw Error("--iters, --batch and --log-every must be positive");
-  if (minutes < 0 || (minutes > 0 && (iters > 0 || resume)))
-    throw Error("--minutes must be positive and goes without --iters and --resume");
+  // Every number is checked before anything loads: 0 or NaN never silently mean "the default".
+  namespace cli = stylerf::cli;
+  if (dir.empty()) throw Error("--scene DIR is required");
+  cli::check_int_range("--downsample", downsample, 1, 64);
+  if (vm.count("iters")) cli::check_int_range("--iters", iters, 1, 10000000);
+  if (vm.count("minutes")) cli::check_range("--minutes", minutes, 0.01, 100000);
+  if (minutes > 0 && (vm.count("iters") || resume)) throw Error("--minutes goes without --iters and --resume");
+  cli::check_int_range("--batch", batch, 1, 1 << 22);
+  cli::check_int_range("--log-every", log_every, 0, 100000000);
+  cli::check_int_range("--ckpt-every", ckpt_every, 0, 100000000);
+  cli::check_int_range("--eval-views", eval_views, 0, 100000);
+  if (vm.count("lr-grid")) cli::check_range("--lr-grid", lr_grid, 1e-8, 10);
+  if (vm.count("lr-net")) cli::check_range("--lr-net", lr_net, 1e-8, 10);
+  if (resume && (vm.count("final-voxels") || vm.count("init-voxels") || vm.count("upsample-at") || vm.count("mask-at") ||
+                 vm.count("density-rank") || vm.count("app-rank") || vm.count("lr-grid") || vm.count("lr-net") ||
+                 vm.count("density-activation")))
+    throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
+  const int64_t vfinal = final_voxels.empty() ? 0 : parse_voxels(final_voxels, "--final-voxels");
+  const int64_t vinit = init_voxels.empty() ? 0 : parse_voxels(init_voxels, "--init-voxels");
+  if (vinit > 0 && vfinal > 0 && vinit > vfinal)
+    throw Error("--init-voxels (" + init_voxels + ") must not exceed --final-voxels (" + final_voxels + ")");
+  cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, profile);
 
   stylerf::scene::LoadOptions lo;
@@ -107,6 +134,9 @@ int run_train_density(int argc, char** argv) {
                   "', not '" + scene.name + "'");
     trainer = std::make_unique<train::DensityTrainer>(scene, ck);
     std::cout << "resuming from " << out << " at iteration " << trainer->iteration() << "\n";
+    if (iters > 0 && iters <= trainer->iteration())
+      throw Error("--resume --iters " + std::to_string(iters) + ": checkpoint " + out + " is already at iteration " +
+                  std::to_string(trainer->iteration()) + "; give a larger --iters to train further");
     if (iters > 0) {
       // Extending (or shortening) a resumed run: only the horizon changes.
       const int had = trainer->config().schedule.iters;
@@ -119,8 +149,11 @@ int run_train_density(int argc, char** argv) {
     cfg.batch = batch;
     cfg.seed = seed;
     if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);
-    if (!final_voxels.empty()) cfg.schedule.voxels_final = parse_voxels(final_voxels, "--final-voxels");
-    if (!init_voxels.empty()) cfg.schedule.voxels_init = parse_voxels(init_voxels, "--init-voxels");
+    if (vfinal > 0) cfg.schedule.voxels_final = vfinal;
+    if (vinit > 0) cfg.schedule.voxels_init = vinit;
+    if (cfg.schedule.voxels_init > cfg.schedule.voxels_final)
+      throw Error("--init-voxels " + std::to_string(cfg.schedule.voxels_init) + " exceeds the final grid's " +
+                  std::to_string(cfg.schedule.voxels_final) + " voxels; pass a larger --final-voxels");
     if (vm.count("upsample-at")) cfg.schedule.upsample_at = train::parse_int_list(upsample_at, "--upsample-at");
     if (vm.count("mask-at")) cfg.schedule.mask_at = train::parse_int_list(mask_at, "--mask-at");
     if (no_mask) cfg.alpha_mask = false;

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <tuple>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
@@ -72,14 +73,7 @@ int run_train_features(int argc, char** argv) {
     throw Error("--batch must be >= 1; --log-every, --ckpt-every and --eval-views >= 0");
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
   const auto profile = model::parse_decoder_profile(profile_name);
-  if (!resume && fs::exists(out) && !force)
-    throw Error("-o " + out + " exists: pass --resume to continue it or --force to overwrite it");
-  {
-    // Fail now, not after the first part of training, when the checkpoint cannot be written.
-    const fs::path parent = fs::absolute(out).parent_path();
-    if (!fs::is_directory(parent)) throw Error("-o " + out + ": directory " + parent.string() + " does not exist");
-    if (fs::is_directory(out)) throw Error("-o " + out + " is a directory");
-  }
+  stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
 
   std::unique_ptr<stylerf::io::Checkpoint> resumed;

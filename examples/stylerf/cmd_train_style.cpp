@@ -9,6 +9,7 @@
 #include <iomanip>
 #include <iostream>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
@@ -76,13 +77,7 @@ int run_train_style(int argc, char** argv) {
     if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
-  if (!resume && fs::exists(out) && !force)
-    throw Error("-o " + out + " exists: pass --resume to continue it or --force to overwrite it");
-  {
-    const fs::path parent = fs::absolute(out).parent_path();
-    if (!fs::is_directory(parent)) throw Error("-o " + out + ": directory " + parent.string() + " does not exist");
-    if (fs::is_directory(out)) throw Error("-o " + out + " is a directory");
-  }
+  stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
 
   std::unique_ptr<stylerf::io::Checkpoint> ck;

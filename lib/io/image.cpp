@@ -138,9 +138,15 @@ std::array<int, 2> fit_size(int width, int height, int longer, int multiple) {
   return {round_to(width * s), round_to(height * s)};
 }
 
-void save_png(const std::string& path, const Image& img) {
+namespace {
+std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+std::vector<unsigned char> to_bytes(const std::string& path, const Image& img) {
   if (img.width <= 0 || img.height <= 0 || img.data.size() != size_t(3) * img.width * img.height)
-    throw Error("save_png " + path + ": image has an invalid size");
+    throw Error("cannot write " + path + ": the image has an invalid size");
   std::vector<unsigned char> rgb(size_t(3) * img.width * img.height);
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < img.width; ++x)
@@ -149,6 +155,25 @@ void save_png(const std::string& path, const Image& img) {
         v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
         rgb[(size_t(y) * img.width + x) * 3 + c] = static_cast<unsigned char>(std::lround(v * 255.0f));
       }
+  return rgb;
+}
+}  // namespace
+
+void save_image(const std::string& path, const Image& img) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".png") return save_png(path, img);
+  if (ext != ".jpg" && ext != ".jpeg")
+    throw Error("cannot write " + path + ": unknown image type '" + ext + "' (use .png or .jpg)");
+  const auto rgb = to_bytes(path, img);
+  host::write_atomic_with(path, [&](const std::string& tmp) {
+    if (!stbi_write_jpg(tmp.c_str(), img.width, img.height, 3, rgb.data(), 95)) throw Error("cannot write JPEG " + path);
+  });
+}
+
+void save_png(const std::string& path, const Image& img) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".jpg" || ext == ".jpeg") throw Error("cannot write " + path + ": PNG data under a JPEG name (use .png)");
+  const auto rgb = to_bytes(path, img);
   host::write_atomic_with(path, [&](const std::string& tmp) {
     if (!stbi_write_png(tmp.c_str(), img.width, img.height, 3, rgb.data(), img.width * 3))
       throw Error("cannot write PNG " + path);

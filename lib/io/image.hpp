@@ -39,7 +39,10 @@ Image resize(const Image& img, int width, int height);
 std::array<int, 2> fit_size(int width, int height, int longer, int multiple);
 
 // Writes an 8-bit RGB PNG, atomically. Values are clamped to [0,1] and rounded.
-void save_png(const std::string& path, const Image& img);
+void save_png(const std::string& path, const Image& img);  // refuses a .jpg/.jpeg name (use save_image)
+// By the name's extension: .png (PNG) or .jpg/.jpeg (JPEG, quality 95); anything else is an error naming
+// the file, so PNG bytes never land in a file called .jpg.
+void save_image(const std::string& path, const Image& img);
 
 // Image -> device tensor [1,3,H,W]; tensor [N,3,H,W] (image n) -> Image, values as they are (unclamped).
 host::Tensor to_tensor(const Image& img);

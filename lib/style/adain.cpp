@@ -27,11 +27,18 @@ Tensor adain_stylize(AdainModel& model, const Tensor& content, const Tensor& sty
 }
 
 io::Image load_image_for_adain(const std::string& path, int size) {
-  if (size < 8) throw Error("adain: size must be at least 8");
+  if (size < kAdainMinSide || size > kAdainMaxSide)
+    throw Error("adain: --size must be in [" + std::to_string(kAdainMinSide) + ", " + std::to_string(kAdainMaxSide) +
+                "] (got " + std::to_string(size) + ")");
   // Transparent pixels (Blender renders) become white, as the scenes are shown.
   const std::array<float, 3> white{1.0f, 1.0f, 1.0f};
   io::Image img = io::load_image(path, &white);
   auto [w, h] = io::fit_size(img.width, img.height, size, 8);
+  if (std::min(w, h) < kAdainMinSide)
+    throw Error("adain: " + path + " is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
+                ": at --size " + std::to_string(size) + " its shorter side would be " + std::to_string(std::min(w, h)) +
+                " px, and AdaIN needs " + std::to_string(kAdainMinSide) +
+                " (VGG pools three times; reflect padding then needs 2 px)");
   return io::resize(img, w, h);
 }
 

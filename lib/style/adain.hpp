@@ -21,7 +21,11 @@ struct AdainModel {
 // [1,3,H,W], not clamped. alpha = 1: full stylisation; alpha = 0: dec(enc(content)).
 host::Tensor adain_stylize(AdainModel& model, const host::Tensor& content, const host::Tensor& style, float alpha);
 
-// Loads an image and resizes it so its longer side is `size`, both sides multiples of 8.
+// Sides AdaIN accepts: relu4_1 is at 1/8 and its reflect padding needs 2 px there; 4096 bounds the memory
+// (a 4096x4096 relu1_1 map is 4 GB).
+constexpr int kAdainMinSide = 16, kAdainMaxSide = 4096;
+// Loads an image and resizes it so its longer side is `size` (in [16, 4096]), both sides multiples of 8;
+// an image whose shorter side would fall below 16 is an error naming the file, before any compute.
 io::Image load_image_for_adain(const std::string& path, int size);
 
 // Files in, PNG out: the `stylerf adain` command's work. The output is clamped to [0,1].
