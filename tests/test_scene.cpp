@@ -452,7 +452,33 @@ TEST_CASE("bad Blender inputs give errors naming the file") {
     host::write_file_atomic((p / "transforms_train.json").string(), j.dump());
     std::string e = error_of([&] { load_scene(p.string(), quiet()); });
     CHECK(has(e, "transforms_train.json frame 1"));
-    CHECK(has(e, "non-finite"));
+    CHECK(has(e, "is not a number"));
+  }
+  {
+    fs::path p = fresh("string_pose");
+    auto j = nlohmann::json::parse(host::read_file((p / "transforms_train.json").string()));
+    j["frames"][2]["transform_matrix"][1][1] = "0.5";
+    host::write_file_atomic((p / "transforms_train.json").string(), j.dump());
+    std::string e = error_of([&] { load_scene(p.string(), quiet()); });
+    CHECK(has(e, "transforms_train.json frame 2"));
+    CHECK(has(e, "is not a number: \"0.5\""));
+  }
+  {
+    fs::path p = fresh("zero_pose");  // a degenerate matrix: NaN cameras if accepted
+    auto j = nlohmann::json::parse(host::read_file((p / "transforms_train.json").string()));
+    j["frames"][3]["transform_matrix"] = nlohmann::json::array({{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 1}});
+    host::write_file_atomic((p / "transforms_train.json").string(), j.dump());
+    std::string e = error_of([&] { load_scene(p.string(), quiet()); });
+    CHECK(has(e, "transforms_train.json frame 3"));
+    CHECK(has(e, "not a rigid transform"));
+  }
+  {
+    fs::path p = fresh("scaled_pose");  // a rotation scaled by 2
+    auto j = nlohmann::json::parse(host::read_file((p / "transforms_test.json").string()));
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) j["frames"][0]["transform_matrix"][r][c] = 2 * j["frames"][0]["transform_matrix"][r][c].get<double>();
+    host::write_file_atomic((p / "transforms_test.json").string(), j.dump());
+    CHECK(has(error_of([&] { load_scene(p.string(), quiet()); }), "not a rigid transform"));
   }
   {
     fs::path p = fresh("nan_text");
@@ -497,6 +523,15 @@ TEST_CASE("bad LLFF inputs: count mismatch, NaN pose, wrong shape, different siz
     fs::path p = fresh("nan", 20, [](std::vector<float>& v) { v[5 * 17 + 3] = std::nanf(""); });
     std::string e = error_of([&] { load_scene(p.string(), quiet(8)); });
     CHECK(has(e, "poses_bounds.npy: pose 5 has a non-finite entry"));
+  }
+  {
+    // A zeroed pose once reclassified fern as an object capture; now it is refused, naming the pose.
+    fs::path p = fresh("zero", 20, [](std::vector<float>& v) {
+      for (int k = 0; k < 15; ++k) v[7 * 17 + k] = 0.0f;
+    });
+    std::string e = error_of([&] { load_scene(p.string(), quiet(8)); });
+    CHECK(has(e, "poses_bounds.npy: pose 7"));
+    CHECK(has(e, "not a rigid transform"));
   }
   {
     fs::path p = fresh("inf", 20, [](std::vector<float>& v) { v[2 * 17 + 16] = INFINITY; });

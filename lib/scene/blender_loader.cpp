@@ -61,7 +61,8 @@ std::vector<View> load_split(const std::string& dir, const std::string& split, c
       for (int c = 0; c < 4; ++c) {
         // JSON has no NaN literal; Python's json writes NaN/Infinity, which nlohmann rejects at parse
         // time, and null would land here: treat any non-number as a bad pose.
-        if (!m[r][c].is_number()) throw Error(what + ": camera pose has a non-finite entry (" + m[r][c].dump() + ")");
+        if (!m[r][c].is_number()) throw Error(what + ": camera pose entry (row " + std::to_string(r) + ", column " + std::to_string(c) +
+                    ") is not a number: " + m[r][c].dump());
         v.camera.c2w[r][c] = m[r][c].get<float>();
       }
     }

@@ -125,6 +125,7 @@ Scene load_llff(const std::string& dir, const LoadOptions& opts) {
       poses[i].m[r][2] = pr[2];
       poses[i].m[r][3] = pr[3];
     }
+    check_pose(poses[i].m, npy + ": pose " + std::to_string(i));
     near_b[i] = row[15];
     far_b[i] = row[16];
     if (!(near_b[i] > 0 && far_b[i] > near_b[i]))

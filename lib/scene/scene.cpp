@@ -37,12 +37,37 @@ bool Camera::project(const std::array<float, 3>& p, float& px, float& py) const 
   return true;
 }
 
-void check_pose_finite(const float c2w[3][4], const std::string& what) {
+void check_pose(const double c2w[3][4], const std::string& what) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 4; ++c)
       if (!std::isfinite(c2w[r][c]))
         throw Error(what + ": camera pose has a non-finite entry (row " + std::to_string(r) + ", column " +
                     std::to_string(c) + " is " + std::to_string(c2w[r][c]) + ")");
+  // The rotation must be orthonormal with determinant +1 (a rigid camera): an all-zero or scaled matrix
+  // would give NaN or skewed rays. 1e-3 allows the rounding of poses stored as text.
+  double worst = 0;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      double d = 0;
+      for (int r = 0; r < 3; ++r) d += c2w[r][a] * c2w[r][b];
+      worst = std::max(worst, std::abs(d - (a == b ? 1.0 : 0.0)));
+    }
+  const double det = c2w[0][0] * (c2w[1][1] * c2w[2][2] - c2w[1][2] * c2w[2][1]) -
+                     c2w[0][1] * (c2w[1][0] * c2w[2][2] - c2w[1][2] * c2w[2][0]) +
+                     c2w[0][2] * (c2w[1][0] * c2w[2][1] - c2w[1][1] * c2w[2][0]);
+  if (worst > 1e-3 || det < 0.5) {
+    std::ostringstream o;
+    o << what << ": camera pose is not a rigid transform (its rotation part has |R^T R - I| = " << worst
+      << " and det " << det << "; a camera-to-world matrix needs an orthonormal rotation with det +1)";
+    throw Error(o.str());
+  }
+}
+
+void check_pose_finite(const float c2w[3][4], const std::string& what) {
+  double m[3][4];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) m[r][c] = c2w[r][c];
+  check_pose(m, what);
 }
 
 std::string Scene::describe() const {

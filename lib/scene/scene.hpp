@@ -81,6 +81,8 @@ struct LoadOptions {
 Scene load_scene(const std::string& dir, const LoadOptions& opts = {});
 
 // Throws host::Error naming `what` if any entry of the 3x4 pose is NaN or infinite.
-void check_pose_finite(const float c2w[3][4], const std::string& what);
+// Throws naming `what` unless the camera-to-world matrix is finite and rigid (orthonormal rotation, det +1).
+void check_pose(const double c2w[3][4], const std::string& what);
+void check_pose_finite(const float c2w[3][4], const std::string& what);  // the same, float
 
 }  // namespace stylerf::scene
