@@ -119,7 +119,19 @@ DeviceInfo choose_device(const std::string& spec_in) {
         return d;
   }
   std::ostringstream msg;
-  msg << "unknown OpenCL device '" << spec << "' (give an index, a type cpu|gpu|accelerator, or part of a name). "
+  const char* from = spec_in.empty() ? "STYLERF_DEVICE" : "--device";
+  if (s == "gpu" || s == "cpu" || s == "accelerator") {
+    msg << "no OpenCL " << (s == "gpu" ? "GPU" : s == "cpu" ? "CPU" : "accelerator") << " device was found (asked for by "
+        << from << "=" << spec << "); unset it or pick one of the devices found:";
+    for (const auto& d : devices) msg << "\n  " << d.describe();
+    throw Error(msg.str());
+  }
+  if (numeric) {
+    msg << "no OpenCL device " << spec << " (asked for by " << from << "): " << devices.size() << " found:";
+    for (const auto& d : devices) msg << "\n  " << d.describe();
+    throw Error(msg.str());
+  }
+  msg << "unknown OpenCL device '" << spec << "' (from " << from << "; give an index, a type cpu|gpu|accelerator, or part of a name). "
       << "Devices found:";
   for (const auto& d : devices) msg << "\n  " << d.describe();
   throw Error(msg.str());

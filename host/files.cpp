@@ -22,7 +22,6 @@ namespace {
 constexpr int kSlots = 16, kPathMax = 4096;
 char g_temp_paths[kSlots][kPathMax];
 std::mutex g_temp_mutex;
-std::atomic<bool> g_handlers_installed{false};
 
 extern "C" void remove_temps_and_reraise(int sig) {
   for (auto& p : g_temp_paths)
@@ -52,7 +51,8 @@ bool process_alive(long pid) { return pid > 0 && (::kill(pid_t(pid), 0) == 0 || 
 }  // namespace
 
 void install_temp_file_cleanup() {
-  if (g_handlers_installed.exchange(true)) return;
+  // Checked on every call (two sigaction queries): a handler set up later by the program keeps priority,
+  // and one that is reset to the default gets ours again.
   for (int sig : {SIGINT, SIGTERM}) {
     struct sigaction old {};
     ::sigaction(sig, nullptr, &old);

@@ -12,8 +12,8 @@ void write_atomic_with(const std::string& path, const std::function<void(const s
 std::string read_file(const std::string& path);  // throws Error naming the path when unreadable
 
 // Temporary files of atomic writes in progress are removed when the process gets SIGINT or SIGTERM (the
-// handler unlinks them, then lets the signal end the process as it would have). Installed once by the
-// first atomic write; programs may install it earlier. SIGKILL cannot be caught: see remove_stale_temps.
+// handler unlinks them, then lets the signal end the process as it would have). Every atomic write
+// installs it where the signal still has its default action (a program's own handler is left alone). SIGKILL cannot be caught: see remove_stale_temps.
 void install_temp_file_cleanup();
 // Removes `path`.tmp-PID files left by processes that no longer run (a killed writer); returns how many.
 // Files of a live process (another writer of the same target) are left alone.

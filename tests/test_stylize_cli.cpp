@@ -18,6 +18,7 @@
 #include "lib/model/style_model.hpp"
 #include "lib/scene/make_scene.hpp"
 #include "lib/scene/scene_meta.hpp"
+#include "tests/cli_runner.hpp"
 #include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
 
@@ -28,20 +29,8 @@ namespace {
 
 std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_FIXTURES) + "/styles/" + name; }
 
-struct Run {
-  int code = 0;
-  std::string output;
-};
-Run stylerf_cli(const std::string& args) {
-  const std::string log = (testing::small_work_dir() / "cli.log").string();
-  const std::string cmd = std::string("'") + STYLERF_CLI + "' " + args + " > '" + log + "' 2>&1";
-  const int status = std::system(cmd.c_str());
-  std::ifstream f(log);
-  Run r;
-  r.output.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using Run = testing::CliRun;
+Run stylerf_cli(const std::string& args) { return testing::run_cli(args); }
 
 // A style checkpoint (untrained stylizer: the plumbing is under test, not the quality) and a feature one.
 struct Checkpoints {

@@ -168,7 +168,9 @@ int run_render(int argc, char** argv) {
   auto lo = stylerf::scene::load_options_from_meta(smeta);
   lo.load_images = views == "test";
   lo.log = &std::cout;
+  stylerf::scene::check_scene_dir_format(smeta, scene_dir, ckpt);
   const auto scene = stylerf::scene::load_scene(scene_dir, lo);
+  if (!smeta.empty()) stylerf::scene::check_same_scene(smeta, scene, lo.downsample, ckpt);
   std::cout << renderer.describe() << "\n";
   if (out.empty()) out = ckpt + "_render_" + views;
   fs::create_directories(out);

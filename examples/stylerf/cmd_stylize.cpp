@@ -209,6 +209,7 @@ int run_stylize(int argc, char** argv) {
   auto lo = stylerf::scene::load_options_from_meta(smeta);
   lo.load_images = views == "test" && !no_losses;
   if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
+  stylerf::scene::check_scene_dir_format(smeta, scene_dir, ckpt);
   const auto scene = stylerf::scene::load_scene(scene_dir, lo);
   stylerf::scene::check_same_scene(smeta, scene, lo.downsample, ckpt);
   auto vgg = stylerf::nn::VggEncoder::load_default();

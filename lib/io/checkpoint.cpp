@@ -71,6 +71,8 @@ void save_checkpoint(const std::string& path, const Checkpoint& ck) {
 
 Checkpoint load_checkpoint(const std::string& path, const std::string& expected_kind) {
   std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw Error("checkpoint " + path + " is a folder, not a checkpoint file");
   if (!std::filesystem::is_regular_file(path, ec))
     throw Error("checkpoint " + path + " does not exist" +
                 (expected_kind.empty() ? std::string() : " (train one with `stylerf train-" + expected_kind + "`)"));

@@ -18,7 +18,8 @@ std::string weights_dir();
 // weights_dir()/file, or `file` itself when it contains a '/' (an explicit path).
 std::string weights_path(const std::string& file);
 
-// Loads a weights file; when it is missing the error names the path and the set-up command.
+// Loads a weights file; when it is missing the error names the path and the set-up command. The file must
+// match the sha256 its folder's manifest.json records (when it lists it), and every value must be finite.
 io::SafeTensors load_weights(const std::string& path);
 
 }  // namespace stylerf::nn

@@ -45,4 +45,18 @@ void check_same_scene(const nlohmann::json& meta, const Scene& scene, int downsa
                       std::to_string(ds) + "), not on '" + scene.name + "' (" + scene.format + ", downsample " +
                       std::to_string(downsample) + ") from " + scene.root);
 }
+
+void check_scene_dir_format(const nlohmann::json& meta, const std::string& dir, const std::string& checkpoint) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const bool blender = fs::exists(fs::path(dir) / "transforms_train.json", ec);
+  const bool llff = fs::exists(fs::path(dir) / "poses_bounds.npy", ec);
+  if (!blender && !llff) return;  // the loader names what is missing
+  const std::string format = meta.value("format", ""), name = meta.value("name", "");
+  if (format.empty()) return;
+  const bool want_blender = format == "blender";
+  if (want_blender != blender || (!want_blender && !llff))
+    throw host::Error("checkpoint " + checkpoint + " was trained on scene '" + name + "' (" + format + "), but " + dir +
+                      " is " + (blender ? "a Blender-format scene" : "an LLFF capture"));
+}
 }  // namespace stylerf::scene

@@ -18,4 +18,8 @@ namespace stylerf::scene {
 // Throws an Error naming `checkpoint` and both scenes when meta (a checkpoint's scene section) was not
 // made from `scene` loaded with `downsample`: another name, format or downsample factor.
 void check_same_scene(const nlohmann::json& meta, const Scene& scene, int downsample, const std::string& checkpoint);
+// Before loading a scene folder given for a checkpoint (--scene): its format (Blender or LLFF, from the
+// files present) must be the one the checkpoint was trained on, so a mismatch is reported as such rather
+// than as a complaint about load options (--ndc, --downsample) the user never gave.
+void check_scene_dir_format(const nlohmann::json& meta, const std::string& dir, const std::string& checkpoint);
 }  // namespace stylerf::scene

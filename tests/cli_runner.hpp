@@ -1,0 +1,29 @@
+// Runs the built `stylerf` tool as a user would (through a shell), for the suites that test commands end to
+// end. The suite must be compiled with STYLERF_CLI (CMakeLists.txt sets it for those suites).
+#pragma once
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <sys/wait.h>
+
+#include "tests/small_scene.hpp"
+
+namespace stylerf::testing {
+
+struct CliRun {
+  int code = 0;  // exit status; -1 when killed by a signal
+  std::string output;
+};
+
+inline CliRun run_cli(const std::string& args) {
+  const std::string log = (small_work_dir() / "cli.log").string();
+  const std::string cmd = std::string("'") + STYLERF_CLI + "' " + args + " > '" + log + "' 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream f(log);
+  CliRun r;
+  r.output.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+}  // namespace stylerf::testing
