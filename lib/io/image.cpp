@@ -37,6 +37,12 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
   if (fs::file_size(path, ec) == 0) throw Error("image " + path + " is an empty file (0 bytes)");
 
   int w = 0, h = 0, comp = 0;
+  // The header's size before any pixel is allocated: a few bytes can claim gigapixels.
+  if (stbi_info(path.c_str(), &w, &h, &comp) && (w > kMaxImageSide || h > kMaxImageSide ||
+                                                 int64_t(w) * h > kMaxImagePixels))
+    throw Error("image " + path + " is " + std::to_string(w) + "x" + std::to_string(h) + ", beyond the " +
+                std::to_string(kMaxImageSide) + " px per side and " + std::to_string(kMaxImagePixels / 1000000) +
+                " megapixels read here; resize it first");
   // 16-bit PNGs keep their precision; everything else decodes to 8 bits. Always ask for 4 channels and
   // use `comp` (the file's own count) to know whether the alpha is real.
   bool sixteen = stbi_is_16_bit(path.c_str());

@@ -2,6 +2,7 @@
 // from device tensors. Pixels are float RGB in [0,1], stored planar [3,H,W] like a tensor.
 #pragma once
 #include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -21,7 +22,10 @@ struct Image {
 // channel is composited over `background` when one is given (Blender scenes: white), else dropped.
 // When `alpha` is given it receives the alpha channel, [height * width] in [0,1], or is left empty when
 // the file has none (scenes need both the composited colour and the mask).
-// Errors name the file: missing, not an image / unreadable, zero size.
+// Errors name the file: missing, not an image / unreadable, zero size, or larger than kMaxImageSide per
+// side or kMaxImagePixels in all (checked from the header, before decoding).
+constexpr int kMaxImageSide = 32768;
+constexpr int64_t kMaxImagePixels = 200000000;
 Image load_image(const std::string& path, const std::array<float, 3>* background = nullptr,
                  std::vector<float>* alpha = nullptr);
 
