@@ -42,6 +42,8 @@ std::string dict_value(const std::string& header, const std::string& key, const 
 
 std::vector<size_t> parse_shape(const std::string& tuple, const std::string& path) {
   std::vector<size_t> shape;
+  if (tuple.size() < 2 || tuple.front() != '(' || tuple.back() != ')')
+    throw Error("npy file " + path + ": the shape '" + tuple + "' is not a tuple");
   std::string inner = tuple.substr(1, tuple.size() - 2);
   std::stringstream ss(inner);
   std::string item;
@@ -96,7 +98,12 @@ NpyArray read_npy(const std::string& path) {
   a.shape = parse_shape(dict_value(header, "shape", path), path);
 
   size_t count = 1;
-  for (size_t d : a.shape) count *= d;
+  for (size_t d : a.shape) {
+    // A corrupt header may claim dimensions whose product overflows: refuse it rather than wrap around.
+    if (d != 0 && count > (size_t(1) << 40) / d)
+      throw Error("npy file " + path + ": shape " + shape_text(a.shape) + " is impossibly large (corrupt header)");
+    count *= d;
+  }
   size_t item = 0;
   if (a.dtype == "<f8" || a.dtype == "<i8") item = 8;
   else if (a.dtype == "<f4" || a.dtype == "<i4") item = 4;

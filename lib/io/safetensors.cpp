@@ -63,7 +63,7 @@ size_t dtype_size(const std::string& dtype) {
 std::vector<float> decode(const std::string& dtype, const unsigned char* p, size_t n) {
   std::vector<float> out(n);
   if (dtype == "F32") {
-    std::memcpy(out.data(), p, n * 4);
+    if (n > 0) std::memcpy(out.data(), p, n * 4);  // an empty tensor: out.data() may be null
   } else if (dtype == "F64") {
     for (size_t i = 0; i < n; ++i) {
       double d;
