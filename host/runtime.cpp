@@ -133,7 +133,11 @@ std::string Runtime::program_source(const std::string& program) const {
 
 cl_program Runtime::build_program(const std::string& program, const std::string& options) {
   const std::string source = program_source(program);
-  const std::string full_options = "-cl-std=CL1.2 -cl-mad-enable " + options;
+  // STYLERF_CL_OPTIONS adds build options for every program, e.g. "-Drestrict=" for Oclgrind, whose
+  // LLVM cannot build kernels with restrict pointers (scripts/oclgrind.sh).
+  const char* extra = std::getenv("STYLERF_CL_OPTIONS");
+  const std::string full_options =
+      "-cl-std=CL1.2 -cl-mad-enable " + options + (extra && *extra ? std::string(" ") + extra : std::string());
   cl_int err = CL_SUCCESS;
   cl_program prog = nullptr;
 
