@@ -165,25 +165,29 @@ TEST_CASE("schedule: fitted to another length keeps events that fit, pulls in th
   CHECK_THROWS_AS(s.fitted(0), host::Error);
 }
 
-TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never into the past") {
+TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never into the past or the last 10%") {
   auto cfg = small_config(200);
   cfg.schedule.upsample_at = {60, 120};
   cfg.schedule.mask_at = {60};
   train::DensityTrainer t(small_scene(), cfg);
-  t.refit_schedule(100);  // before anything fired: fitted(100) of the 200-step plan, first event at 100
+  t.refit_schedule(100);  // fitted(100) of the 200-step plan puts the events at 100 and 200: past 90, dropped
   CHECK(t.config().schedule.iters == 100);
-  CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
-  t.refit_schedule(400);  // longer: the events would fit unmoved, but 60 < 100: scaled by 100 / 60
+  CHECK(t.config().schedule.upsample_at.empty());
+  CHECK(t.config().schedule.mask_at.empty());
+  CHECK(t.config().schedule.voxels_final == cfg.schedule.voxels_init);  // no upsample: the grid stays
+  t.refit_schedule(400);  // longer: the events come back (from the plan), scaled by 100 / 60, within 360
   CHECK(t.config().schedule.iters == 400);
   CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
   CHECK(t.config().schedule.mask_at == std::vector<int>{100});
+  CHECK(t.config().schedule.voxels_final == cfg.schedule.voxels_final);
   for (int i = 0; i < 3; ++i) t.step();
   // After 3 steps nothing fired; a refit shorter than the steps taken runs at least one more step.
   t.refit_schedule(2);
   CHECK(t.config().schedule.iters == 4);
-  CHECK(t.config().schedule.upsample_at == std::vector<int>{100, 200});
+  CHECK(t.config().schedule.upsample_at.empty());
 
-  // Once an event has fired it stays where it was; the later one moves with the refit.
+  // Once an event has fired it stays where it was; the later one moves with the refit, or is dropped when
+  // it would land in the last 10%: the final grid is then the fired upsample's.
   auto cfg2 = small_config(400);
   cfg2.schedule.upsample_at = {150, 300};
   cfg2.schedule.mask_at = {150};
@@ -191,10 +195,14 @@ TEST_CASE("refit_schedule: fired events keep their steps, later ones move, never
   const auto res_before = u.model().res();
   for (int i = 0; i < 151; ++i) u.step();
   CHECK(u.model().res() != res_before);  // the upsample at 150 happened
-  u.refit_schedule(200);                 // fitted(200): factor 100 / 150 -> 100, 200; mask 100
-  CHECK(u.config().schedule.upsample_at == std::vector<int>{150, 200});
+  u.refit_schedule(200);                 // fitted(200): 100, 200 -> fired 150 kept, 200 > 180 dropped
+  CHECK(u.config().schedule.upsample_at == std::vector<int>{150});
   CHECK(u.config().schedule.mask_at == std::vector<int>{150});
   CHECK(u.config().schedule.voxels_after(151) == cfg2.schedule.voxels_after(151));
+  CHECK(u.config().schedule.voxels_final == cfg2.schedule.voxels_after(151));
+  u.refit_schedule(1000);  // room again: fitted(1000) keeps the plan's 300, inside 900: it returns
+  CHECK(u.config().schedule.upsample_at == std::vector<int>{150, 300});
+  CHECK(u.config().schedule.voxels_final == cfg2.schedule.voxels_final);
 }
 
 TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run stops on time") {

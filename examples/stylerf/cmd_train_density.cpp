@@ -2,6 +2,7 @@
 // VM grids on RGB). Prints the scene and the effects switched on, the schedule, progress lines, and the
 // held-out PSNR at the end; checkpoints are written atomically every --ckpt-every steps and at the end.
 #include <boost/program_options.hpp>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -85,7 +86,8 @@ int run_train_density(int argc, char** argv) {
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
       "log-every", po::value(&log_every)->default_value(100), "iterations between progress lines")(
       "ckpt-every", po::value(&ckpt_every)->default_value(1000), "iterations between checkpoints")(
-      "eval-views", po::value(&eval_views)->default_value(0), "held-out views for the final PSNR (0: all)")(
+      "eval-views", po::value(&eval_views)->default_value(5),
+      "held-out views for the final PSNR, evenly spaced (0: all; timed apart from training)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
       "profile", po::bool_switch(&profile), "print per-kernel times at the end");
   po::variables_map vm;
@@ -186,9 +188,12 @@ int run_train_density(int argc, char** argv) {
             << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9) << " it/s); checkpoint "
             << out << "\n";
   if (!scene.test.empty()) {
+    const auto t_eval = std::chrono::steady_clock::now();
     const auto scores = train::evaluate_views(trainer->model(), scene, eval_views, false);
     std::cout << "test PSNR " << std::setprecision(2) << train::mean_psnr(scores) << " dB over " << scores.size()
-              << " held-out views" << std::endl;
+              << " held-out views (evaluation " << std::setprecision(1)
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_eval).count()
+              << " s, beside the training time; --eval-views 0 for all " << scene.test.size() << ")" << std::endl;
   }
   if (profile) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;

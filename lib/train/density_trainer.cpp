@@ -151,6 +151,20 @@ void DensityTrainer::refit_schedule(int total_iters) {
   };
   next.upsample_at = merge(cfg_.schedule.upsample_at, fit.upsample_at);
   next.mask_at = merge(cfg_.schedule.mask_at, fit.mask_at);
+  // No event in the last 10% of the run: an upsample there resets Adam on a larger grid for a handful of
+  // steps, a mask update rebuilds it for none. Such events are dropped (a suffix: the lists are sorted and
+  // fired events come first); the grid then ends at the size its last kept upsample reaches, which keeps
+  // the voxel steps of the events before it unchanged (they are log-linear in the event index).
+  const int limit = int(0.9 * double(next.iters));
+  auto drop_late = [&](std::vector<int>& v) {
+    while (!v.empty() && v.back() > limit && v.back() > iteration_) v.pop_back();
+  };
+  const auto voxels = next.voxel_list();
+  const size_t planned = next.upsample_at.size();
+  drop_late(next.upsample_at);
+  if (next.upsample_at.size() < planned)
+    next.voxels_final = next.upsample_at.empty() ? next.voxels_init : voxels[next.upsample_at.size() - 1];
+  drop_late(next.mask_at);
   next.validate();
   cfg_.schedule = next;
 }

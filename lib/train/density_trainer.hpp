@@ -83,7 +83,9 @@ class DensityTrainer {
   }
   // Re-sizes the rest of the run to `total_iters` steps: the schedule the trainer was built with, fitted
   // to that length (Schedule::fitted); events that already fired keep their iterations, later ones move
-  // (never to a step already taken). Used by time-budgeted runs as the step rate becomes known.
+  // (never to a step already taken), and events not yet fired that would land in the last 10% of the run
+  // are dropped (the final grid is then the last kept upsample's). Used by time-budgeted runs as the step
+  // rate becomes known.
   void refit_schedule(int total_iters);
   // `scene_meta` (how to reload the scene) is stored beside the model and optimiser state.
   void save(const std::string& path, const nlohmann::json& scene_meta);
