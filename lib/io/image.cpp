@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iterator>
 #include <fstream>
 #include <memory>
 
@@ -16,8 +17,36 @@ namespace stylerf::io {
 
 using host::Error;
 
+namespace {
+// stb_image 2.27 (Debian's) writes past a 257-entry array when a JPEG Huffman table declares more than 256
+// codes (found by fuzz/fuzz_image; fixed upstream in 2.28). Such tables are refused here before stb sees
+// them. Every DHT segment is checked: in entropy-coded data 0xFF is always followed by 0x00 or a restart
+// marker, so FF C4 only ever starts a real segment.
+std::string jpeg_huffman_problem(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  unsigned char magic[2] = {};
+  if (!f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0xFF || magic[1] != 0xD8) return "";
+  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  auto at = [&](size_t i) { return static_cast<unsigned char>(b[i]); };
+  for (size_t i = 0; i + 3 < b.size(); ++i) {
+    if (at(i) != 0xFF || at(i + 1) != 0xC4) continue;
+    const size_t len = size_t(at(i + 2)) << 8 | at(i + 3);
+    size_t p = i + 4;
+    const size_t end = std::min(b.size(), i + 2 + len);
+    while (p + 17 <= end) {
+      int n = 0;
+      for (int k = 1; k <= 16; ++k) n += at(p + size_t(k));
+      if (n > 256) return "a JPEG Huffman table declares " + std::to_string(n) + " codes (at most 256)";
+      p += 17 + size_t(n);
+    }
+  }
+  return "";
+}
+}  // namespace
+
 std::string image_unreadable_reason(const std::string& path) {
   if (!std::filesystem::exists(path)) return "file does not exist";
+  if (const std::string why = jpeg_huffman_problem(path); !why.empty()) return "corrupt JPEG (" + why + ")";
   int w = 0, h = 0, comp = 0;
   if (stbi_info(path.c_str(), &w, &h, &comp)) return (w > 0 && h > 0) ? "" : "zero size";
   std::ifstream f(path, std::ios::binary);
@@ -36,6 +65,8 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
   if (fs::is_directory(path, ec)) throw Error("image " + path + " is a directory, not an image file");
   if (fs::file_size(path, ec) == 0) throw Error("image " + path + " is an empty file (0 bytes)");
 
+  if (const std::string why = jpeg_huffman_problem(path); !why.empty())
+    throw Error("cannot read image " + path + ": corrupt JPEG (" + why + ")");
   int w = 0, h = 0, comp = 0;
   // The header's size before any pixel is allocated: a few bytes can claim gigapixels.
   if (stbi_info(path.c_str(), &w, &h, &comp) && (w > kMaxImageSide || h > kMaxImageSide ||
