@@ -21,7 +21,7 @@ echo "== 2D AdaIN with the real VGG-19 encoder and AdaIN decoder"
 "$S" adain --content "$OUT/content.png" --style "$OUT/style.png" --size 256 --alpha 0.5 -o "$OUT/adain_alpha0.5.png"
 echo "== density stage on a generated scene (make-scene -> train-density -> render)"
 "$S" make-scene -o "$OUT/scene" --size 64 --views 30
-"$S" train-density --scene "$OUT/scene" --iters 200 --init-voxels 32^3 --final-voxels 64^3 \
+"$S" train-density --scene "$OUT/scene" --force --iters 200 --init-voxels 32^3 --final-voxels 64^3 \
     --upsample-at 70,140 --mask-at 70,140 --log-every 50 -o "$OUT/density.ckpt"
 "$S" render --ckpt "$OUT/density.ckpt" --views test -o "$OUT/render_test"
 "$S" render --ckpt "$OUT/density.ckpt" --views path --frames 24 -o "$OUT/render_path"
