@@ -24,18 +24,21 @@ namespace {
 // marker, so FF C4 only ever starts a real segment.
 std::string jpeg_huffman_problem(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
-  unsigned char magic[2] = {};
-  if (!f.read(reinterpret_cast<char*>(magic), 2) || magic[0] != 0xFF || magic[1] != 0xD8) return "";
   const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  // What stb takes for a JPEG: fill bytes 0xFF, then the SOI marker D8.
+  size_t soi = 0;
+  while (soi < b.size() && static_cast<unsigned char>(b[soi]) == 0xFF) ++soi;
+  if (soi == 0 || soi >= b.size() || static_cast<unsigned char>(b[soi]) != 0xD8) return "";
   auto at = [&](size_t i) { return static_cast<unsigned char>(b[i]); };
   for (size_t i = 0; i + 3 < b.size(); ++i) {
     if (at(i) != 0xFF || at(i + 1) != 0xC4) continue;
     const size_t len = size_t(at(i + 2)) << 8 | at(i + 3);
     size_t p = i + 4;
     const size_t end = std::min(b.size(), i + 2 + len);
-    while (p + 17 <= end) {
+    while (p < end) {
+      // stb reads missing bytes at the end of a file as zeros: count what is there.
       int n = 0;
-      for (int k = 1; k <= 16; ++k) n += at(p + size_t(k));
+      for (size_t k = 1; k <= 16 && p + k < b.size(); ++k) n += at(p + k);
       if (n > 256) return "a JPEG Huffman table declares " + std::to_string(n) + " codes (at most 256)";
       p += 17 + size_t(n);
     }
