@@ -25,7 +25,7 @@ struct Image {
 // Errors name the file: missing, not an image / unreadable, zero size, or larger than kMaxImageSide per
 // side or kMaxImagePixels in all (checked from the header, before decoding).
 constexpr int kMaxImageSide = 32768;
-constexpr int64_t kMaxImagePixels = 200000000;
+constexpr int64_t kMaxImagePixels = 64000000;  // ~1 GB once decoded (RGBA bytes + planar floats)
 Image load_image(const std::string& path, const std::array<float, 3>* background = nullptr,
                  std::vector<float>* alpha = nullptr);
 
