@@ -1,12 +1,12 @@
 #include "host/files.hpp"
 
-#include <atomic>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <set>
 #include <signal.h>
 #include <sstream>
 #include <unistd.h>
@@ -48,6 +48,22 @@ void unregister_temp(int slot) {
 }
 
 bool process_alive(long pid) { return pid > 0 && (::kill(pid_t(pid), 0) == 0 || errno == EPERM); }
+
+// Folders this process already swept for dead writers' leftovers: a command writing hundreds of frames
+// into one folder scans it once, not once per frame.
+std::set<std::string> g_swept;
+std::mutex g_swept_mutex;
+void sweep_once(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  std::error_code ec;
+  const std::string dir = fs::absolute(target.has_parent_path() ? target.parent_path() : fs::path("."), ec).string();
+  {
+    std::lock_guard<std::mutex> lock(g_swept_mutex);
+    if (!g_swept.insert(dir).second) return;
+  }
+  remove_stale_temps((fs::path(dir) / "*").string());
+}
 }  // namespace
 
 void install_temp_file_cleanup() {
@@ -68,13 +84,16 @@ int remove_stale_temps(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const std::string prefix = target.filename().string() + ".tmp-";
+  const std::string name_of_target = target.filename().string();
+  const bool any = name_of_target == "*";  // every target in the folder
+  const std::string prefix = any ? "" : name_of_target + ".tmp-";
   std::error_code ec;
   int removed = 0;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.rfind(prefix, 0) != 0) continue;
-    const std::string pid = name.substr(prefix.size());
+    const size_t at = any ? name.rfind(".tmp-") : (name.rfind(prefix, 0) == 0 ? prefix.size() - 5 : std::string::npos);
+    if (at == std::string::npos || at == 0) continue;
+    const std::string pid = name.substr(at + 5);
     if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos) continue;
     if (process_alive(std::stol(pid))) continue;
     std::error_code rm;
@@ -90,7 +109,7 @@ void write_atomic_with(const std::string& path, const std::function<void(const s
   if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   std::string tmp = path + ".tmp-" + std::to_string(::getpid());
   install_temp_file_cleanup();
-  remove_stale_temps(path);  // what a killed earlier writer of this target left behind
+  sweep_once(path);  // what killed earlier writers left in this folder (once per folder and process)
   const int slot = register_temp(tmp);
   try {
     write(tmp);

@@ -16,7 +16,8 @@ std::string read_file(const std::string& path);  // throws Error naming the path
 // installs it where the signal still has its default action (a program's own handler is left alone). SIGKILL cannot be caught: see remove_stale_temps.
 void install_temp_file_cleanup();
 // Removes `path`.tmp-PID files left by processes that no longer run (a killed writer); returns how many.
-// Files of a live process (another writer of the same target) are left alone.
+// Files of a live process (another writer of the same target) are left alone. A file name "*" (DIR/*)
+// means every NAME.tmp-PID in the folder. Atomic writes sweep each folder once per process this way.
 int remove_stale_temps(const std::string& path);
 
 }  // namespace stylerf::host

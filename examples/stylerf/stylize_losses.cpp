@@ -8,20 +8,13 @@
 #include "lib/io/image.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
+#include "lib/train/style_eval.hpp"
 
 namespace stylerf::cli {
 
 using host::Tensor;
 
 namespace {
-// Planar [1, 3, He, We] from interleaved [H][W][3], top-left He x We.
-Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We) {
-  std::vector<float> v(size_t(3) * He * We);
-  for (int c = 0; c < 3; ++c)
-    for (int y = 0; y < He; ++y)
-      for (int x = 0; x < We; ++x) v[(size_t(c) * He + y) * We + x] = rgb[(size_t(y) * W + x) * 3 + c];
-  return Tensor::from_host(v, {1, 3, He, We}, "loss image");
-}
 std::vector<float> interleave(const io::Image& img) {
   std::vector<float> v(size_t(3) * img.width * img.height);
   for (int y = 0; y < img.height; ++y)
@@ -67,16 +60,11 @@ void ViewLosses::begin_view(const scene::Scene& scene, const scene::View* truth,
   } else {
     ref = m_.features.render_decoded(scene, cam).rgb;
   }
-  truth_ = planar_crop(ref, W, He_, We_);
+  truth_ = train::planar_crop(ref, W, He_, We_);
   content41_ = vgg_.forward(truth_, 4, false)[3];
   masked_ = m_.features.geo.has_background;
   if (masked_) {
-    const auto acc = cc.content.acc.to_host();
-    const int s = m_.stride();
-    std::vector<float> full(size_t(He_) * We_);
-    for (int y = 0; y < He_; ++y)
-      for (int x = 0; x < We_; ++x) full[size_t(y) * We_ + x] = acc[size_t(y / s) * cc.width + x / s];
-    mask_ = train::opacity_mask(full, He_, We_, He_, We_);
+    mask_ = train::content_opacity_mask(cc, m_.stride(), He_, We_);
     skip_ = mask_.empty();
   }
 }
@@ -87,7 +75,7 @@ nlohmann::json ViewLosses::measure(const std::vector<float>& rgb, int cam_w, siz
   Sums& sum = sums_[set];
   const train::StyleLossWeights w;
   const train::OpacityMask* mask = masked_ ? &mask_ : nullptr;
-  const Tensor ours = planar_crop(rgb, cam_w, He_, We_);
+  const Tensor ours = train::planar_crop(rgb, cam_w, He_, We_);
   nlohmann::json j;
   const auto ours_taps = vgg_.forward(ours, 4, false);
   if (s.path.empty()) {

@@ -4,10 +4,9 @@
 #include <stb/stb_image_write.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <filesystem>
-#include <iterator>
-#include <fstream>
 #include <memory>
 
 #include "host/error.hpp"
@@ -22,9 +21,7 @@ namespace {
 // codes (found by fuzz/fuzz_image; fixed upstream in 2.28). Such tables are refused here before stb sees
 // them. Every DHT segment is checked: in entropy-coded data 0xFF is always followed by 0x00 or a restart
 // marker, so FF C4 only ever starts a real segment.
-std::string jpeg_huffman_problem(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+std::string jpeg_huffman_problem(const std::string& b) {
   // What stb takes for a JPEG: fill bytes 0xFF, then the SOI marker D8.
   size_t soi = 0;
   while (soi < b.size() && static_cast<unsigned char>(b[soi]) == 0xFF) ++soi;
@@ -45,17 +42,25 @@ std::string jpeg_huffman_problem(const std::string& path) {
   }
   return "";
 }
+
+const stbi_uc* bytes_of(const std::string& b) { return reinterpret_cast<const stbi_uc*>(b.data()); }
+int size_of(const std::string& b) { return int(std::min<size_t>(b.size(), size_t(INT32_MAX))); }
 }  // namespace
 
 std::string image_unreadable_reason(const std::string& path) {
-  if (!std::filesystem::exists(path)) return "file does not exist";
-  if (const std::string why = jpeg_huffman_problem(path); !why.empty()) return "corrupt JPEG (" + why + ")";
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return "file does not exist";
+  if (std::filesystem::is_directory(path, ec)) return "a folder, not an image file";
+  std::string b;
+  try {
+    b = host::read_file(path);
+  } catch (const Error&) {
+    return "not readable";
+  }
+  if (const std::string why = jpeg_huffman_problem(b); !why.empty()) return "corrupt JPEG (" + why + ")";
   int w = 0, h = 0, comp = 0;
-  if (stbi_info(path.c_str(), &w, &h, &comp)) return (w > 0 && h > 0) ? "" : "zero size";
-  std::ifstream f(path, std::ios::binary);
-  char head[12] = {};
-  f.read(head, sizeof head);
-  if (std::string(head, 4) == "RIFF" && std::string(head + 8, 4) == "WEBP")
+  if (stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp)) return (w > 0 && h > 0) ? "" : "zero size";
+  if (b.size() >= 12 && b.compare(0, 4, "RIFF") == 0 && b.compare(8, 4, "WEBP") == 0)
     return "a WebP image (whatever its extension); PNG, JPEG, BMP and TGA are supported";
   const char* why = stbi_failure_reason();
   return std::string("not a supported image (") + (why ? why : "unknown format") + ")";
@@ -68,20 +73,22 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
   if (fs::is_directory(path, ec)) throw Error("image " + path + " is a directory, not an image file");
   if (fs::file_size(path, ec) == 0) throw Error("image " + path + " is an empty file (0 bytes)");
 
-  if (const std::string why = jpeg_huffman_problem(path); !why.empty())
+  // One read of the file; every stb call below decodes from these bytes.
+  const std::string b = host::read_file(path);
+  if (const std::string why = jpeg_huffman_problem(b); !why.empty())
     throw Error("cannot read image " + path + ": corrupt JPEG (" + why + ")");
   int w = 0, h = 0, comp = 0;
   // The header's size before any pixel is allocated: a few bytes can claim gigapixels.
-  if (stbi_info(path.c_str(), &w, &h, &comp) && (w > kMaxImageSide || h > kMaxImageSide ||
-                                                 int64_t(w) * h > kMaxImagePixels))
+  if (stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp) &&
+      (w > kMaxImageSide || h > kMaxImageSide || int64_t(w) * h > kMaxImagePixels))
     throw Error("image " + path + " is " + std::to_string(w) + "x" + std::to_string(h) + ", beyond the " +
                 std::to_string(kMaxImageSide) + " px per side and " + std::to_string(kMaxImagePixels / 1000000) +
                 " megapixels read here; resize it first");
   // 16-bit PNGs keep their precision; everything else decodes to 8 bits. Always ask for 4 channels and
   // use `comp` (the file's own count) to know whether the alpha is real.
-  bool sixteen = stbi_is_16_bit(path.c_str());
-  void* pixels = sixteen ? static_cast<void*>(stbi_load_16(path.c_str(), &w, &h, &comp, 4))
-                         : static_cast<void*>(stbi_load(path.c_str(), &w, &h, &comp, 4));
+  const bool sixteen = stbi_is_16_bit_from_memory(bytes_of(b), size_of(b));
+  void* pixels = sixteen ? static_cast<void*>(stbi_load_16_from_memory(bytes_of(b), size_of(b), &w, &h, &comp, 4))
+                         : static_cast<void*>(stbi_load_from_memory(bytes_of(b), size_of(b), &w, &h, &comp, 4));
   if (!pixels) {
     const char* why = stbi_failure_reason();
     throw Error("cannot read image " + path + ": " + (why ? why : "unknown format") +

@@ -7,7 +7,6 @@
 
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
-#include "lib/train/style_losses.hpp"
 #include "lib/train/style_trainer.hpp"
 
 namespace stylerf::train {
@@ -15,8 +14,6 @@ namespace stylerf::train {
 using host::Error;
 using host::Tensor;
 
-namespace {
-// Planar [1, 3, He, We] from interleaved [H][W][3], top-left He x We.
 Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We) {
   std::vector<float> v(size_t(3) * He * We);
   for (int c = 0; c < 3; ++c)
@@ -24,7 +21,14 @@ Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We) {
       for (int x = 0; x < We; ++x) v[(size_t(c) * He + y) * We + x] = rgb[(size_t(y) * W + x) * 3 + c];
   return Tensor::from_host(v, {1, 3, He, We}, "evaluation image");
 }
-}  // namespace
+
+OpacityMask content_opacity_mask(const model::StyleModel::CameraContent& cc, int stride, int He, int We) {
+  const auto acc = cc.content.acc.to_host();
+  std::vector<float> full(size_t(He) * We);
+  for (int y = 0; y < He; ++y)
+    for (int x = 0; x < We; ++x) full[size_t(y) * We + x] = acc[size_t(y / stride) * cc.width + x / stride];
+  return opacity_mask(full, He, We, He, We);
+}
 
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
                                           const scene::Scene& scene, const std::vector<std::string>& styles,
@@ -52,13 +56,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
     const nn::VggFeatures ft = vgg.forward(truth, 4, false);
     OpacityMask mask;
     if (masked) {
-      // The opacity of each pixel's block, cut like the images.
-      const auto acc = cc.content.acc.to_host();
-      const int s = m.stride();
-      std::vector<float> full(size_t(He) * We);
-      for (int y = 0; y < He; ++y)
-        for (int x = 0; x < We; ++x) full[size_t(y) * We + x] = acc[size_t(y / s) * cc.width + x / s];
-      mask = opacity_mask(full, He, We, He, We);
+      mask = content_opacity_mask(cc, m.stride(), He, We);  // each pixel's block, cut like the images
       if (mask.empty()) continue;
     }
     for (size_t si = 0; si < styles.size(); ++si) {

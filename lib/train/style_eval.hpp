@@ -10,8 +10,14 @@
 #include "lib/model/style_model.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/style/adain.hpp"
+#include "lib/train/style_losses.hpp"
 
 namespace stylerf::train {
+
+// Planar [1, 3, He, We] from an interleaved [H][W][3] image of width W, its top-left He x We.
+host::Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We);
+// The loss mask of a camera's content (its opacity per stride x stride block), for images cut to He x We.
+OpacityMask content_opacity_mask(const model::StyleModel::CameraContent& cc, int stride, int He, int We);
 
 struct StyleEvalRow {
   std::string style;
