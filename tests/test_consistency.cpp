@@ -1,0 +1,326 @@
+// The consistency metric's geometry (lib/eval/warp.hpp) and scoring (lib/eval/consistency.hpp): exact
+// warps of a generated scene with known depth give near-zero error, a known flicker raises RMSE by the
+// expected amount, and borders, background, occlusion, depth 0 / inf / NaN and the NDC far end are masked.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "lib/eval/consistency.hpp"
+#include "lib/eval/warp.hpp"
+#include "lib/model/opacity_head.hpp"
+#include "lib/scene/analytic_scene.hpp"
+#include "lib/scene/poses.hpp"
+#include "lib/scene/rays.hpp"
+#include "tests/small_scene.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+using eval::Correspondence;
+using eval::FrameGeometry;
+using eval::RaySpace;
+
+namespace {
+
+constexpr int kSize = 64;
+
+// Camera i of an orbit around the origin, 3 degrees apart (a 120-frame path), slightly above the horizon.
+scene::Camera orbit_camera(int i, int size = kSize, double radius = 4.0) {
+  const double az = 0.3 + i * (2.0 * M_PI / 120.0);
+  const scene::Vec3 eye{radius * std::cos(az) * 0.94, radius * std::sin(az) * 0.94, radius * 0.34};
+  const scene::Pose pose = scene::look_at(eye, {0, 0, 0}, {0, 0, 1});
+  scene::Camera cam;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) cam.c2w[r][c] = float(pose.m[r][c]);
+  cam.fx = cam.fy = 0.5f * size / std::tan(0.45f);
+  cam.cx = cam.cy = 0.5f * size;
+  cam.width = cam.height = size;
+  return cam;
+}
+
+struct Frame {
+  FrameGeometry geo;
+  io::Image image;
+};
+
+// One supersample: colour, alpha and depth all belong to the pixel-centre ray, so an exact warp of the
+// true geometry can only differ by the bilinear resampling of the textures.
+Frame analytic_frame(const scene::Camera& cam) {
+  const auto v = scene::render_analytic(scene::AnalyticScene::objects(), cam, 1);
+  Frame f;
+  f.geo.camera = cam;
+  f.geo.depth = v.depth;
+  f.geo.opacity = v.alpha;
+  f.image.width = cam.width;
+  f.image.height = cam.height;
+  f.image.data.resize(size_t(3) * cam.width * cam.height);
+  const size_t plane = size_t(cam.width) * cam.height;
+  for (size_t i = 0; i < plane; ++i)
+    for (int c = 0; c < 3; ++c)  // over a white background, as Blender scenes are shown
+      f.image.data[c * plane + i] = v.rgb[i * 3 + c] * v.alpha[i] + (1.0f - v.alpha[i]);
+  return f;
+}
+
+eval::WarpOptions object_options() {
+  eval::WarpOptions o;
+  o.mask_background = true;
+  return o;
+}
+
+double mean_valid_difference(const io::Image& a, const io::Image& b, const Correspondence& c) {
+  double sum = 0;
+  int64_t n = 0;
+  const size_t plane = size_t(a.width) * a.height;
+  for (size_t i = 0; i < plane; ++i)
+    if (c.valid[i])
+      for (int ch = 0; ch < 3; ++ch) sum += double(a.data[ch * plane + i]) - b.data[ch * plane + i], ++n;
+  return sum / double(n);
+}
+
+}  // namespace
+
+TEST_CASE("world_point inverts the projection, in world space and in NDC") {
+  const scene::Camera cam = orbit_camera(5);
+  const RaySpace world{false, 1.0f};
+  for (double t : {0.5, 2.0, 3.7, 40.0}) {
+    const auto X = eval::world_point(cam, 17.25, 40.5, t, world);
+    float px = 0, py = 0;
+    REQUIRE(cam.project({float(X[0]), float(X[1]), float(X[2])}, px, py));
+    CHECK(px == doctest::Approx(17.25).epsilon(1e-4));
+    CHECK(py == doctest::Approx(40.5).epsilon(1e-4));
+    const double r = std::sqrt(std::pow(X[0] - cam.c2w[0][3], 2) + std::pow(X[1] - cam.c2w[1][3], 2) +
+                               std::pow(X[2] - cam.c2w[2][3], 2));
+    CHECK(r == doctest::Approx(t).epsilon(1e-9));
+  }
+  // NDC (a forward-facing camera at the origin looking down -z): the NDC point of the world point must be
+  // o' + t d' of the pixel's NDC ray, and t = 0 is the near plane.
+  scene::Camera fwd;
+  fwd.fx = fwd.fy = 60;
+  fwd.cx = 32;
+  fwd.cy = 24;
+  fwd.width = 64;
+  fwd.height = 48;
+  const RaySpace ndc{true, 1.0f};
+  for (double t : {0.0, 0.3, 0.9, 0.998}) {
+    bool finite = false;
+    const auto X = eval::world_point(fwd, 10.5, 30.5, t, ndc, 0.999, &finite);
+    CHECK(finite);
+    float o[3], d[3];
+    scene::pixel_ray(fwd, 10.5f, 30.5f, o, d);
+    scene::to_ndc(fwd, 1.0f, o, d);
+    const auto p = scene::ndc_point(fwd, 1.0f, {float(X[0]), float(X[1]), float(X[2])});
+    for (int a = 0; a < 3; ++a) CHECK(p[a] == doctest::Approx(o[a] + t * d[a]).epsilon(1e-4).scale(1));
+    if (t == 0.0) CHECK(X[2] == doctest::Approx(-1.0));
+  }
+  bool finite = true;
+  eval::world_point(fwd, 10.5, 30.5, 0.9995, ndc, 0.999, &finite);
+  CHECK_FALSE(finite);  // the NDC far end is at infinity
+}
+
+TEST_CASE("warping the true images by the true depth leaves near-zero error on valid pixels") {
+  const RaySpace space{false, 1.0f};
+  // Geometry first: every valid correspondence lands on the same surface point, with the same colour.
+  const scene::AnalyticScene textured = scene::AnalyticScene::objects();
+  for (int k : {1, 7}) {
+    const Frame t = analytic_frame(orbit_camera(k)), s = analytic_frame(orbit_camera(0));
+    const Correspondence c = eval::correspond(t.geo, s.geo, space, object_options());
+    INFO("k = " << k << ": valid " << c.stats.valid << ", background " << c.stats.background << ", occluded "
+                << c.stats.occluded << ", off image " << c.stats.off_image);
+    CHECK(c.stats.pixels() == int64_t(kSize) * kSize);
+    CHECK(c.stats.valid > kSize * kSize / 8);  // the objects cover a good part of the view
+    double worst_point = 0;
+    int colour_flips = 0;  // a point within 1e-3 of a checker edge may show the neighbouring cell
+    for (int y = 0; y < kSize; ++y)
+      for (int x = 0; x < kSize; ++x) {
+        const size_t i = size_t(y) * kSize + x;
+        if (!c.valid[i]) continue;
+        const auto X = eval::world_point(t.geo.camera, x + 0.5, y + 0.5, t.geo.depth[i], space);
+        float o[3], d[3];
+        scene::pixel_ray(s.geo.camera, c.x[i], c.y[i], o, d);
+        const auto hit = textured.trace({o[0], o[1], o[2]}, {d[0], d[1], d[2]});
+        REQUIRE(hit.hit);
+        const auto colour = textured.shade(hit);
+        double colour_error = 0;
+        for (int a = 0; a < 3; ++a) {
+          worst_point = std::max(worst_point, std::abs(double(hit.point[a]) - X[a]));
+          colour_error = std::max(colour_error, std::abs(double(colour[a]) - t.image.data[a * kSize * kSize + i]));
+        }
+        colour_flips += colour_error > 1e-3;
+      }
+    CHECK(worst_point < 1e-3);
+    CHECK(colour_flips <= c.stats.valid / 100);
+    // The images: bilinear resampling of textures (checker edges) is the only error left, and it is
+    // well below what the same pixels compared without the warp differ by.
+    const io::Image warped = eval::warp_image(s.image, c, t.image);
+    const double exact = eval::masked_rmse(t.image, warped, c.valid);
+    const double unwarped = eval::masked_rmse(t.image, s.image, c.valid);
+    CHECK(exact < 0.75 * unwarped);
+  }
+  // Without texture edges (plain materials) the resampled images agree almost exactly.
+  scene::AnalyticScene plain = scene::AnalyticScene::objects();
+  plain.shadows = false;
+  for (auto& shape : plain.shapes) shape.material.pattern = scene::Pattern::solid;
+  auto frame_of = [&](int i) {
+    const auto cam = orbit_camera(i);
+    const auto v = scene::render_analytic(plain, cam, 1);
+    Frame f = analytic_frame(cam);
+    for (size_t p = 0; p < v.alpha.size(); ++p)
+      for (int c = 0; c < 3; ++c) f.image.data[c * v.alpha.size() + p] = v.rgb[p * 3 + c] * v.alpha[p] + (1 - v.alpha[p]);
+    return f;
+  };
+  const Frame s = frame_of(0);
+  for (int k : {1, 7}) {
+    const Frame t = frame_of(k);
+    const Correspondence c = eval::correspond(t.geo, s.geo, space, object_options());
+    const double e = eval::masked_rmse(t.image, eval::warp_image(s.image, c, t.image), c.valid);
+    INFO("k = " << k << ": plain-material warp RMSE " << e);
+    CHECK(e < 0.02);
+  }
+}
+
+TEST_CASE("a known per-frame flicker raises RMSE by the expected amount") {
+  const Frame t = analytic_frame(orbit_camera(1)), s = analytic_frame(orbit_camera(0));
+  const Correspondence c = eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, object_options());
+  const io::Image warped = eval::warp_image(s.image, c, t.image);
+  const double e0 = eval::masked_rmse(t.image, warped, c.valid);
+  const double m = mean_valid_difference(t.image, warped, c);
+  for (float delta : {0.02f, 0.1f, 0.3f}) {
+    io::Image brighter = s.image;  // not clamped: the brightness change is exactly delta
+    for (float& v : brighter.data) v += delta;
+    const double e = eval::masked_rmse(t.image, eval::warp_image(brighter, c, t.image), c.valid);
+    // mean((d - delta)^2) = mean(d^2) - 2 delta mean(d) + delta^2
+    CHECK(e * e == doctest::Approx(e0 * e0 - 2 * delta * m + double(delta) * delta).epsilon(1e-4));
+    CHECK(e > e0);
+  }
+  // Through the path scorer: odd frames flicker, so every short-range pair differs by delta.
+  std::vector<Frame> frames;
+  for (int i = 0; i < 9; ++i) frames.push_back(analytic_frame(orbit_camera(i)));
+  std::vector<FrameGeometry> geos;
+  std::vector<io::Image> clean, flicker;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    geos.push_back(frames[i].geo);
+    clean.push_back(frames[i].image);
+    flicker.push_back(frames[i].image);
+    if (i % 2) for (float& v : flicker.back().data) v += 0.2f;
+  }
+  eval::ConsistencyOptions opt;
+  opt.warp = object_options();
+  const auto warps = eval::path_warps(geos, RaySpace{false, 1.0f}, opt);
+  CHECK(warps.short_range.warps.size() == 8);
+  CHECK(warps.long_range.warps.size() == 2);
+  const auto a = eval::score_frames(clean, warps, nullptr), b = eval::score_frames(flicker, warps, nullptr);
+  CHECK(a.short_range.rmse < 0.1);
+  CHECK(b.short_range.rmse > 0.2 - a.short_range.rmse);
+  CHECK(b.short_range.rmse < 0.2 + a.short_range.rmse);
+  CHECK(b.short_range.rmse > 1.5 * a.short_range.rmse);
+  CHECK(std::isnan(a.short_range.lpips));  // not measured
+  // A distance given as LPIPS is called once per pair with the validity mask.
+  int calls = 0;
+  eval::MaskedDistance fake = [&](const io::Image& x, const io::Image& y, const std::vector<float>& mask) {
+    ++calls;
+    CHECK(mask.size() == size_t(x.width) * x.height);
+    return eval::masked_rmse(x, y, std::vector<uint8_t>(mask.begin(), mask.end()));
+  };
+  const auto c2 = eval::score_frames(flicker, warps, &fake);
+  CHECK(calls == 10);
+  CHECK(c2.short_range.lpips == doctest::Approx(b.short_range.rmse));
+  const auto j = c2.to_json();
+  CHECK(j["short"]["pairs"].size() == 8);
+  CHECK(j["long"]["k"] == 7);
+}
+
+TEST_CASE("masks: background, image borders and occlusion") {
+  const Frame t = analytic_frame(orbit_camera(7)), s = analytic_frame(orbit_camera(0));
+  const Correspondence c = eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, object_options());
+  int64_t background = 0;
+  for (float a : t.geo.opacity) background += a < 0.5f;
+  CHECK(c.stats.background >= background);  // frame t's empty space, plus landings on frame s's
+  for (size_t i = 0; i < c.valid.size(); ++i) {
+    if (!c.valid[i]) continue;
+    CHECK(t.geo.opacity[i] >= 0.5f);
+    CHECK(c.x[i] >= 0.5f);
+    CHECK(c.x[i] <= kSize - 0.5f);
+  }
+  CHECK(c.stats.occluded > 0);  // 21 degrees apart, the objects hide parts of each other
+
+  // Borders: frame s zoomed in (a longer focal length) sees only the middle; what frame t sees beyond it
+  // lands off frame s's image.
+  Frame zoomed = s;
+  zoomed.geo.camera.fx = zoomed.geo.camera.fy = s.geo.camera.fx * 3;
+  const auto zr = scene::render_analytic(scene::AnalyticScene::objects(), zoomed.geo.camera, 1);
+  zoomed.geo.depth = zr.depth;
+  zoomed.geo.opacity = zr.alpha;
+  const Correspondence cz = eval::correspond(t.geo, zoomed.geo, RaySpace{false, 1.0f}, object_options());
+  CHECK(cz.stats.off_image > c.stats.off_image + kSize * kSize / 10);
+
+  // Occlusion: frame s with an occluder at half the distance over its whole image.
+  Frame blocked = s;
+  for (float& d : blocked.geo.depth) d = d > 0 ? 0.5f * d : 1.0f;
+  std::fill(blocked.geo.opacity.begin(), blocked.geo.opacity.end(), 1.0f);
+  const Correspondence co = eval::correspond(t.geo, blocked.geo, RaySpace{false, 1.0f}, object_options());
+  CHECK(co.stats.valid == 0);
+  CHECK(co.stats.occluded > 0);
+  CHECK(std::isnan(eval::masked_rmse(t.image, eval::warp_image(s.image, co, t.image), co.valid)));
+
+  // A looser tolerance never keeps fewer pixels.
+  eval::WarpOptions loose = object_options();
+  loose.depth_tolerance = 0.2f;
+  CHECK(eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, loose).stats.valid >= c.stats.valid);
+}
+
+TEST_CASE("depth 0, infinite and NaN depths, and the NDC far end, are never warped") {
+  Frame t = analytic_frame(orbit_camera(1));
+  const Frame s = analytic_frame(orbit_camera(0));
+  eval::WarpOptions opt;  // no background masking: only the depth decides
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  std::fill(t.geo.opacity.begin(), t.geo.opacity.end(), 1.0f);
+  for (size_t i = 0; i < t.geo.depth.size(); ++i) t.geo.depth[i] = i % 3 == 0 ? 0.0f : i % 3 == 1 ? inf : nan;
+  const Correspondence c = eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, opt);
+  CHECK(c.stats.valid == 0);
+  CHECK(c.stats.no_depth == int64_t(kSize) * kSize);
+
+  // NDC: depth 0 is the near plane (a real point); t >= ndc_far is at infinity.
+  scene::Camera fwd;
+  fwd.fx = fwd.fy = 50;
+  fwd.cx = fwd.cy = 16;
+  fwd.width = fwd.height = 32;
+  FrameGeometry a{fwd, std::vector<float>(32 * 32, 0.9995f), std::vector<float>(32 * 32, 1.0f)};
+  scene::Camera moved = fwd;
+  moved.c2w[0][3] = 0.01f;
+  FrameGeometry b{moved, std::vector<float>(32 * 32, 0.5f), std::vector<float>(32 * 32, 1.0f)};
+  const Correspondence far = eval::correspond(a, b, RaySpace{true, 1.0f}, opt);
+  CHECK(far.stats.no_depth == 32 * 32);
+  a.depth.assign(32 * 32, 0.5f);  // a plane: every pixel moves the same way, and stays in view mostly
+  const Correspondence plane = eval::correspond(a, b, RaySpace{true, 1.0f}, opt);
+  CHECK(plane.stats.valid > 32 * 32 / 2);
+  CHECK(plane.stats.valid + plane.stats.off_image == 32 * 32);
+
+  // Mismatched sizes are refused, naming what is wrong.
+  FrameGeometry bad = a;
+  bad.depth.resize(10);
+  testing::expect_error([&] { eval::correspond(bad, b, RaySpace{true, 1.0f}, opt); }, "depth and opacity");
+  std::vector<FrameGeometry> few(5, a);
+  testing::expect_error([&] { eval::path_warps(few, RaySpace{true, 1.0f}, {}); }, "long range of 7");
+}
+
+TEST_CASE("the geometry renderer: opacity and depth of a trained density grid without its appearance") {
+  const auto& scene = testing::small_scene();
+  const auto& geo = testing::small_geometry();
+  const scene::Camera cam = scene.test.front().camera;
+  const auto v = model::render_geometry(geo, scene, cam, 512);
+  REQUIRE(v.acc.size() == size_t(cam.width) * cam.height);
+  CHECK(testing::all_finite(v.acc));
+  CHECK(testing::all_finite(v.depth));
+  int covered = 0;
+  for (size_t i = 0; i < v.acc.size(); ++i) {
+    CHECK(v.acc[i] >= 0.0f);
+    CHECK(v.acc[i] <= 1.0001f);
+    CHECK(v.value[i] <= v.acc[i] + 1e-5f);  // kept opacity <= opacity
+    if (v.acc[i] > 0.5f) {
+      ++covered;
+      CHECK(v.depth[i] > scene.near);
+      CHECK(v.depth[i] < scene.far);
+    }
+  }
+  CHECK(covered > 0);
+}
