@@ -1,0 +1,161 @@
+// stylerf eval consistency|table: the consistency metric of StyleRF's Table 1 by the scene's own geometry
+// (lib/eval/consistency.hpp), for one method (consistency) or the paper's table (cmd_eval_table.cpp).
+//
+// stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [--frames 16] --json F
+//   rgb, adain: CKPT is a density checkpoint (its RGB frames; AdaIN stylises each one);
+//   stylerf:    CKPT is a style checkpoint (zero-shot with --style).
+// The frames are the first --frames of the scene's default path of --path-frames (a video's spacing);
+// every method is warped by the checkpoint's frozen geometry.
+#include <boost/program_options.hpp>
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+
+#include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/eval_setup.hpp"
+#include "host/error.hpp"
+#include "host/files.hpp"
+#include "lib/eval/path_frames.hpp"
+#include "lib/model/density_model.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/style/style_encoder.hpp"
+#include "lib/style/style_image.hpp"
+
+namespace po = boost::program_options;
+namespace fs = std::filesystem;
+
+namespace stylerf::cli {
+int run_eval_table(int argc, char** argv);  // cmd_eval_table.cpp
+}
+
+namespace {
+
+using stylerf::host::Error;
+using Clock = std::chrono::steady_clock;
+namespace cli = stylerf::cli;
+namespace eval = stylerf::eval;
+namespace model = stylerf::model;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+int run_consistency(int argc, char** argv) {
+  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device;
+  cli::PathOptions p;
+  bool no_lpips = false;
+  po::options_description desc("stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [options]");
+  desc.add_options()("help,h", "show this help")(
+      "ckpt", po::value(&ckpt), "density checkpoint (rgb, adain) or style checkpoint (stylerf)")(
+      "method", po::value(&method), "rgb (the floor) | adain (per-frame 2D AdaIN of the RGB frames) | stylerf")(
+      "style", po::value(&style_path), "style image (adain, stylerf)")(
+      "frames", po::value(&p.frames)->default_value(16), "frames compared: the first N of the path")(
+      "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
+      "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
+      "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
+      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")("json", po::value(&json_path), "write the scores here")(
+      "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
+      "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
+      "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
+      "device", po::value(&device), "OpenCL device");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || ckpt.empty()) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  // ---- options, checked before anything loads ----
+  if (method != "rgb" && method != "adain" && method != "stylerf")
+    throw Error("--method must be rgb, adain or stylerf (got '" + method + "')");
+  if (method != "rgb" && style_path.empty()) throw Error("--method " + method + " needs --style IMG");
+  if (method == "rgb" && !style_path.empty()) throw Error("--method rgb takes no --style (it is the unstylised floor)");
+  if (!style_path.empty()) {
+    const std::string why = stylerf::io::image_unreadable_reason(style_path);
+    if (!why.empty()) throw Error("--style " + style_path + ": " + why);
+  }
+  cli::check_path_options(p);
+
+  cli::init_runtime(device, false);
+  const auto ck = stylerf::io::load_checkpoint(ckpt, "");
+  const std::string want = method == "stylerf" ? "style" : "density";
+  if (ck.kind != want)
+    throw Error("--method " + method + " needs a " + want + " checkpoint (" +
+                (want == "style" ? "train-style" : "train-density") + "); " + ckpt + " holds a '" + ck.kind + "' stage");
+  const auto scene = cli::scene_of_checkpoint(ck, scene_dir);
+  std::unique_ptr<model::DensityModel> density;
+  std::unique_ptr<model::StyleModel> styled;
+  if (want == "density")
+    density = std::make_unique<model::DensityModel>(model::load_model(ck));
+  else
+    styled = std::make_unique<model::StyleModel>(model::StyleModel::load(ck));
+  const model::Geometry& geo = density ? density->geo : styled->features.geo;
+  std::unique_ptr<eval::Lpips> lpips;
+  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default());
+
+  const auto t0 = Clock::now();
+  const cli::PathSetup path = cli::path_setup(geo, scene, p);
+  std::cout << "geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
+            << path.cams.front().height << " rendered and warped in " << path.seconds << " s\n";
+  const auto t1 = Clock::now();
+  std::vector<stylerf::io::Image> frames;
+  if (method == "stylerf") {
+    stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
+    stylerf::style::StyleEncoder enc(styled->dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
+    frames = eval::stylerf_frames(*styled, scene, path.cams, enc.encode(style_path).code, scene.effects.background);
+  } else {
+    frames = eval::rgb_frames(*density, scene, path.cams, p.chunk);
+    if (method == "adain") {
+      auto adain = stylerf::style::AdainModel::load_default();
+      frames = eval::adain_frames(adain, frames, eval::load_style_for_eval(style_path));
+    }
+  }
+  const double render_s = seconds_since(t1);
+  const auto t2 = Clock::now();
+  const auto dist = cli::lpips_distance(lpips.get());
+  const auto score = eval::score_frames(frames, path.warps, dist.get());
+  const double score_s = seconds_since(t2);
+  std::cout << method << ": " << cli::score_line(score) << "\n"
+            << "  frames rendered in " << render_s << " s, scored in " << score_s << " s\n";
+  if (!out_dir.empty()) {
+    fs::create_directories(out_dir);
+    for (size_t i = 0; i < frames.size(); ++i)
+      stylerf::io::save_png((fs::path(out_dir) / ("frame_" + std::to_string(1000 + i).substr(1) + ".png")).string(),
+                            frames[i]);
+  }
+  if (!json_path.empty()) {
+    nlohmann::json doc = {{"checkpoint", ckpt},
+                          {"scene", scene.root},
+                          {"method", method},
+                          {"style", style_path},
+                          {"frames", p.frames},
+                          {"path_frames", p.path_frames},
+                          {"size", {path.cams.front().width, path.cams.front().height}},
+                          {"depth_tolerance", p.depth_tolerance},
+                          {"lpips", lpips ? "vgg (v0.1), masked: see lib/eval/consistency.hpp" : "not measured"},
+                          {"score", score.to_json()},
+                          {"seconds", {{"geometry", path.seconds}, {"frames", render_s}, {"scoring", score_s},
+                                       {"total", seconds_since(t0)}}}};
+    stylerf::host::write_file_atomic(json_path, doc.dump(2) + "\n");
+    std::cout << "-> " << json_path << "\n";
+  }
+  return 0;
+}
+
+int run_eval(int argc, char** argv) {
+  const std::string usage =
+      "usage: stylerf eval consistency|table [options]   (stylerf eval <what> --help)\n"
+      "  consistency  one method's short- and long-range consistency on a path (RMSE, LPIPS)\n"
+      "  table        the paper's Table 1 over scenes and styles: Markdown, JSON, video, plot\n";
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    std::cout << usage;
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string what = argv[1];
+  if (what == "consistency") return run_consistency(argc - 1, argv + 1);
+  if (what == "table") return cli::run_eval_table(argc - 1, argv + 1);
+  throw Error("eval: unknown '" + what + "'\n" + usage);
+}
+
+cli::Register reg("eval", "consistency of stylised paths by the scene's geometry (RMSE, LPIPS); the paper's table",
+                  run_eval);
+
+}  // namespace

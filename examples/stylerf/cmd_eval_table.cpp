@@ -1,0 +1,350 @@
+// stylerf eval table --scene-ckpts DENSITY[,STYLE...] [...] [--styles IMG|DIR ...] -o DIR: StyleRF's Table 1.
+//
+// Per scene (one --scene-ckpts group: a density checkpoint, then any style checkpoints of the same scene,
+// e.g. StyleRF and its ablations), the path's warps are found once from the density geometry, then scored:
+//   RGB (the unstylised floor), per-frame 2D AdaIN of the RGB frames, and each style checkpoint, for every
+//   style (default: the first style checkpoint's held-out styles, --max-styles evenly spaced).
+// Writes DIR/table.md (methods x short/long x LPIPS/RMSE, per scene and over all, with StyleRF/AdaIN
+// ratios), DIR/table.json (every pair), and per scene DIR/<scene>/side_by_side.mp4 (AdaIN | StyleRF, first
+// style) and DIR/<scene>/per_frame_rmse.png (short-range RMSE per frame pair, mean over styles).
+#include <boost/program_options.hpp>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/eval_setup.hpp"
+#include "examples/stylerf/frame_outputs.hpp"
+#include "host/error.hpp"
+#include "host/files.hpp"
+#include "lib/eval/path_frames.hpp"
+#include "lib/eval/plot.hpp"
+#include "lib/model/density_model.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/style/style_encoder.hpp"
+#include "lib/style/style_image.hpp"
+
+namespace po = boost::program_options;
+namespace fs = std::filesystem;
+
+namespace stylerf::cli {
+
+namespace {
+
+using host::Error;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, sep))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+// A method's scores on one scene: one ConsistencyScore per style (RGB: one, style-independent).
+struct MethodRows {
+  std::string name;
+  std::vector<std::string> styles;
+  std::vector<eval::ConsistencyScore> scores;
+
+  double mean(bool long_range, bool lpips) const {
+    double s = 0;
+    int n = 0;
+    for (const auto& sc : scores) {
+      const auto& r = long_range ? sc.long_range : sc.short_range;
+      const double v = lpips ? r.lpips : r.rmse;
+      if (std::isfinite(v)) s += v, ++n;
+    }
+    return n ? s / n : std::nan("");
+  }
+  // Short-range RMSE per frame pair, mean over styles.
+  std::vector<double> per_pair_rmse() const {
+    std::vector<double> out;
+    if (scores.empty()) return out;
+    out.assign(scores.front().short_range.pairs.size(), 0.0);
+    for (size_t i = 0; i < out.size(); ++i) {
+      int n = 0;
+      for (const auto& sc : scores)
+        if (std::isfinite(sc.short_range.pairs[i].rmse)) out[i] += sc.short_range.pairs[i].rmse, ++n;
+      out[i] = n ? out[i] / n : std::nan("");
+    }
+    return out;
+  }
+};
+
+std::string style_model_label(const io::Checkpoint& ck) {
+  const auto sm = ck.meta.value("style_model", nlohmann::json::object());
+  const std::string sict = sm.value("sict", "volume-adaptive");
+  const bool bias = sm.value("dst_bias", true);
+  std::string label = "StyleRF";
+  if (sict != "volume-adaptive" || !bias) {
+    label += " (";
+    if (sict != "volume-adaptive") label += "sict " + sict;
+    if (!bias) label += std::string(sict != "volume-adaptive" ? ", " : "") + "dst no-bias";
+    label += ")";
+  }
+  return label;
+}
+
+std::vector<std::string> pick_evenly(const std::vector<std::string>& all, int n) {
+  if (n <= 0 || int(all.size()) <= n) return all;
+  std::vector<std::string> out;
+  for (int i = 0; i < n; ++i) out.push_back(all[size_t(int64_t(i) * int64_t(all.size()) / n)]);
+  return out;
+}
+
+std::string fmt(double v, int digits = 4) {
+  if (!std::isfinite(v)) return "–";
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(digits) << v;
+  return o.str();
+}
+
+io::Image side_by_side(const io::Image& a, const io::Image& b) {
+  io::Image out;
+  out.width = a.width + b.width;
+  out.height = std::max(a.height, b.height);
+  out.data.assign(size_t(3) * out.width * out.height, 1.0f);
+  for (int c = 0; c < 3; ++c) {
+    for (int y = 0; y < a.height; ++y)
+      for (int x = 0; x < a.width; ++x) out.at(c, y, x) = a.at(c, y, x);
+    for (int y = 0; y < b.height; ++y)
+      for (int x = 0; x < b.width; ++x) out.at(c, y, a.width + x) = b.at(c, y, x);
+  }
+  return out;
+}
+
+struct SceneResult {
+  std::string name;
+  std::vector<MethodRows> methods;
+  nlohmann::json json;
+};
+
+void markdown_rows(std::ostream& md, const std::vector<MethodRows>& methods) {
+  md << "| method | short LPIPS | short RMSE | long LPIPS | long RMSE |\n|---|---|---|---|---|\n";
+  for (const auto& m : methods)
+    md << "| " << m.name << " | " << fmt(m.mean(false, true)) << " | " << fmt(m.mean(false, false)) << " | "
+       << fmt(m.mean(true, true)) << " | " << fmt(m.mean(true, false)) << " |\n";
+  const MethodRows* adain = nullptr;
+  for (const auto& m : methods)
+    if (m.name == "AdaIN (per frame)") adain = &m;
+  if (!adain) return;
+  for (const auto& m : methods) {
+    if (m.name.rfind("StyleRF", 0) != 0) continue;
+    md << "\n" << m.name << " / AdaIN: short RMSE " << fmt(m.mean(false, false) / adain->mean(false, false), 3)
+       << "x, long RMSE " << fmt(m.mean(true, false) / adain->mean(true, false), 3) << "x, short LPIPS "
+       << fmt(m.mean(false, true) / adain->mean(false, true), 3) << "x, long LPIPS "
+       << fmt(m.mean(true, true) / adain->mean(true, true), 3) << "x (paper: RMSE 0.67x short, 0.74x long)\n";
+  }
+}
+
+}  // namespace
+
+int run_eval_table(int argc, char** argv) {
+  std::vector<std::string> groups, style_args;
+  std::string out, device;
+  PathOptions p;
+  int max_styles = 5, fps = 8;
+  bool no_lpips = false;
+  po::options_description desc("stylerf eval table --scene-ckpts DENSITY[,STYLE...] [...] -o DIR [options]");
+  desc.add_options()("help,h", "show this help")(
+      "scene-ckpts", po::value(&groups)->multitoken(),
+      "per scene: a density checkpoint, then style checkpoints of that scene (comma-separated)")(
+      "styles", po::value(&style_args)->multitoken(),
+      "style images or folders (default: the first style checkpoint's held-out styles)")(
+      "max-styles", po::value(&max_styles)->default_value(5), "styles per scene, evenly spaced (0: all)")(
+      "frames", po::value(&p.frames)->default_value(16), "frames compared: the first N of the path")(
+      "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
+      "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
+      "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
+      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")("fps", po::value(&fps)->default_value(8),
+                                                          "side-by-side video frame rate")(
+      "output,o", po::value(&out), "output directory")("chunk", po::value(&p.chunk)->default_value(8192),
+                                                        "rays per renderer call")(
+      "device", po::value(&device), "OpenCL device");
+  po::variables_map vm;
+  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::notify(vm);
+  if (vm.count("help") || groups.empty()) {
+    std::cout << desc;
+    return vm.count("help") ? 0 : 2;
+  }
+  check_path_options(p);
+  if (out.empty()) throw Error("-o DIR is required");
+  if (max_styles < 0) throw Error("--max-styles must be >= 0");
+  if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
+  std::vector<std::vector<std::string>> scene_ckpts;
+  for (const auto& g : groups) {
+    scene_ckpts.push_back(split(g, ','));
+    if (scene_ckpts.back().empty()) throw Error("--scene-ckpts: an empty group");
+    for (const auto& f : scene_ckpts.back())
+      if (!fs::is_regular_file(f)) throw Error("--scene-ckpts: " + f + " is not a file");
+  }
+  std::vector<std::string> explicit_styles;
+  for (const auto& a : style_args) {
+    if (fs::is_directory(a)) {
+      const auto files = style::style_images_in(a, &std::cout);
+      explicit_styles.insert(explicit_styles.end(), files.begin(), files.end());
+    } else {
+      const std::string why = io::image_unreadable_reason(a);
+      if (!why.empty()) throw Error("--styles " + a + ": " + why);
+      explicit_styles.push_back(a);
+    }
+  }
+  if (!style_args.empty() && explicit_styles.empty()) throw Error("--styles: no readable image");
+
+  init_runtime(device, false);
+  auto adain = style::AdainModel::load_default();
+  std::unique_ptr<eval::Lpips> lpips;
+  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default());
+  const auto dist = lpips_distance(lpips.get());
+  fs::create_directories(out);
+  const auto t_all = Clock::now();
+  std::vector<SceneResult> results;
+  for (const auto& group : scene_ckpts) {
+    const auto ck_d = io::load_checkpoint(group.front(), "");
+    if (ck_d.kind != "density")
+      throw Error("--scene-ckpts: the first checkpoint of a group must be a density checkpoint; " + group.front() +
+                  " holds a '" + ck_d.kind + "' stage");
+    const auto scene = scene_of_checkpoint(ck_d);
+    const auto density = model::load_model(ck_d);
+    std::vector<io::Checkpoint> style_cks;
+    for (size_t i = 1; i < group.size(); ++i) {
+      style_cks.push_back(io::load_checkpoint(group[i], ""));
+      if (style_cks.back().kind != "style")
+        throw Error("--scene-ckpts: " + group[i] + " holds a '" + style_cks.back().kind + "' stage, not a style stage");
+      check_same_scene_of(ck_d, style_cks.back(), scene);
+    }
+    std::vector<std::string> styles = explicit_styles;
+    if (styles.empty()) {
+      if (style_cks.empty()) throw Error("--styles is needed when a scene has no style checkpoint to take held-out styles from");
+      styles = style_cks.front().meta.at("styles").at("holdout").get<std::vector<std::string>>();
+      if (styles.empty()) throw Error(group[1] + " holds no held-out styles; give --styles");
+    }
+    styles = pick_evenly(styles, max_styles);
+
+    SceneResult res;
+    res.name = scene.name;
+    const fs::path sdir = fs::path(out) / scene.name;
+    fs::create_directories(sdir);
+    std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
+    const PathSetup path = path_setup(density.geo, scene, p);
+    std::cout << "  geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
+              << path.cams.front().height << ", warps in " << fmt(path.seconds, 1) << " s\n";
+    const auto rgb = eval::rgb_frames(density, scene, path.cams, p.chunk);
+    MethodRows rgb_rows{"RGB (unstylised floor)", {""}, {eval::score_frames(rgb, path.warps, dist.get())}};
+    std::cout << "  RGB: " << score_line(rgb_rows.scores.back()) << "\n";
+    MethodRows adain_rows{"AdaIN (per frame)", {}, {}};
+    std::vector<std::unique_ptr<model::StyleModel>> models;
+    std::vector<MethodRows> style_rows;
+    for (const auto& ck : style_cks) {
+      models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
+      style_rows.push_back({style_model_label(ck), {}, {}});
+    }
+    std::vector<io::Image> first_adain, first_stylerf;
+    for (size_t si = 0; si < styles.size(); ++si) {
+      const std::string& st = styles[si];
+      const auto t = Clock::now();
+      const auto a = eval::adain_frames(adain, rgb, eval::load_style_for_eval(st));
+      adain_rows.styles.push_back(st);
+      adain_rows.scores.push_back(eval::score_frames(a, path.warps, dist.get()));
+      std::cout << "  [" << si + 1 << "/" << styles.size() << "] " << fs::path(st).stem().string() << "\n    AdaIN: "
+                << score_line(adain_rows.scores.back()) << "\n";
+      if (si == 0) first_adain = a;
+      for (size_t mi = 0; mi < models.size(); ++mi) {
+        style::StyleEncoder enc(models[mi]->dst, adain.encoder, style::StyleEncoder::default_cache_dir());
+        const auto f = eval::stylerf_frames(*models[mi], scene, path.cams, enc.encode(st).code, scene.effects.background);
+        style_rows[mi].styles.push_back(st);
+        style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));
+        std::cout << "    " << style_rows[mi].name << ": " << score_line(style_rows[mi].scores.back()) << "\n";
+        if (si == 0 && mi == 0) first_stylerf = f;
+      }
+      std::cout << "    (" << fmt(seconds_since(t), 1) << " s)" << std::endl;
+    }
+    res.methods.push_back(rgb_rows);
+    res.methods.push_back(adain_rows);
+    for (auto& m : style_rows) res.methods.push_back(m);
+
+    // Side-by-side video of the first style: AdaIN | StyleRF.
+    if (!first_stylerf.empty()) {
+      const fs::path vdir = sdir / "side_by_side";
+      fs::create_directories(vdir);
+      for (size_t i = 0; i < first_adain.size(); ++i)
+        io::save_png(numbered(vdir, "frame_", int(i), 4, ".png"), side_by_side(first_adain[i], first_stylerf[i]));
+      write_video(vdir.string(), "frame_%04d.png", "side_by_side.mp4", fps, std::cout);
+    }
+    // Per-frame short-range RMSE.
+    std::vector<eval::PlotSeries> series;
+    for (size_t i = 0; i < res.methods.size(); ++i)
+      series.push_back({res.methods[i].name, eval::plot_colour(int(i)), res.methods[i].per_pair_rmse()});
+    io::save_png((sdir / "per_frame_rmse.png").string(), eval::line_plot(series));
+
+    nlohmann::json mj = nlohmann::json::array();
+    for (const auto& m : res.methods) {
+      nlohmann::json per = nlohmann::json::array();
+      for (size_t i = 0; i < m.scores.size(); ++i) per.push_back({{"style", m.styles[i]}, {"score", m.scores[i].to_json()}});
+      mj.push_back({{"method", m.name},
+                    {"short", {{"lpips", m.mean(false, true)}, {"rmse", m.mean(false, false)}}},
+                    {"long", {{"lpips", m.mean(true, true)}, {"rmse", m.mean(true, false)}}},
+                    {"per_style", per}});
+    }
+    res.json = {{"scene", scene.name},
+                {"checkpoints", group},
+                {"frames", {path.cams.front().width, path.cams.front().height}},
+                {"methods", mj}};
+    results.push_back(std::move(res));
+  }
+
+  // ---- the table ----
+  std::ostringstream md;
+  md << "# Consistency (StyleRF Table 1 protocol, by the scenes' own geometry)\n\n"
+     << "First " << p.frames << " frames of each scene's default path of " << p.path_frames
+     << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
+     << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
+     << (lpips ? "VGG v0.1, masked (each layer's map averaged over valid pixels)" : "not measured")
+     << ". Means over styles and frame pairs. Plot colours: ";
+  for (size_t i = 0; i < (results.empty() ? 0 : results.front().methods.size()); ++i)
+    md << (i ? ", " : "") << results.front().methods[i].name << " " << eval::plot_colour_name(int(i));
+  md << ".\n";
+  for (const auto& r : results) {
+    md << "\n## " << r.name << "\n\n";
+    markdown_rows(md, r.methods);
+  }
+  if (results.size() > 1) {  // over all scenes: methods by name, means of the scene means
+    std::map<std::string, std::vector<const MethodRows*>> by_name;
+    std::vector<std::string> order;
+    for (const auto& r : results)
+      for (const auto& m : r.methods) {
+        if (!by_name.count(m.name)) order.push_back(m.name);
+        by_name[m.name].push_back(&m);
+      }
+    std::vector<MethodRows> all;
+    for (const auto& name : order) {
+      MethodRows m{name, {}, {}};
+      for (const auto* part : by_name[name])
+        for (size_t i = 0; i < part->scores.size(); ++i) m.scores.push_back(part->scores[i]), m.styles.push_back(part->styles[i]);
+      all.push_back(m);
+    }
+    md << "\n## All scenes\n\n";
+    markdown_rows(md, all);
+  }
+  const double total = seconds_since(t_all);
+  md << "\n(" << fmt(total, 0) << " s in all)\n";
+  nlohmann::json doc = {{"frames", p.frames},         {"path_frames", p.path_frames}, {"depth_tolerance", p.depth_tolerance},
+                        {"lpips", lpips ? "vgg" : "none"}, {"seconds", total},          {"scenes", nlohmann::json::array()}};
+  for (const auto& r : results) doc["scenes"].push_back(r.json);
+  host::write_file_atomic((fs::path(out) / "table.md").string(), md.str());
+  host::write_file_atomic((fs::path(out) / "table.json").string(), doc.dump(2) + "\n");
+  std::cout << "\n" << md.str() << "-> " << out << "/table.md, table.json\n";
+  return 0;
+}
+
+}  // namespace stylerf::cli

@@ -1,0 +1,77 @@
+#include "examples/stylerf/eval_setup.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "lib/eval/path_frames.hpp"
+#include "lib/scene/scene_meta.hpp"
+
+namespace stylerf::cli {
+
+using host::Error;
+
+scene::Scene scene_of_checkpoint(const io::Checkpoint& ck, const std::string& dir_arg) {
+  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
+  auto lo = scene::load_options_from_meta(smeta);
+  lo.load_images = false;
+  const std::string dir = dir_arg.empty() ? scene::scene_dir_from_meta(smeta) : dir_arg;
+  scene::check_scene_dir_format(smeta, dir, ck.path);
+  scene::Scene s = scene::load_scene(dir, lo);
+  scene::check_same_scene(smeta, s, lo.downsample, ck.path);
+  return s;
+}
+
+void check_same_scene_of(const io::Checkpoint& a, const io::Checkpoint& b, const scene::Scene& scene) {
+  const nlohmann::json sa = a.meta.value("scene", nlohmann::json::object());
+  const nlohmann::json sb = b.meta.value("scene", nlohmann::json::object());
+  scene::check_same_scene(sb, scene, scene::load_options_from_meta(sa).downsample, b.path);
+}
+
+void check_path_options(const PathOptions& p) {
+  if (p.frames < 8 || p.frames > 1000)
+    throw Error("--frames must be in [8, 1000] (the long range compares frame t with t - 7)");
+  if (p.path_frames < p.frames || p.path_frames > 100000)
+    throw Error("--path-frames must be in [--frames, 100000] (got " + std::to_string(p.path_frames) + ")");
+  if (p.size < 0 || p.size > 4096) throw Error("--size must be in [0, 4096] (0: the scene's)");
+  if (!(p.depth_tolerance > 0 && p.depth_tolerance < 1)) throw Error("--depth-tol must be in (0, 1)");
+  if (p.chunk < 1) throw Error("--chunk must be >= 1");
+}
+
+PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PathSetup out;
+  out.cams = eval::path_cameras(scene, p.frames, p.path_frames, p.size);
+  eval::ConsistencyOptions opt;
+  opt.warp.depth_tolerance = p.depth_tolerance;
+  opt.warp.mask_background = scene.effects.background;
+  out.warps = eval::path_warps(eval::render_path_geometry(g, scene, out.cams, p.chunk), eval::RaySpace::of(scene), opt);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+std::unique_ptr<eval::MaskedDistance> lpips_distance(const eval::Lpips* lpips) {
+  if (!lpips) return nullptr;
+  return std::make_unique<eval::MaskedDistance>(
+      [lpips](const io::Image& a, const io::Image& b, const std::vector<float>& mask) { return lpips->distance(a, b, mask); });
+}
+
+std::string score_line(const eval::ConsistencyScore& s) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(4);
+  auto part = [&](const char* name, const eval::RangeScore& r) {
+    o << name << " (k=" << r.k << "): RMSE " << r.rmse;
+    if (std::isfinite(r.lpips)) o << " LPIPS " << r.lpips;
+    o << " (" << std::setprecision(1) << 100 * r.valid_fraction << "% valid" << std::setprecision(4);
+    if (r.skipped) o << ", " << r.skipped << " pairs without a valid pixel";
+    o << ")";
+  };
+  part("short", s.short_range);
+  o << "; ";
+  part("long", s.long_range);
+  return o.str();
+}
+
+}  // namespace stylerf::cli

@@ -1,0 +1,164 @@
+// `stylerf eval consistency` and `stylerf eval table` end to end on a generated scene, as a user runs them
+// (the built binary): every method gives finite scores over the right pairs, the table writes its Markdown,
+// JSON, plot and side-by-side frames; bad input is refused before any work, naming what is wrong.
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "lib/io/checkpoint.hpp"
+#include "lib/io/image.hpp"
+#include "lib/model/style_model.hpp"
+#include "lib/scene/scene_meta.hpp"
+#include "tests/cli_runner.hpp"
+#include "tests/small_scene.hpp"
+#include "tests/testing.hpp"
+
+using namespace stylerf;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_FIXTURES) + "/styles/" + name; }
+
+testing::CliRun run(const std::string& args) { return testing::run_cli(args); }
+
+struct Checkpoints {
+  std::string density, style;
+};
+// A short density stage through the CLI, and an untrained stylizer over the shared small geometry (the
+// plumbing is under test here, not the quality).
+const Checkpoints& checkpoints() {
+  static Checkpoints c = [] {
+    const scene::Scene& sc = testing::small_scene();
+    Checkpoints out;
+    out.density = (testing::small_work_dir() / "eval_density.ckpt").string();
+    const auto r = run("train-density --scene '" + sc.root +
+                       "' --iters 60 --init-voxels 24^3 --final-voxels 32^3 --upsample-at 40 --mask-at 40 "
+                       "--density-rank 8,8,8 --app-rank 8,8,8 --eval-views 1 --force -o '" + out.density + "'");
+    REQUIRE_MESSAGE(r.code == 0, r.output);
+    model::FeatureFieldConfig fc;
+    fc.rank = {8, 8, 8};
+    model::FeatureModel f = model::FeatureModel::create(testing::small_geometry(), fc, model::DecoderProfile::Fast, 3);
+    model::StyleModel m = model::StyleModel::create(std::move(f), style::SictMode::VolumeAdaptive, true, 5);
+    m.sict.running_var.value = host::Tensor::full({256}, 0.05f);
+    io::Checkpoint ck;
+    ck.kind = "style";
+    m.save(ck);
+    ck.meta["scene"] = scene::scene_meta(sc.root, scene::LoadOptions{}, sc);
+    ck.meta["styles"] = {{"train", nlohmann::json::array()}, {"holdout", {fixture("cmyk.jpg"), fixture("rgb16.png")}}};
+    out.style = (testing::small_work_dir() / "eval_style.ckpt").string();
+    io::save_checkpoint(out.style, ck);
+    return out;
+  }();
+  return c;
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream f(p);
+  return nlohmann::json::parse(f);
+}
+
+void check_score(const nlohmann::json& score, bool lpips) {
+  CHECK(score["short"]["pairs"].size() == 15);  // 16 frames: t = 1..15 into t-1
+  CHECK(score["long"]["pairs"].size() == 9);    // t = 7..15 into t-7
+  for (const char* r : {"short", "long"}) {
+    REQUIRE(score[r]["rmse"].is_number());
+    const double rmse = score[r]["rmse"];
+    CHECK(std::isfinite(rmse));
+    CHECK(rmse >= 0);
+    CHECK(rmse < 1);
+    CHECK(double(score[r]["valid_fraction"]) > 0);
+    if (lpips) {
+      REQUIRE(score[r]["lpips"].is_number());
+      CHECK(double(score[r]["lpips"]) >= 0);
+    } else {
+      CHECK(score[r]["lpips"].is_null());
+    }
+  }
+}
+
+}  // namespace
+
+TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
+  const auto& ck = checkpoints();
+  const fs::path dir = testing::small_work_dir() / "eval_cli";
+  fs::create_directories(dir);
+  auto r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --json '" + (dir / "rgb.json").string() +
+               "' -o '" + (dir / "rgb").string() + "'");
+  REQUIRE_MESSAGE(r.code == 0, r.output);
+  const auto rgb = read_json(dir / "rgb.json");
+  check_score(rgb["score"], true);
+  CHECK(fs::exists(dir / "rgb" / "frame_015.png"));
+  CHECK(rgb["seconds"]["total"].is_number());
+
+  r = run("eval consistency --ckpt '" + ck.density + "' --method adain --style '" + fixture("cmyk.jpg") +
+          "' --no-lpips --json '" + (dir / "adain.json").string() + "'");
+  REQUIRE_MESSAGE(r.code == 0, r.output);
+  const auto adain = read_json(dir / "adain.json");
+  check_score(adain["score"], false);
+  // The same geometry decides what is compared, whatever the method.
+  CHECK(adain["score"]["short"]["valid_fraction"] == rgb["score"]["short"]["valid_fraction"]);
+
+  r = run("eval consistency --ckpt '" + ck.style + "' --method stylerf --style '" + fixture("rgb16.png") +
+          "' --no-lpips --frames 10 --json '" + (dir / "stylerf.json").string() + "'");
+  REQUIRE_MESSAGE(r.code == 0, r.output);
+  const auto sr = read_json(dir / "stylerf.json");
+  CHECK(sr["score"]["short"]["pairs"].size() == 9);
+  CHECK(sr["score"]["long"]["pairs"].size() == 3);
+}
+
+TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {
+  const auto& ck = checkpoints();
+  const fs::path dir = testing::small_work_dir() / "eval_table";
+  const auto r = run("eval table --scene-ckpts '" + ck.density + "," + ck.style + "' --frames 9 --path-frames 60 -o '" +
+                     dir.string() + "'");
+  REQUIRE_MESSAGE(r.code == 0, r.output);
+  const auto table = read_json(dir / "table.json");
+  REQUIRE(table["scenes"].size() == 1);
+  const auto& methods = table["scenes"][0]["methods"];
+  REQUIRE(methods.size() == 3);
+  CHECK(methods[0]["method"] == "RGB (unstylised floor)");
+  CHECK(methods[1]["method"] == "AdaIN (per frame)");
+  CHECK(methods[2]["method"] == "StyleRF");
+  CHECK(methods[1]["per_style"].size() == 2);  // the style checkpoint's two held-out styles
+  for (const auto& m : methods)
+    for (const char* range : {"short", "long"}) {
+      CHECK(m[range]["rmse"].is_number());
+      CHECK(m[range]["lpips"].is_number());
+    }
+  std::ifstream md(dir / "table.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  CHECK(text.find("| AdaIN (per frame) |") != std::string::npos);
+  CHECK(text.find("StyleRF / AdaIN: short RMSE") != std::string::npos);
+  const std::string scene_name = testing::small_scene().name;
+  const auto plot = io::load_image((dir / scene_name / "per_frame_rmse.png").string());
+  CHECK(plot.width == 640);
+  const auto pair = io::load_image((dir / scene_name / "side_by_side" / "frame_0000.png").string());
+  CHECK(pair.width == 2 * testing::small_scene().width());
+}
+
+TEST_CASE("eval: bad input is refused before any work, naming the problem") {
+  const auto& ck = checkpoints();
+  auto expect = [](const std::string& args, const std::string& needle) {
+    const auto r = run(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.code != 0);
+    CHECK(r.output.find(needle) != std::string::npos);
+  };
+  expect("eval", "consistency|table");
+  expect("eval flow", "unknown 'flow'");
+  expect("eval consistency --ckpt '" + ck.density + "' --method flow", "--method must be rgb, adain or stylerf");
+  expect("eval consistency --ckpt '" + ck.density + "' --method adain", "needs --style");
+  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --frames 5", "--frames must be in [8, 1000]");
+  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --depth-tol 0", "--depth-tol");
+  expect("eval consistency --ckpt '" + ck.density + "' --method stylerf --style '" + fixture("cmyk.jpg") + "'",
+         "needs a style checkpoint");
+  expect("eval consistency --ckpt '" + ck.style + "' --method rgb", "needs a density checkpoint");
+  expect("eval consistency --ckpt '" + ck.density + "' --method adain --style /nonexistent.png", "/nonexistent.png");
+  expect("eval table --scene-ckpts '" + ck.style + "' -o /tmp/x", "must be a density checkpoint");
+  expect("eval table --scene-ckpts '" + ck.density + "' -o '" + (testing::small_work_dir() / "t2").string() + "'",
+         "--styles is needed");
+  expect("eval table --scene-ckpts /nonexistent.ckpt -o /tmp/x", "/nonexistent.ckpt is not a file");
+}
