@@ -179,9 +179,9 @@ TEST_CASE("lpips map: zero positions, huge and tiny magnitudes stay finite and e
   scale_pos(a, 0, 0.0f);  // a all zero: u = 0, d = sum w v^2
   scale_pos(a, 1, 0.0f);  // both all zero: d = 0
   scale_pos(b, 1, 0.0f);
-  scale_pos(a, 2, 1e18f);  // squares 1e36, their sum over 19 channels past FLT_MAX without scaling
+  scale_pos(a, 2, 1e18f);  // squares 1e36: the plain sum over 19 channels is still finite
   scale_pos(b, 2, 3e18f);
-  scale_pos(a, 3, 1e37f);  // |a| * sqrt(19) overflows float
+  scale_pos(a, 3, 1e37f);  // squares overflow: the rescaled sum
   scale_pos(b, 3, 1e-3f);
   scale_pos(a, 4, 1e-30f);  // ||a|| << eps: u ~ a / eps
   scale_pos(b, 4, 1e-12f);
@@ -196,6 +196,16 @@ TEST_CASE("lpips map: zero positions, huge and tiny magnitudes stay finite and e
   // Identical features give exactly 0 at every position, whatever their magnitude.
   const auto same = run_map(a, a, w, C, H, W);
   for (float v : same) CHECK(v == 0.0f);
+}
+
+TEST_CASE("lpips map: 1e18 features over 512 channels (sum of squares past FLT_MAX)") {
+  const int C = 512, H = 1, W = 11, HW = H * W;  // one group of 8 positions and a tail of 3
+  auto a = testing::random_uniform(C * HW, 31, 2e18f, 3e18f), b = testing::random_uniform(C * HW, 32, 0.0f, 3e18f);
+  for (int c = 0; c < C; ++c) b[size_t(c) * HW + 9] = 1e-20f;  // next to a lane that needs rescaling
+  auto w = testing::random_uniform(C, 33, 0.0f, 0.01f);
+  const auto got = run_map(a, b, w, C, H, W);
+  REQUIRE(testing::all_finite(got));
+  check_close(got, ref_map(d(a), d(b), d(w), C, HW), 1e-5, 1e-7, "map of 1e18 features");
 }
 
 TEST_CASE("lpips map: backward matches central differences") {

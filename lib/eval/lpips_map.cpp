@@ -11,6 +11,9 @@ namespace {
 using host::Error;
 using host::Tensor;
 
+// The kernels take 8 neighbouring positions per work-item.
+size_t groups_of_8(int n) { return size_t((n + 7) / 8); }
+
 struct MapGeom {
   int C, HW;
 };
@@ -32,7 +35,7 @@ MapGeom check_map(const char* op, const Tensor& fa, const Tensor& fb, const Tens
 Tensor lpips_distance_map(const Tensor& fa, const Tensor& fb, const Tensor& w) {
   const MapGeom g = check_map("lpips_distance_map", fa, fb, w);
   Tensor d({int64_t(g.HW)}, "lpips_distance_map output");
-  host::launch("lpips", "lpips_distance_forward", {size_t(g.HW)}, fa, fb, w, d, g.C, g.HW);
+  host::launch("lpips", "lpips_distance_forward", {groups_of_8(g.HW)}, fa, fb, w, d, g.C, g.HW);
   return d;
 }
 
@@ -40,7 +43,7 @@ Tensor lpips_distance_map_backward(const Tensor& fa, const Tensor& fb, const Ten
   const MapGeom g = check_map("lpips_distance_map_backward", fa, fb, w);
   host::expect_shape(dd, {int64_t(g.HW)}, host::DType::F32, "lpips_distance_map_backward", "dd");
   Tensor da(fa.shape(), "lpips_distance_map_backward da");
-  host::launch("lpips", "lpips_distance_backward", {size_t(g.HW)}, fa, fb, w, dd, da, g.C, g.HW);
+  host::launch("lpips", "lpips_distance_backward", {groups_of_8(g.HW)}, fa, fb, w, dd, da, g.C, g.HW);
   return da;
 }
 
