@@ -71,7 +71,7 @@ std::string lpips_path() { return nn::weights_path(eval::kLpipsVggWeightsFile); 
 // Fails the test (never skips) when the set-up step has not been run.
 void require_weights() {
   REQUIRE_MESSAGE(fs::exists(lpips_path()), "LPIPS weights missing: " << lpips_path() << " — run `"
-                                                                      << nn::kFetchWeightsCommand
+                                                                      << std::string(nn::kFetchWeightsCommand)
                                                                       << "` first (weights folder: $STYLERF_WEIGHTS, "
                                                                          "default ~/.cache/stylerf/weights)");
 }
