@@ -1,8 +1,8 @@
 // Perf mode of the evaluation kernels (part of `stylerf bench ops`): the LPIPS per-tap distance map
 // (kernels/lpips.cl) at the taps of a 256x256 image (relu1_2 [1,64,256,256] and relu4_3 [1,512,32,32]),
 // and the whole LPIPS (VGG-16) of one 256x256 pair when its weights are installed.
-// GB/s = bytes (each tensor read or written once) / kernel time; the kernels read the features twice
-// (norms, then the distance; the backward three times), from cache when C * 4 bytes per position fit.
+// GB/s = bytes (each tensor read or written once) / kernel time. The kernels actually read the features
+// twice (norms, then the distance; the backward three times), so the memory traffic is 2-3x the figure.
 // --quick: a quarter per side, one repetition.
 #include <algorithm>
 #include <cstdio>
