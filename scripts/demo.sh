@@ -4,7 +4,7 @@
 # stage on a generated scene, then its feature stage (VGG feature grid + decoder, fast profile) and its
 # style stage (SICT + DST on generated styles, compared with 2D AdaIN on a held-out style), then zero-shot
 # use of it (a style image never trained on along a camera path, a 4-corner interpolation sheet, two styles
-# composed by a 3D region), print the GEMM summary.
+# composed by a 3D region), its consistency against per-frame AdaIN (eval table), print the GEMM summary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -40,6 +40,9 @@ echo "== zero-shot: a style never trained on along a path, a 4-corner sheet, two
     "$OUT/styles/style_2.png,$OUT/styles/style_0.png,$OUT/styles/style_1.png,$OUT/styles/style_3.png" -o "$OUT/zero_shot_grid"
 "$S" stylize --ckpt "$OUT/style.ckpt" --region sphere:0,0,0,0.6 --style-inside "$OUT/styles/style_2.png" \
     --style-outside "$OUT/styles/style_4.png" --views path --frames 12 --no-losses -o "$OUT/zero_shot_region"
+echo "== consistency (the paper's Table 1 protocol by the scene's geometry): RGB floor, per-frame AdaIN, StyleRF"
+"$S" eval table --scene-ckpts "$OUT/density.ckpt,$OUT/style.ckpt" --styles "$OUT/styles/style_2.png" \
+    --frames 10 --path-frames 60 -o "$OUT/consistency"
 echo "== GEMM summary (quick shapes; full table: $S bench gemm)"
 "$S" bench gemm --quick --repeats 2
 echo "== outputs in $OUT"
