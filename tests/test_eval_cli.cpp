@@ -112,11 +112,14 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
 TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {
   const auto& ck = checkpoints();
   const fs::path dir = testing::small_work_dir() / "eval_table";
-  const auto r = run("eval table --scene-ckpts '" + ck.density + "," + ck.style + "' --frames 9 --path-frames 60 -o '" +
-                     dir.string() + "'");
+  // Two groups: the second, without a style stage, is scored on the first one's held-out styles.
+  const auto r = run("eval table --scene-ckpts '" + ck.density + "," + ck.style + "' '" + ck.density +
+                     "' --frames 9 --path-frames 60 -o '" + dir.string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto table = read_json(dir / "table.json");
-  REQUIRE(table["scenes"].size() == 1);
+  REQUIRE(table["scenes"].size() == 2);
+  REQUIRE(table["scenes"][1]["methods"].size() == 2);
+  CHECK(table["scenes"][1]["methods"][1]["per_style"].size() == 2);
   const auto& methods = table["scenes"][0]["methods"];
   REQUIRE(methods.size() == 3);
   CHECK(methods[0]["method"] == "RGB (unstylised floor)");

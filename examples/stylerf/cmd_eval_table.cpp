@@ -3,7 +3,8 @@
 // Per scene (one --scene-ckpts group: a density checkpoint, then any style checkpoints of the same scene,
 // e.g. StyleRF and its ablations), the path's warps are found once from the density geometry, then scored:
 //   RGB (the unstylised floor), per-frame 2D AdaIN of the RGB frames, and each style checkpoint, for every
-//   style (default: the first style checkpoint's held-out styles, --max-styles evenly spaced).
+//   style (default: the held-out styles of the first style checkpoint given, for every scene; --max-styles
+//   evenly spaced).
 // Writes DIR/table.md (methods x short/long x LPIPS/RMSE, per scene and over all, with StyleRF/AdaIN
 // ratios), DIR/table.json (every pair), and per scene DIR/<scene>/side_by_side.mp4 (AdaIN | StyleRF, first
 // style) and DIR/<scene>/per_frame_rmse.png (short-range RMSE per frame pair, mean over styles).
@@ -201,6 +202,23 @@ int run_eval_table(int argc, char** argv) {
   }
   if (!style_args.empty() && explicit_styles.empty()) throw Error("--styles: no readable image");
 
+  // Without --styles: the held-out styles (never trained on) of the first style checkpoint given, for
+  // every scene, so scenes without a style stage are scored on the same styles.
+  std::vector<std::string> default_styles;
+  if (explicit_styles.empty()) {
+    for (const auto& g : scene_ckpts)
+      for (size_t i = 0; i < g.size() && default_styles.empty(); ++i) {
+        const auto ck = io::load_checkpoint(g[i], "");
+        if (ck.kind != "style") continue;
+        default_styles = ck.meta.value("styles", nlohmann::json::object())
+                             .value("holdout", nlohmann::json::array())
+                             .get<std::vector<std::string>>();
+        if (default_styles.empty()) throw Error(g[i] + " holds no held-out styles; give --styles");
+      }
+    if (default_styles.empty())
+      throw Error("--styles is needed: no style checkpoint was given to take held-out styles from");
+  }
+
   init_runtime(device, false);
   auto adain = style::AdainModel::load_default();
   std::unique_ptr<eval::Lpips> lpips;
@@ -224,11 +242,7 @@ int run_eval_table(int argc, char** argv) {
       check_same_scene_of(ck_d, style_cks.back(), scene);
     }
     std::vector<std::string> styles = explicit_styles;
-    if (styles.empty()) {
-      if (style_cks.empty()) throw Error("--styles is needed when a scene has no style checkpoint to take held-out styles from");
-      styles = style_cks.front().meta.at("styles").at("holdout").get<std::vector<std::string>>();
-      if (styles.empty()) throw Error(group[1] + " holds no held-out styles; give --styles");
-    }
+    if (styles.empty()) styles = default_styles;
     styles = pick_evenly(styles, max_styles);
 
     SceneResult res;
