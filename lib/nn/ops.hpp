@@ -33,7 +33,8 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
 // a kernel larger than the padded input (k > H + 2p or k > W + 2p) is refused naming the sizes.
 // im2col + GEMM like conv2d_forward (kernels/strided.cl), sharing its scratch and row chunking;
 // conv2d_forward stays the faster choice for its stride-1 "same" cases.
-int conv2d_output_size(int in, int k, int stride, int pad);  // floor((in + 2 pad - k) / stride) + 1, may be <= 0
+// floor((in + 2 pad - k) / stride) + 1; 0 when the kernel is larger than the padded input.
+int conv2d_output_size(int in, int k, int stride, int pad);
 Tensor conv2d_strided_forward(const Tensor& x, const Tensor& w, const Tensor& b, int stride, int pad);
 // dx (zero where no output reads the input: rows / columns the flooring leaves out), dw, db.
 Conv2dGrads conv2d_strided_backward(const Tensor& x, const Tensor& w, const Tensor& dy, int stride, int pad,
