@@ -1,6 +1,6 @@
 // Perf mode of the evaluation kernels (part of `stylerf bench ops`): the LPIPS per-tap distance map
 // (kernels/lpips.cl) at the taps of a 256x256 image (relu1_2 [1,64,256,256] and relu4_3 [1,512,32,32]),
-// and the whole LPIPS (VGG-16) of one 256x256 pair when its weights are installed.
+// and the whole LPIPS (VGG-16, then AlexNet) of one 256x256 pair when the weights are installed.
 // GB/s = bytes (each tensor read or written once) / kernel time. The kernels actually read the features
 // twice (norms, then the distance; the backward three times), so the memory traffic is 2-3x the figure.
 // --quick: a quarter per side, one repetition.
@@ -60,16 +60,19 @@ void bench_ops_eval(const BenchOptions& opt) {
           host::launch("lpips", "lpips_distance_backward", {size_t((hw + 7) / 8)}, a, b, w, dd, da, C, hw);
         }));
   }
-  const std::string weights = nn::weights_path(eval::kLpipsVggWeightsFile);
-  if (!std::filesystem::exists(weights)) {
-    std::printf("  lpips vgg: not run, %s is missing (run `%s`)\n", weights.c_str(), nn::kFetchWeightsCommand);
-    return;
-  }
-  const eval::Lpips lpips = eval::Lpips::load_default();
   const io::Image x = noise_image(s, 1), y = noise_image(s, 2);
-  const Timing t = best_of(reps, [&] { lpips.distance(x, y); });
-  std::printf("  lpips vgg %dx%d: %.3f s per pair (both trunks, 5 maps, read back), %.3f s in kernels\n", s, s,
-              t.wall_ms / 1e3, t.kernel_ms / 1e3);
+  for (eval::LpipsNet net : {eval::LpipsNet::Vgg, eval::LpipsNet::Alex}) {
+    const char* name = eval::lpips_net_name(net);
+    const std::string weights = nn::weights_path(eval::lpips_weights_file(net));
+    if (!std::filesystem::exists(weights)) {
+      std::printf("  lpips %s: not run, %s is missing (run `%s`)\n", name, weights.c_str(), nn::kFetchWeightsCommand);
+      continue;
+    }
+    const eval::Lpips lpips = eval::Lpips::load_default(net);
+    const Timing t = best_of(reps, [&] { lpips.distance(x, y); });
+    std::printf("  lpips %s %dx%d: %.3f s per pair (both trunks, 5 maps, read back), %.3f s in kernels\n", name, s,
+                s, t.wall_ms / 1e3, t.kernel_ms / 1e3);
+  }
 }
 
 }  // namespace stylerf::bench

@@ -1,7 +1,9 @@
 // Perf mode of the spatial kernels of kernels/nn.cl (part of `stylerf bench ops`): relu, 2x2 max pool,
-// x2 upsample, im2col, col2im at the sizes StyleRF runs them (256x256 images). All are memory-bound, so
-// the figure is GB/s = (bytes read once + bytes written) / time; im2col reads each input element k*k
-// times from cache, which is not counted.
+// x2 upsample, im2col, col2im at the sizes StyleRF runs them (256x256 images); and of kernels/strided.cl
+// at AlexNet LPIPS's sizes for a 256x256 image: 3x3 stride-2 max pool, the strided im2col / col2im of
+// conv1 (11x11/4/2) and conv2 (5x5/1/2), and the whole strided conv2d (im2col + GEMM) in GFLOP/s. The
+// kernels are memory-bound, so their figure is GB/s = (bytes read once + bytes written) / time; im2col
+// reads each input element about (k/s)^2 times from cache, which is not counted.
 // --quick: every tensor a quarter per side of the full size, one repetition.
 #include <algorithm>
 #include <chrono>
@@ -95,6 +97,65 @@ void bench_ops_spatial(const BenchOptions& opt) {
       });
       row("col2im" + m, shape, xb + colb, t, t);
     }
+  }
+
+  // ---- kernels/strided.cl at AlexNet's sizes (LPIPS --net alex on an s x s image) ----
+  const int c1 = nn::conv2d_output_size(s, 11, 4, 2);  // 63 at 256
+  const int p1 = (c1 - 3) / 2 + 1;                     // 31
+  {  // 3x3 stride-2 max pool after conv1: [1,64,c1,c1] -> [1,64,p1,p1]
+    Tensor x = Tensor::full({1, 64, c1, c1}, 1.0f), dy = Tensor::full({1, 64, p1, p1}, 1.0f);
+    Tensor y = Tensor::zeros(dy.shape()), dx = Tensor::zeros(x.shape());
+    const double xb = double(x.numel()) * 4, yb = double(y.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape()) + " 3/2";
+    row("maxpool_forward", shape, xb + yb, best_of(reps, [&] { nn::maxpool_forward(x, 3, 2); }),
+        best_of(reps, [&] {
+          host::launch("strided", "maxpool_forward", {size_t(p1), 64}, x, y, c1, c1, 3, 2, p1, p1);
+        }));
+    row("maxpool_backward", shape, 2 * xb + yb, best_of(reps, [&] { nn::maxpool_backward(x, dy, 3, 2); }),
+        best_of(reps, [&] {
+          host::launch("strided", "maxpool_backward", {size_t(c1), 64}, x, dy, dx, c1, c1, 3, 2, p1, p1);
+        }));
+  }
+  struct Conv {
+    const char* name;
+    int cin, cout, size, k, stride, pad;
+  };
+  const Conv convs[] = {{"alex conv1", 3, 64, s, 11, 4, 2}, {"alex conv2", 64, 192, p1, 5, 1, 2}};
+  for (const Conv& c : convs) {  // im2col / col2im into reused buffers (call == kernel)
+    const int ho = nn::conv2d_output_size(c.size, c.k, c.stride, c.pad);
+    const int ckk = c.cin * c.k * c.k;
+    Tensor x = Tensor::full({1, c.cin, c.size, c.size}, 1.0f), dx = Tensor::zeros(x.shape());
+    Tensor col = Tensor::zeros({int64_t(ckk), int64_t(ho) * ho}, "bench col");
+    const double xb = double(x.numel()) * 4, colb = double(col.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape()) + " k" + std::to_string(c.k) + "/" +
+                              std::to_string(c.stride) + "/" + std::to_string(c.pad);
+    Timing t = best_of(reps, [&] {
+      host::launch("strided", "im2col_strided", {size_t(ho), size_t(ckk)}, x, 0, col, c.cin, c.size, c.size, c.k,
+                   c.stride, c.pad, ho, 0, ho);
+    });
+    row("im2col_strided", shape, xb + colb, t, t);
+    t = best_of(reps, [&] {
+      host::launch("strided", "col2im_strided", {size_t(c.size), size_t(c.cin)}, col, dx, 0, c.cin, c.size, c.size,
+                   c.k, c.stride, c.pad, ho, 0, ho, 0, c.size, 0);
+    });
+    row("col2im_strided", shape, xb + colb, t, t);
+  }
+  // The whole strided conv (im2col + GEMM + bias; backward: dW, db and dX), GFLOP/s = 2 * Cout * CKK * HoWo
+  // per pass (backward: two passes) / wall time.
+  std::printf("  %-20s %-30s %9s %9s %8s\n", "conv2d_strided", "input k/s/p -> Cout", "fwd ms", "bwd ms",
+              "GFLOP/s f/b");
+  for (const Conv& c : convs) {
+    const int ho = nn::conv2d_output_size(c.size, c.k, c.stride, c.pad);
+    Tensor x = Tensor::full({1, c.cin, c.size, c.size}, 0.5f), w = Tensor::full({c.cout, c.cin, c.k, c.k}, 0.01f);
+    Tensor b = Tensor::zeros({c.cout}), dy = Tensor::full({1, c.cout, ho, ho}, 1.0f);
+    const double flop = 2.0 * c.cout * c.cin * c.k * c.k * double(ho) * ho;
+    const Timing f = best_of(reps, [&] { nn::conv2d_strided_forward(x, w, b, c.stride, c.pad); });
+    const Timing g = best_of(reps, [&] { nn::conv2d_strided_backward(x, w, dy, c.stride, c.pad, true, true); });
+    const std::string shape = host::shape_str(x.shape()) + " " + std::to_string(c.k) + "/" + std::to_string(c.stride) +
+                              "/" + std::to_string(c.pad) + " -> " + std::to_string(c.cout);
+    std::printf("  %-20s %-30s %9.3f %9.3f %4.1f/%-4.1f\n", c.name, shape.c_str(), f.wall_ms, g.wall_ms,
+                flop / (f.wall_ms * 1e6), 2 * flop / (g.wall_ms * 1e6));
+    std::fflush(stdout);
   }
 }
 

@@ -13,7 +13,7 @@ if ! command -v oclgrind > /dev/null; then
   SUDO=$([ "$(id -u)" = 0 ] && echo "" || echo sudo)
   $SUDO apt-get install -y oclgrind > /dev/null
 fi
-suites=${*:-test_reduce test_norm test_spatial test_loss test_linear_layout}
+suites=${*:-test_reduce test_norm test_spatial test_conv_strided test_loss test_linear_layout}
 export STYLERF_CL_OPTIONS="-Drestrict=" STYLERF_TEST_DATA=${STYLERF_TEST_DATA:-$PWD/../shared/data}
 export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$HOME/.cache/stylerf/pocl}
 status=0

@@ -1,11 +1,14 @@
 // `stylerf eval consistency` and `stylerf eval table` end to end on a generated scene, as a user runs them
 // (the built binary): every method gives finite scores over the right pairs, the table writes its Markdown,
 // JSON, plot and side-by-side frames; bad input is refused before any work, naming what is wrong.
+// `stylerf lpips` with either trunk (--net vgg | alex) and its refused inputs.
 #include <doctest/doctest.h>
 
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "lib/io/checkpoint.hpp"
 #include "lib/io/image.hpp"
@@ -164,4 +167,42 @@ TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   expect("eval table --scene-ckpts '" + ck.density + "' -o '" + (testing::small_work_dir() / "t2").string() + "'",
          "--styles is needed");
   expect("eval table --scene-ckpts /nonexistent.ckpt -o /tmp/x", "/nonexistent.ckpt is not a file");
+}
+
+TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the problem") {
+  const fs::path dir = testing::small_work_dir() / "lpips_cli";
+  fs::create_directories(dir);
+  auto image = [&](const std::string& name, int w, int h, float phase) {
+    io::Image im{w, h, std::vector<float>(size_t(3) * w * h)};
+    for (int c = 0; c < 3; ++c)
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) im.at(c, y, x) = 0.5f + 0.4f * std::sin(0.3f * x + 0.2f * y * (c + 1) + phase);
+    const std::string path = (dir / name).string();
+    io::save_png(path, im);
+    return "'" + path + "'";
+  };
+  const std::string a = image("a.png", 48, 40, 0.0f), b = image("b.png", 48, 40, 1.0f);
+  const std::string small = image("small.png", 40, 30, 0.0f);
+  for (const std::string net : {"vgg", "alex"}) {
+    CAPTURE(net);
+    auto r = run("lpips " + a + " " + b + " --net " + net);
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    const double d = std::stod(r.output);
+    CHECK(d > 0.0);
+    CHECK(d < 2.0);
+    r = run("lpips " + a + " " + a + " --net " + net);
+    REQUIRE(r.code == 0);
+    CHECK(std::stod(r.output) == 0.0);
+  }
+  auto expect = [](const std::string& args, const std::string& needle) {
+    const auto r = run(args);
+    INFO(args << "\n" << r.output);
+    CHECK(r.code != 0);
+    CHECK(r.output.find(needle) != std::string::npos);
+  };
+  expect("lpips " + small + " " + small + " --net alex", "are 40x30: LPIPS (--net alex) needs at least 31x31");
+  CHECK(run("lpips " + small + " " + small).code == 0);  // VGG takes 16x16 and up
+  expect("lpips " + a + " " + small + " --net alex", "is 48x40 but");
+  expect("lpips " + a + " " + b + " --net squeeze", "--net squeeze: unknown trunk (use vgg or alex)");
 }

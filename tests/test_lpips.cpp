@@ -1,19 +1,22 @@
-// LPIPS (VGG-16, v0.1 heads): the distance-map kernel against a double-precision reference (zero
-// features, huge and tiny magnitudes, odd channel counts, 1x1 maps) and its backward against central
-// differences; the whole metric against a double CPU reference built from the weights file and against
-// the official values in ../shared/reference/lpips (lpips 0.1.4); properties that need no shared data
-// (identity, symmetry, the mask, odd sizes, refused sizes).
+// LPIPS (v0.1 heads; VGG-16 and AlexNet trunks): the distance-map kernel against a double-precision
+// reference (zero features, huge and tiny magnitudes, odd channel counts, 1x1 maps) and its backward against
+// central differences; the whole metric, for both trunks, against a double CPU reference built from the
+// weights file and against the official values in ../shared/reference/lpips (lpips 0.1.4); properties that
+// need no shared data (identity, symmetry, the mask, odd sizes, refused sizes).
 //
 // The weights come from the set-up command `bash scripts/fetch_weights.sh`; without them these tests FAIL
 // (they do not skip) with a message naming that command.
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 #include "host/error.hpp"
@@ -66,19 +69,27 @@ std::vector<float> run_map(const std::vector<float>& a, const std::vector<float>
 
 // ---- weights ----------------------------------------------------------------------------------------
 
-std::string lpips_path() { return nn::weights_path(eval::kLpipsVggWeightsFile); }
+using eval::LpipsNet;
+
+std::string lpips_path(LpipsNet net = LpipsNet::Vgg) { return nn::weights_path(eval::lpips_weights_file(net)); }
 
 // Fails the test (never skips) when the set-up step has not been run.
-void require_weights() {
-  REQUIRE_MESSAGE(fs::exists(lpips_path()), "LPIPS weights missing: " << lpips_path() << " — run `"
-                                                                      << std::string(nn::kFetchWeightsCommand)
-                                                                      << "` first (weights folder: $STYLERF_WEIGHTS, "
-                                                                         "default ~/.cache/stylerf/weights)");
+void require_weights(LpipsNet net = LpipsNet::Vgg) {
+  REQUIRE_MESSAGE(fs::exists(lpips_path(net)), "LPIPS weights missing: " << lpips_path(net) << " — run `"
+                                                                         << std::string(nn::kFetchWeightsCommand)
+                                                                         << "` first (weights folder: "
+                                                                            "$STYLERF_WEIGHTS, default "
+                                                                            "~/.cache/stylerf/weights)");
 }
 
-const eval::Lpips& lpips() {
-  static eval::Lpips l = eval::Lpips::load_default();
-  return l;
+// Loaded once per trunk, on first use (the VGG tests do not need the AlexNet file).
+const eval::Lpips& lpips(LpipsNet net = LpipsNet::Vgg) {
+  if (net == LpipsNet::Vgg) {
+    static eval::Lpips vgg = eval::Lpips::load_default();
+    return vgg;
+  }
+  static eval::Lpips alex = eval::Lpips::load_default(LpipsNet::Alex);
+  return alex;
 }
 
 // ---- a double CPU reference of the whole metric, independent of lib/eval/lpips.cpp ---------------------
@@ -121,6 +132,80 @@ std::vector<RefTensor> ref_taps(const io::Image& im) {
 double ref_lpips(const io::Image& a, const io::Image& b) {
   const auto st = nn::load_weights(lpips_path());
   const auto ta = ref_taps(a), tb = ref_taps(b);
+  double total = 0;
+  for (int l = 0; l < 5; ++l) {
+    const int hw = ta[l].H * ta[l].W;
+    const auto dm = ref_map(ta[l].v, tb[l].v, d(st.get("lin." + std::to_string(l) + ".weight").data), ta[l].C, hw);
+    double s = 0;
+    for (double v : dm) s += v;
+    total += s / hw;
+  }
+  return total;
+}
+
+// AlexNet: a k x k conv with stride and zero padding (torch's Conv2d), a k x k stride-s max pool (floor).
+RefTensor ref_conv_strided(const RefTensor& x, const std::vector<float>& w, const std::vector<float>& b, int cout,
+                           int k, int stride, int pad) {
+  const int ho = (x.H + 2 * pad - k) / stride + 1, wo = (x.W + 2 * pad - k) / stride + 1;
+  RefTensor y{cout, ho, wo, std::vector<double>(size_t(cout) * ho * wo)};
+  for (int o = 0; o < cout; ++o)
+    for (int yy = 0; yy < ho; ++yy)
+      for (int xx = 0; xx < wo; ++xx) {
+        double s = b[o];
+        for (int i = 0; i < x.C; ++i)
+          for (int ky = 0; ky < k; ++ky) {
+            const int sy = yy * stride + ky - pad;
+            if (sy < 0 || sy >= x.H) continue;
+            for (int kx = 0; kx < k; ++kx) {
+              const int sx = xx * stride + kx - pad;
+              if (sx >= 0 && sx < x.W) s += double(w[((size_t(o) * x.C + i) * k + ky) * k + kx]) * x.at(i, sy, sx);
+            }
+          }
+        y.at(o, yy, xx) = s;
+      }
+  return y;
+}
+
+RefTensor ref_pool3(const RefTensor& x) {  // 3x3, stride 2
+  RefTensor y{x.C, (x.H - 3) / 2 + 1, (x.W - 3) / 2 + 1, {}};
+  y.v.resize(size_t(y.C) * y.H * y.W);
+  for (int c = 0; c < x.C; ++c)
+    for (int yy = 0; yy < y.H; ++yy)
+      for (int xx = 0; xx < y.W; ++xx) {
+        double m = x.at(c, 2 * yy, 2 * xx);
+        for (int ky = 0; ky < 3; ++ky)
+          for (int kx = 0; kx < 3; ++kx) m = std::max(m, x.at(c, 2 * yy + ky, 2 * xx + kx));
+        y.at(c, yy, xx) = m;
+      }
+  return y;
+}
+
+std::vector<RefTensor> ref_taps_alex(const io::Image& im) {
+  const auto st = nn::load_weights(lpips_path(LpipsNet::Alex));
+  const double shift[3] = {-0.030, -0.088, -0.188}, scale[3] = {0.458, 0.448, 0.450};
+  RefTensor h{3, im.height, im.width, std::vector<double>(im.data.size())};
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < im.height; ++y)
+      for (int x = 0; x < im.width; ++x) h.at(c, y, x) = (2.0 * im.at(c, y, x) - 1.0 - shift[c]) / scale[c];
+  struct L {
+    int cout, k, stride, pad;
+  };
+  const L layers[5] = {{64, 11, 4, 2}, {192, 5, 1, 2}, {384, 3, 1, 1}, {256, 3, 1, 1}, {256, 3, 1, 1}};
+  std::vector<RefTensor> taps;
+  for (int i = 0; i < 5; ++i) {
+    const std::string key = "trunk." + std::to_string(i);
+    h = ref_conv_strided(h, st.get(key + ".weight").data, st.get(key + ".bias").data, layers[i].cout, layers[i].k,
+                         layers[i].stride, layers[i].pad);
+    testing::ref_relu(h);
+    taps.push_back(h);
+    if (i < 2) h = ref_pool3(h);
+  }
+  return taps;
+}
+
+double ref_lpips_alex(const io::Image& a, const io::Image& b) {
+  const auto st = nn::load_weights(lpips_path(LpipsNet::Alex));
+  const auto ta = ref_taps_alex(a), tb = ref_taps_alex(b);
   double total = 0;
   for (int l = 0; l < 5; ++l) {
     const int hw = ta[l].H * ta[l].W;
@@ -420,8 +505,189 @@ TEST_CASE("lpips: wrong weight files are refused naming the file") {
   CHECK(e.find(nn::kVggWeightsFile) != std::string::npos);
   e = testing::error_of([&] { l.load("/nonexistent/lpips_vgg16.safetensors"); });
   CHECK(e.find(nn::kFetchWeightsCommand) != std::string::npos);
-  if (fs::exists(nn::weights_path("lpips_alex.safetensors"))) {
-    e = testing::error_of([&] { l.load(nn::weights_path("lpips_alex.safetensors")); });
-    CHECK(e.find("only the VGG-16 variant") != std::string::npos);
+  // Each file loads as its own trunk, whatever load() is given.
+  l.load(lpips_path(LpipsNet::Vgg));
+  CHECK(l.net() == LpipsNet::Vgg);
+  if (fs::exists(lpips_path(LpipsNet::Alex))) {
+    l.load(lpips_path(LpipsNet::Alex));
+    CHECK(l.net() == LpipsNet::Alex);
+    CHECK(l.min_side() == eval::kLpipsAlexMinSide);
   }
+  // A VGG file under the AlexNet name is refused by load_default(Alex), naming both trunks.
+  const fs::path dir = fs::temp_directory_path() / ("stylerf_lpips_weights_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(lpips_path(LpipsNet::Vgg), dir / eval::kLpipsAlexWeightsFile, fs::copy_options::overwrite_existing);
+  const char* old = std::getenv("STYLERF_WEIGHTS");
+  const std::string saved = old ? old : "";
+  setenv("STYLERF_WEIGHTS", dir.c_str(), 1);
+  e = testing::error_of([] { eval::Lpips::load_default(LpipsNet::Alex); });
+  if (old) setenv("STYLERF_WEIGHTS", saved.c_str(), 1);
+  else unsetenv("STYLERF_WEIGHTS");
+  fs::remove_all(dir);
+  CHECK(e.find("holds the VGG-16 LPIPS weights, expected AlexNet") != std::string::npos);
+  CHECK(eval::parse_lpips_net("alex") == LpipsNet::Alex);
+  testing::expect_error([] { eval::parse_lpips_net("squeeze"); }, "unknown net 'squeeze'");
+}
+
+// ---- AlexNet ------------------------------------------------------------------------------------------
+
+TEST_CASE("lpips alex: the weights are installed (set-up: bash scripts/fetch_weights.sh)") {
+  require_weights(LpipsNet::Alex);
+  const auto st = nn::load_weights(lpips_path(LpipsNet::Alex));
+  CHECK(st.get("trunk.0.weight").shape == std::vector<int64_t>{64, 3, 11, 11});
+  CHECK(st.get("trunk.1.weight").shape == std::vector<int64_t>{192, 64, 5, 5});
+  CHECK(st.get("trunk.4.weight").shape == std::vector<int64_t>{256, 256, 3, 3});
+  CHECK(st.get("lin.2.weight").shape == std::vector<int64_t>{384});
+  CHECK(lpips(LpipsNet::Alex).loaded());
+  CHECK(lpips(LpipsNet::Alex).net() == LpipsNet::Alex);
+}
+
+TEST_CASE("lpips alex: tap sizes floor like torch (256 -> 63, 31, 15; the minimum 31 -> 7, 3, 1)") {
+  using S = std::array<int, 2>;
+  CHECK(eval::Lpips::tap_sizes(LpipsNet::Alex, 256, 256) ==
+        std::vector<S>{{63, 63}, {31, 31}, {15, 15}, {15, 15}, {15, 15}});
+  CHECK(eval::Lpips::tap_sizes(LpipsNet::Alex, 37, 53) == std::vector<S>{{8, 12}, {3, 5}, {1, 2}, {1, 2}, {1, 2}});
+  CHECK(eval::Lpips::tap_sizes(LpipsNet::Alex, 31, 31) == std::vector<S>{{7, 7}, {3, 3}, {1, 1}, {1, 1}, {1, 1}});
+  // One below the minimum: 30 -> 6 -> 2 -> no position.
+  CHECK(eval::Lpips::tap_sizes(LpipsNet::Alex, 30, 31)[2] == S{0, 1});
+  // The VGG overload is unchanged.
+  CHECK(eval::Lpips::tap_sizes(37, 53) == eval::Lpips::tap_sizes(LpipsNet::Vgg, 37, 53));
+}
+
+TEST_CASE("lpips alex: matches a double-precision CPU reference (odd sizes floor at every stride)") {
+  require_weights(LpipsNet::Alex);
+  for (auto wh : {std::array<int, 2>{53, 37}, std::array<int, 2>{31, 31}, std::array<int, 2>{70, 45}}) {
+    CAPTURE(wh[0]);
+    CAPTURE(wh[1]);
+    const io::Image a = pattern(wh[0], wh[1], 21), b = pattern(wh[0], wh[1], 22);
+    const double got = lpips(LpipsNet::Alex).distance(a, b), want = ref_lpips_alex(a, b);
+    INFO("ours " << got << ", reference " << want);
+    CHECK(std::fabs(got - want) <= 1e-5 + 1e-4 * want);
+  }
+}
+
+TEST_CASE("lpips alex: the official values of ../shared/reference/lpips (lpips 0.1.4, AlexNet)") {
+  require_weights(LpipsNet::Alex);
+  const std::string dir = testing::shared_reference_dir("lpips");
+  if (dir.empty()) {
+    MESSAGE("../shared/reference/lpips is absent (no ../shared on this machine, or STYLERF_TEST_DATA unset): the "
+            "comparison with the official lpips values is not run; the other LPIPS tests still are");
+    return;
+  }
+  const auto j = nlohmann::json::parse(host::read_file(dir + "/pairs.json"));
+  REQUIRE(j["pairs"].size() == 6);
+  for (const auto& pair : j["pairs"]) {
+    const std::string fa = pair["a"], fb = pair["b"];
+    const double want = pair["lpips_alex"];
+    const double got =
+        lpips(LpipsNet::Alex).distance(io::load_image(dir + "/" + fa), io::load_image(dir + "/" + fb));
+    MESSAGE(std::setprecision(7) << fa << " vs " << fb << ": ours " << got << ", official " << want << ", |diff| "
+                                 << std::fabs(got - want));
+    CHECK(std::fabs(got - want) <= 1e-3);
+  }
+}
+
+TEST_CASE("lpips alex: identity, symmetry, and a larger difference for a larger change") {
+  require_weights(LpipsNet::Alex);
+  const eval::Lpips& l = lpips(LpipsNet::Alex);
+  const io::Image a = pattern(64, 48, 3), b = pattern(64, 48, 4);
+  CHECK(l.distance(a, a) == 0.0);
+  const double ab = l.distance(a, b), ba = l.distance(b, a);
+  CHECK(ab > 0.0);
+  CHECK(ab == doctest::Approx(ba).epsilon(1e-6));
+  io::Image slightly = a;
+  const auto noise = testing::random_uniform(a.data.size(), 5, -0.02f, 0.02f);
+  for (size_t i = 0; i < a.data.size(); ++i) slightly.data[i] = std::min(1.0f, std::max(0.0f, a.data[i] + noise[i]));
+  const double small = l.distance(a, slightly);
+  CHECK(small > 0.0);
+  CHECK(small < ab);
+  // A different metric from VGG's on the same pair.
+  CHECK(std::fabs(ab - lpips().distance(a, b)) > 1e-3);
+}
+
+TEST_CASE("lpips alex: masked distance") {
+  require_weights(LpipsNet::Alex);
+  const eval::Lpips& l = lpips(LpipsNet::Alex);
+  const int W = 96, H = 48;
+  const io::Image a = pattern(W, H, 6), other = pattern(W, H, 7);
+  const std::vector<float> ones(size_t(W) * H, 1.0f);
+  CHECK(l.distance(a, other, ones) == doctest::Approx(l.distance(a, other)).epsilon(1e-12));
+
+  SUBCASE("the definition: each tap weighted by the mask's area average over its cells") {
+    // Independently of the implementation's coverage weights: split every input pixel into h x w
+    // sub-pixels (h, w the tap's size); then tap cell (y, x) covers exactly the H x W sub-pixels
+    // [y H, (y + 1) H) x [x W, (x + 1) W), and its mask is their plain mean.
+    auto mask = testing::random_uniform(size_t(W) * H, 8, 0.0f, 1.0f);
+    const auto maps = l.distance_maps(io::to_tensor(a), io::to_tensor(other));
+    const auto sizes = eval::Lpips::tap_sizes(LpipsNet::Alex, H, W);
+    double want = 0;
+    for (int t = 0; t < 5; ++t) {
+      const int h = sizes[t][0], w = sizes[t][1];
+      const auto dm = maps[t].to_host();
+      REQUIRE(dm.size() == size_t(h) * w);
+      double num = 0, den = 0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          double m = 0;
+          for (int sy = y * H; sy < (y + 1) * H; ++sy)
+            for (int sx = x * W; sx < (x + 1) * W; ++sx) m += mask[size_t(sy / h) * W + sx / w];
+          m /= double(H) * W;
+          num += m * dm[size_t(y) * w + x];
+          den += m;
+        }
+      want += num / den;
+    }
+    CHECK(l.distance(a, other, mask) == doctest::Approx(want).epsilon(1e-9));
+  }
+  SUBCASE("differences where the mask is 0 count much less") {
+    // Mask: the left third. b = a with noise in the right third; the same noise inside the mask counts fully.
+    std::vector<float> mask(size_t(W) * H, 0.0f);
+    io::Image b = a, inside = a;
+    const auto noise = testing::random_uniform(a.data.size(), 9, 0.0f, 1.0f);
+    for (int c = 0; c < 3; ++c)
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          if (c == 0 && x < W / 3) mask[size_t(y) * W + x] = 1.0f;
+          const size_t i = (size_t(c) * H + y) * W + x;
+          if (x >= 2 * W / 3) b.data[i] = noise[i];
+          if (x < W / 3) inside.data[i] = noise[i];
+        }
+    const double unmasked = l.distance(a, b), masked = l.distance(a, b, mask), in = l.distance(a, inside, mask);
+    INFO("unmasked " << unmasked << ", masked " << masked << ", noise inside the mask " << in);
+    CHECK(unmasked > 0.05);
+    // The deep taps are coarse (5 positions across at relu3..5, receptive fields of 99-163 px), so the noise
+    // 32 px from the mask's edge reaches the masked cells a little: masked is about 1/26 of unmasked here,
+    // and noise inside the mask 50 times masked.
+    CHECK(masked < 0.1 * unmasked);
+    CHECK(in > 20.0 * masked);
+  }
+  SUBCASE("an all-zero mask gives 0; bad masks are refused") {
+    CHECK(l.distance(a, other, std::vector<float>(size_t(W) * H, 0.0f)) == 0.0);
+    testing::expect_error([&] { l.distance(a, other, std::vector<float>(10, 1.0f)); }, "the mask has 10 values");
+  }
+}
+
+TEST_CASE("lpips alex: odd sizes run, too small or different sizes are refused naming the sizes") {
+  require_weights(LpipsNet::Alex);
+  const eval::Lpips& l = lpips(LpipsNet::Alex);
+  const io::Image a = pattern(53, 37, 10), b = pattern(53, 37, 11);
+  const double v = l.distance(a, b);
+  CHECK(std::isfinite(v));
+  CHECK(v > 0.0);
+  const auto maps = l.distance_maps(io::to_tensor(a), io::to_tensor(b));
+  const size_t want_sizes[5] = {8 * 12, 3 * 5, 1 * 2, 1 * 2, 1 * 2};
+  for (int t = 0; t < 5; ++t) CHECK(size_t(maps[t].numel()) == want_sizes[t]);
+  // The smallest input: every tap of relu3..5 is one position.
+  const io::Image s31 = pattern(31, 31, 12), t31 = pattern(31, 31, 13);
+  CHECK(std::isfinite(l.distance(s31, t31)));
+  CHECK(l.distance(s31, s31) == 0.0);
+  // VGG takes 16..30, AlexNet refuses them.
+  const io::Image narrow = pattern(40, 30, 14);
+  CHECK(std::isfinite(lpips().distance(narrow, narrow)));
+  const std::string e = testing::error_of([&] { l.distance(narrow, narrow); });
+  CHECK(e.find("at least 31x31 for AlexNet") != std::string::npos);
+  CHECK(e.find("got 40x30") != std::string::npos);
+  testing::expect_error([&] { l.distance(a, pattern(37, 53, 10)); }, "53x37 and 37x53");
+  testing::expect_error([&] { l.distance_maps(Tensor::zeros({1, 3, 30, 64}), Tensor::zeros({1, 3, 30, 64})); },
+                        "H and W must be >= 31 (AlexNet)");
 }

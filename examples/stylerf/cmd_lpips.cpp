@@ -1,7 +1,8 @@
-// stylerf lpips A.png B.png [--net vgg] [--mask M.png] [--device D] [--profile]
-// Prints the LPIPS distance (VGG-16, v0.1 heads; lib/eval/lpips.hpp) between two images of the same size,
-// or the masked LPIPS with a mask image (its grey level, the mean of R, G and B, is the weight in [0,1]).
-// Weights: lpips_vgg16.safetensors, set up with `bash scripts/fetch_weights.sh`.
+// stylerf lpips A.png B.png [--net vgg|alex] [--mask M.png] [--device D] [--profile]
+// Prints the LPIPS distance (v0.1 heads, VGG-16 or AlexNet trunk; lib/eval/lpips.hpp) between two images
+// of the same size, or the masked LPIPS with a mask image (its grey level, the mean of R, G and B, is the
+// weight in [0,1]). Weights: lpips_vgg16.safetensors / lpips_alex.safetensors, set up with
+// `bash scripts/fetch_weights.sh`.
 #include <boost/program_options.hpp>
 #include <iomanip>
 #include <iostream>
@@ -25,7 +26,7 @@ int run_lpips(int argc, char** argv) {
   bool profile = false;
   po::options_description desc("stylerf lpips A.png B.png [options]");
   desc.add_options()("help,h", "show this help")("net", po::value(&net)->default_value("vgg"),
-                                                  "trunk: vgg (VGG-16; the only one built)")(
+                                                  "trunk: vgg (VGG-16) or alex (AlexNet)")(
       "mask", po::value(&mask_path), "mask image, same size: compare only where it is bright (masked LPIPS)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
       "profile", po::bool_switch(&profile), "print per-kernel times");
@@ -39,27 +40,27 @@ int run_lpips(int argc, char** argv) {
   po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
   po::notify(vm);
   if (vm.count("help")) {
-    std::cout << desc << "\nWeights: " << nn::weights_path(eval::kLpipsVggWeightsFile) << " (set up with `"
-              << nn::kFetchWeightsCommand << "`)\n";
+    std::cout << desc << "\nWeights: " << nn::weights_path(eval::kLpipsVggWeightsFile) << " (vgg), "
+              << nn::weights_path(eval::kLpipsAlexWeightsFile) << " (alex); set up with `" << nn::kFetchWeightsCommand
+              << "`\n";
     return 0;
   }
   if (a_path.empty() || b_path.empty()) {
     std::cerr << "stylerf lpips: two images are required\n" << desc;
     return 2;
   }
-  if (net == "alex")
-    throw std::runtime_error("--net alex: only the VGG-16 LPIPS (--net vgg) is built; the AlexNet trunk needs "
-                             "11x11 stride-4 and 5x5 convolutions and 3x3 stride-2 pooling, which stylerf has not");
-  if (net != "vgg") throw std::runtime_error("--net " + net + ": unknown trunk (use vgg)");
+  if (net != "vgg" && net != "alex") throw std::runtime_error("--net " + net + ": unknown trunk (use vgg or alex)");
+  const eval::LpipsNet which = eval::parse_lpips_net(net);
+  const int min_side = eval::lpips_min_side(which);
 
   // Images (and their sizes) before the weights and the device: a wrong file is reported first.
   const io::Image a = io::load_image(a_path), b = io::load_image(b_path);
   if (a.width != b.width || a.height != b.height)
     throw std::runtime_error(a_path + " is " + size_of(a) + " but " + b_path + " is " + size_of(b) +
                              ": LPIPS compares images of the same size");
-  if (a.width < eval::kLpipsMinSide || a.height < eval::kLpipsMinSide)
-    throw std::runtime_error(a_path + " and " + b_path + " are " + size_of(a) + ": LPIPS needs at least " +
-                             std::to_string(eval::kLpipsMinSide) + "x" + std::to_string(eval::kLpipsMinSide));
+  if (a.width < min_side || a.height < min_side)
+    throw std::runtime_error(a_path + " and " + b_path + " are " + size_of(a) + ": LPIPS (--net " + net +
+                             ") needs at least " + std::to_string(min_side) + "x" + std::to_string(min_side));
   std::vector<float> mask;
   if (!mask_path.empty()) {
     const io::Image m = io::load_image(mask_path);
@@ -71,13 +72,14 @@ int run_lpips(int argc, char** argv) {
   }
 
   cli::init_runtime(device, profile);
-  const eval::Lpips lpips = eval::Lpips::load_default();
+  const eval::Lpips lpips = eval::Lpips::load_default(which);
   const double d = mask_path.empty() ? lpips.distance(a, b) : lpips.distance(a, b, mask);
   std::cout << std::fixed << std::setprecision(6) << d << "\n";
   if (profile) std::cout << host::Runtime::instance().timing_report();
   return 0;
 }
 
-cli::Register reg("lpips", "LPIPS distance between two images (VGG-16, v0.1; --mask for a masked LPIPS)", run_lpips);
+cli::Register reg("lpips", "LPIPS distance between two images (v0.1, --net vgg|alex; --mask for a masked LPIPS)",
+                  run_lpips);
 
 }  // namespace

@@ -7,9 +7,10 @@
 // CKK = Cin * k * k. With k = 1 the input itself is the col matrix, so im2col / col2im are skipped.
 //
 // The col matrix is large (decoder layer 1 at 256x256: 2304 x 65536 floats = 604 MB), so one scratch
-// buffer is kept for the process and grown on demand. When one image's col would exceed the scratch
-// limit (the device's max allocation, or STYLERF_CONV_SCRATCH_BYTES if smaller) the image is processed
-// in chunks of whole output rows; the GEMMs take offsets and leading dimensions into the full tensors.
+// buffer is kept for the process and grown on demand (shared with the strided conv: conv_internal.hpp).
+// When one image's col would exceed the scratch limit (the device's max allocation, or
+// STYLERF_CONV_SCRATCH_BYTES if smaller) the image is processed in chunks of whole output rows; the GEMMs
+// take offsets and leading dimensions into the full tensors.
 #include <algorithm>
 #include <cstdlib>
 #include <string>
@@ -18,6 +19,7 @@
 #include "host/gemm.hpp"
 #include "host/launch.hpp"
 #include "host/runtime.hpp"
+#include "lib/nn/conv_internal.hpp"
 #include "lib/nn/ops.hpp"
 
 namespace stylerf::nn {
@@ -66,26 +68,10 @@ ConvGeom check_conv(const char* op, const Tensor& x, const Tensor& w, Padding pa
   return g;
 }
 
-// The process-wide col scratch buffer. Grown, never shrunk; conv calls are serialised on the one
-// in-order queue, so reusing it between calls is safe.
-Tensor& scratch_slot() {
-  static Tensor t;
-  return t;
-}
-
-size_t scratch_limit_bytes() {
-  size_t limit = host::Runtime::instance().device().max_alloc_bytes;
-  if (const char* env = std::getenv("STYLERF_CONV_SCRATCH_BYTES")) {
-    long long v = std::atoll(env);
-    if (v > 0) limit = std::min(limit, static_cast<size_t>(v));
-  }
-  return limit;
-}
-
 // Output rows per chunk so that a [CKK, rows*W] col fits under the scratch limit.
 int rows_per_chunk(const char* op, const ConvGeom& g) {
   const size_t row_bytes = size_t(g.ckk()) * g.W * sizeof(float);
-  const size_t limit = scratch_limit_bytes();
+  const size_t limit = detail::conv_scratch_limit_bytes();
   if (row_bytes > limit)
     throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
                 " bytes (Cin*k*k = " + std::to_string(g.ckk()) + ", W = " + std::to_string(g.W) +
@@ -93,14 +79,7 @@ int rows_per_chunk(const char* op, const ConvGeom& g) {
   return int(std::min<size_t>(g.H, limit / row_bytes));
 }
 
-cl_mem scratch(size_t floats) {
-  Tensor& t = scratch_slot();
-  if (!t.defined() || size_t(t.numel()) < floats) {
-    t = Tensor();  // free the old one first: both may not fit at once
-    t = Tensor({int64_t(floats)}, "conv im2col scratch");
-  }
-  return t.mem();
-}
+cl_mem scratch(size_t floats) { return detail::conv_scratch(floats); }
 
 void im2col(const Tensor& x, int n, const ConvGeom& g, cl_mem col, int y0, int rows) {
   host::launch("nn", "im2col", {size_t(rows), size_t(g.ckk())}, x, int(n * g.Cin * g.hw()), col, g.Cin, g.H, g.W,
@@ -117,6 +96,35 @@ void col2im(cl_mem col, Tensor& dx, int n, const ConvGeom& g, int y0, int rows, 
 }
 
 }  // namespace
+
+namespace detail {
+
+namespace {
+Tensor& scratch_slot() {
+  static Tensor t;
+  return t;
+}
+}  // namespace
+
+size_t conv_scratch_limit_bytes() {
+  size_t limit = host::Runtime::instance().device().max_alloc_bytes;
+  if (const char* env = std::getenv("STYLERF_CONV_SCRATCH_BYTES")) {
+    long long v = std::atoll(env);
+    if (v > 0) limit = std::min(limit, static_cast<size_t>(v));
+  }
+  return limit;
+}
+
+cl_mem conv_scratch(size_t floats) {
+  Tensor& t = scratch_slot();
+  if (!t.defined() || size_t(t.numel()) < floats) {
+    t = Tensor();  // free the old one first: both may not fit at once
+    t = Tensor({int64_t(floats)}, "conv im2col scratch");
+  }
+  return t.mem();
+}
+
+}  // namespace detail
 
 Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad) {
   const ConvGeom g = check_conv("conv2d_forward", x, w, pad);

@@ -2,6 +2,7 @@
 // side; backward functions return fresh gradient tensors (they overwrite, never accumulate).
 //
 // Kernels: kernels/nn.cl (im2col/col2im, padding, bias, relu, pooling, upsampling),
+//          kernels/strided.cl (strided im2col/col2im, k x k max pooling),
 //          kernels/norm.cl (channel statistics, instance norm, AdaIN), kernels/loss.cl, kernels/optim.cl,
 //          kernels/reduce.cl, kernels/elementwise.cl.
 #pragma once
@@ -26,6 +27,19 @@ struct Conv2dGrads {
 Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
                             bool need_params);
 
+// ---- general conv2d: k x k, stride s, zero padding p (AlexNet's trunk) -----------------------------
+// x [N,Cin,H,W], w [Cout,Cin,k,k] (any k >= 1), b [Cout] or undefined -> y [N,Cout,Ho,Wo] with
+// Ho = floor((H + 2p - k) / s) + 1 (Wo likewise), as torch's Conv2d(stride=s, padding=p). s >= 1, p >= 0;
+// a kernel larger than the padded input (k > H + 2p or k > W + 2p) is refused naming the sizes.
+// im2col + GEMM like conv2d_forward (kernels/strided.cl), sharing its scratch and row chunking;
+// conv2d_forward stays the faster choice for its stride-1 "same" cases.
+// floor((in + 2 pad - k) / stride) + 1; 0 when the kernel is larger than the padded input.
+int conv2d_output_size(int in, int k, int stride, int pad);
+Tensor conv2d_strided_forward(const Tensor& x, const Tensor& w, const Tensor& b, int stride, int pad);
+// dx (zero where no output reads the input: rows / columns the flooring leaves out), dw, db.
+Conv2dGrads conv2d_strided_backward(const Tensor& x, const Tensor& w, const Tensor& dy, int stride, int pad,
+                                    bool need_dx, bool need_params);
+
 // ---- pointwise / spatial ---------------------------------------------------------------------
 Tensor relu_forward(const Tensor& x);
 Tensor relu_backward(const Tensor& y, const Tensor& dy);  // uses the output: dx = dy * (y > 0)
@@ -34,6 +48,13 @@ Tensor relu_backward(const Tensor& y, const Tensor& dy);  // uses the output: dx
 // dropped, as torch's MaxPool2d(2)). Backward routes dy to the first maximum of each window (0 elsewhere).
 Tensor maxpool2x2_forward(const Tensor& x);
 Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy);
+
+// k x k max pooling, stride s, no padding: Ho = floor((H - k) / s) + 1 (torch's MaxPool2d(k, s)); H, W >= k,
+// k, s >= 1 (kernels/strided.cl). Backward routes each window's dy to its first maximum in row-major
+// order (as maxpool2x2); windows overlap when s < k, and an element that is the maximum of several
+// windows gets the sum of their dy.
+Tensor maxpool_forward(const Tensor& x, int k, int stride);
+Tensor maxpool_backward(const Tensor& x, const Tensor& dy, int k, int stride);
 
 // Nearest-neighbour x2 upsampling; backward sums each 2x2 block.
 Tensor upsample2x_forward(const Tensor& x);

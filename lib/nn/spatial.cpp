@@ -1,4 +1,5 @@
-// Pointwise and spatial ops: relu, 2x2 max pooling, x2 nearest upsampling (kernels/nn.cl).
+// Pointwise and spatial ops: relu, 2x2 max pooling, x2 nearest upsampling (kernels/nn.cl); k x k max pooling
+// with stride (kernels/strided.cl).
 #include <string>
 
 #include "host/error.hpp"
@@ -79,6 +80,42 @@ Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy) {
   const bool odd = p.h % 2 != 0 || p.w % 2 != 0;
   Tensor dx = odd ? Tensor::zeros(x.shape(), "maxpool2x2_backward dx") : Tensor(x.shape(), "maxpool2x2_backward dx");
   host::launch("nn", "maxpool2x2_backward", {size_t(p.h / 2), size_t(p.nc)}, x, dy, dx, p.h, p.w);
+  return dx;
+}
+
+// ---- k x k max pooling, stride s (kernels/strided.cl) ------------------------------------------------
+namespace {
+struct PoolGeom {
+  Planes p;
+  int ho, wo;
+};
+
+PoolGeom pool_geom(const Tensor& x, int k, int stride, const char* op) {
+  const Planes p = planes_of(x, op);
+  if (k < 1 || stride < 1)
+    throw Error(std::string(op) + ": window and stride must be >= 1, got " + std::to_string(k) + " and " +
+                std::to_string(stride));
+  if (p.h < k || p.w < k)
+    throw Error(std::string(op) + ": " + std::to_string(k) + "x" + std::to_string(k) + " pooling needs H and W >= " +
+                std::to_string(k) + ", input is " + host::shape_str(x.shape()));
+  return {p, (p.h - k) / stride + 1, (p.w - k) / stride + 1};
+}
+}  // namespace
+
+Tensor maxpool_forward(const Tensor& x, int k, int stride) {
+  const PoolGeom g = pool_geom(x, k, stride, "maxpool_forward");
+  Tensor y({x.dim(0), x.dim(1), g.ho, g.wo}, "maxpool_forward output");
+  host::launch("strided", "maxpool_forward", {size_t(g.ho), size_t(g.p.nc)}, x, y, g.p.h, g.p.w, k, stride, g.ho,
+               g.wo);
+  return y;
+}
+
+Tensor maxpool_backward(const Tensor& x, const Tensor& dy, int k, int stride) {
+  const PoolGeom g = pool_geom(x, k, stride, "maxpool_backward");
+  expect_shape(dy, {x.dim(0), x.dim(1), g.ho, g.wo}, "maxpool_backward", "dy");
+  Tensor dx(x.shape(), "maxpool_backward dx");  // the kernel writes every row
+  host::launch("strided", "maxpool_backward", {size_t(g.p.h), size_t(g.p.nc)}, x, dy, dx, g.p.h, g.p.w, k, stride,
+               g.ho, g.wo);
   return dx;
 }
 

@@ -1,0 +1,169 @@
+// General conv2d: k x k kernel (any k >= 1), stride s >= 1, zero padding p >= 0, floored output size,
+// by im2col + GEMM (kernels/strided.cl), the same scheme as conv.cpp:
+//
+//   forward  y_n[Cout, HoWo]  = W[Cout, CKK] x col_n[CKK, HoWo]          (+ bias)
+//   dX       col_n[CKK, HoWo] = W^T x dY_n, then col2im (a gather per input row, no atomics)
+//   dW       dW[Cout, CKK]   += dY_n[Cout, HoWo] x col_n^T               (beta = 1 after the first chunk)
+//   db       sum of dY over n and pixels
+//
+// CKK = Cin * k * k. The col scratch is conv.cpp's (conv_internal.hpp); when one image's col exceeds the
+// scratch limit the image is processed in chunks of whole output rows, as conv2d does. A chunk of output
+// rows [oy0, oy0 + rows) reads input rows [oy0 s - p, (oy0 + rows - 1) s - p + k), so with s < k
+// neighbouring chunks share input rows: the first chunk writes all of dx, later ones add.
+#include <algorithm>
+#include <string>
+
+#include "host/error.hpp"
+#include "host/gemm.hpp"
+#include "host/launch.hpp"
+#include "lib/nn/conv_internal.hpp"
+#include "lib/nn/ops.hpp"
+
+namespace stylerf::nn {
+namespace {
+
+using host::Error;
+using host::Trans;
+
+struct Geom {
+  int N, Cin, Cout, H, W, K, S, P, Ho, Wo;
+  int64_t ckk() const { return int64_t(Cin) * K * K; }
+  int64_t hw() const { return int64_t(H) * W; }
+  int64_t howo() const { return int64_t(Ho) * Wo; }
+};
+
+std::string dims(const Tensor& t) { return host::shape_str(t.shape()); }
+
+Geom check_geom(const char* op, const Tensor& x, const Tensor& w, int stride, int pad) {
+  const std::string o(op);
+  if (!x.defined() || !w.defined()) throw Error(o + ": input and weight must be defined");
+  if (x.ndim() != 4) throw Error(o + ": input must be [N,Cin,H,W], got " + dims(x));
+  if (w.ndim() != 4 || w.dim(2) != w.dim(3) || w.dim(2) < 1)
+    throw Error(o + ": weight must be [Cout,Cin,k,k] with k >= 1, got " + dims(w));
+  if (stride < 1) throw Error(o + ": stride must be >= 1, got " + std::to_string(stride));
+  if (pad < 0) throw Error(o + ": padding must be >= 0, got " + std::to_string(pad));
+  Geom g{};
+  g.N = int(x.dim(0));
+  g.Cin = int(x.dim(1));
+  g.H = int(x.dim(2));
+  g.W = int(x.dim(3));
+  g.Cout = int(w.dim(0));
+  g.K = int(w.dim(2));
+  g.S = stride;
+  g.P = pad;
+  if (w.dim(1) != g.Cin)
+    throw Error(o + ": channel mismatch: input " + dims(x) + " has " + std::to_string(g.Cin) + " channels but weight " +
+                dims(w) + " expects " + std::to_string(w.dim(1)));
+  if (g.N < 1 || g.Cin < 1 || g.Cout < 1 || g.H < 1 || g.W < 1)
+    throw Error(o + ": empty input " + dims(x) + " or weight " + dims(w));
+  if (int64_t(g.K) > int64_t(g.H) + 2 * int64_t(pad) || int64_t(g.K) > int64_t(g.W) + 2 * int64_t(pad))
+    throw Error(o + ": the " + std::to_string(g.K) + "x" + std::to_string(g.K) + " kernel is larger than the input " +
+                std::to_string(g.H) + "x" + std::to_string(g.W) + " (H x W) padded by " + std::to_string(pad) +
+                " on each side (" + std::to_string(int64_t(g.H) + 2 * pad) + "x" +
+                std::to_string(int64_t(g.W) + 2 * pad) + "): no output position");
+  g.Ho = conv2d_output_size(g.H, g.K, stride, pad);
+  g.Wo = conv2d_output_size(g.W, g.K, stride, pad);
+  // Kernels index with int (padded coordinates included).
+  const int64_t big = std::max({x.numel(), int64_t(g.N) * g.Cout * g.howo(), g.ckk() * g.howo(),
+                                int64_t(g.H) + 2 * int64_t(pad) + g.K, int64_t(g.W) + 2 * int64_t(pad) + g.K});
+  if (big >= (int64_t(1) << 31))
+    throw Error(o + ": tensors too large for 32-bit indexing (input " + dims(x) + ", weight " + dims(w) + ")");
+  return g;
+}
+
+// Output rows per chunk so that a [CKK, rows*Wo] col fits under the scratch limit.
+int rows_per_chunk(const char* op, const Geom& g) {
+  const size_t row_bytes = size_t(g.ckk()) * g.Wo * sizeof(float);
+  const size_t limit = detail::conv_scratch_limit_bytes();
+  if (row_bytes > limit)
+    throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
+                " bytes (Cin*k*k = " + std::to_string(g.ckk()) + ", Wo = " + std::to_string(g.Wo) +
+                "), more than the scratch limit of " + std::to_string(limit) + " bytes");
+  return int(std::min<size_t>(g.Ho, limit / row_bytes));
+}
+
+void im2col(const Tensor& x, int n, const Geom& g, cl_mem col, int oy0, int rows) {
+  host::launch("strided", "im2col_strided", {size_t(rows), size_t(g.ckk())}, x, int(n * g.Cin * g.hw()), col, g.Cin,
+               g.H, g.W, g.K, g.S, g.P, g.Wo, oy0, rows);
+}
+
+// Writes (first chunk: every input row) or adds (later chunks: the rows the chunk reaches) the
+// contributions of col rows for output rows [oy0, oy0 + rows) into dx image n.
+void col2im(cl_mem col, Tensor& dx, int n, const Geom& g, int oy0, int rows, bool accumulate) {
+  int ylo = 0, yhi = g.H;
+  if (accumulate) {
+    ylo = std::max(0, oy0 * g.S - g.P);
+    yhi = std::min(g.H, (oy0 + rows - 1) * g.S - g.P + g.K);
+    if (yhi <= ylo) return;  // the chunk reads only padding
+  }
+  host::launch("strided", "col2im_strided", {size_t(yhi - ylo), size_t(g.Cin)}, col, dx, int(n * g.Cin * g.hw()),
+               g.Cin, g.H, g.W, g.K, g.S, g.P, g.Wo, oy0, rows, ylo, yhi - ylo, accumulate ? 1 : 0);
+}
+
+}  // namespace
+
+int conv2d_output_size(int in, int k, int stride, int pad) {
+  if (stride < 1) throw Error("conv2d_output_size: stride must be >= 1, got " + std::to_string(stride));
+  const int64_t span = int64_t(in) + 2 * int64_t(pad) - k;
+  if (span < 0) return 0;
+  return int(span / stride + 1);
+}
+
+Tensor conv2d_strided_forward(const Tensor& x, const Tensor& w, const Tensor& b, int stride, int pad) {
+  const Geom g = check_geom("conv2d_strided_forward", x, w, stride, pad);
+  if (b.defined()) expect_shape(b, {g.Cout}, "conv2d_strided_forward", "bias");
+  Tensor y({g.N, g.Cout, g.Ho, g.Wo}, "conv2d_strided_forward output");
+  const int howo = int(g.howo()), ckk = int(g.ckk());
+  const int chunk_rows = rows_per_chunk("conv2d_strided_forward", g);
+  cl_mem col = detail::conv_scratch(size_t(ckk) * chunk_rows * g.Wo);
+  for (int n = 0; n < g.N; ++n) {
+    for (int oy0 = 0; oy0 < g.Ho; oy0 += chunk_rows) {
+      const int rows = std::min(chunk_rows, g.Ho - oy0), cols = rows * g.Wo;
+      im2col(x, n, g, col, oy0, rows);
+      host::gemm(Trans::No, Trans::No, g.Cout, cols, ckk, 1.0f, w.mem(), 0, ckk, col, 0, cols, 0.0f, y.mem(),
+                 size_t(n) * g.Cout * howo + size_t(oy0) * g.Wo, howo);
+    }
+  }
+  if (b.defined())
+    host::launch("nn", "bias_add", {size_t((howo + 7) / 8), size_t(g.N) * g.Cout}, y, b, g.Cout, howo);
+  return y;
+}
+
+Conv2dGrads conv2d_strided_backward(const Tensor& x, const Tensor& w, const Tensor& dy, int stride, int pad,
+                                    bool need_dx, bool need_params) {
+  const Geom g = check_geom("conv2d_strided_backward", x, w, stride, pad);
+  expect_shape(dy, {g.N, g.Cout, g.Ho, g.Wo}, "conv2d_strided_backward", "dy");
+  Conv2dGrads out;
+  if (!need_dx && !need_params) return out;
+  const int howo = int(g.howo()), ckk = int(g.ckk());
+  if (need_dx) out.dx = Tensor({g.N, g.Cin, g.H, g.W}, "conv2d_strided_backward dx");
+  if (need_params) {
+    out.dw = Tensor(w.shape(), "conv2d_strided_backward dw");
+    out.db = Tensor({g.Cout}, "conv2d_strided_backward db");
+    host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, howo);
+  }
+  const int chunk_rows = rows_per_chunk("conv2d_strided_backward", g);
+  cl_mem col = detail::conv_scratch(size_t(ckk) * chunk_rows * g.Wo);
+  bool first_dw = true;
+  for (int n = 0; n < g.N; ++n) {
+    for (int oy0 = 0; oy0 < g.Ho; oy0 += chunk_rows) {
+      const int rows = std::min(chunk_rows, g.Ho - oy0), cols = rows * g.Wo;
+      const size_t yo = size_t(n) * g.Cout * howo + size_t(oy0) * g.Wo;
+      if (need_params) {
+        im2col(x, n, g, col, oy0, rows);
+        host::gemm(Trans::No, Trans::Yes, g.Cout, ckk, cols, 1.0f, dy.mem(), yo, howo, col, 0, cols,
+                   first_dw ? 0.0f : 1.0f, out.dw.mem(), 0, ckk);
+        first_dw = false;
+      }
+      if (need_dx) {
+        // The in-order queue finishes the dW GEMM before this overwrites col.
+        host::gemm(Trans::Yes, Trans::No, ckk, cols, g.Cout, 1.0f, w.mem(), 0, ckk, dy.mem(), yo, howo, 0.0f, col, 0,
+                   cols);
+        col2im(col, out.dx, n, g, oy0, rows, /*accumulate=*/oy0 > 0);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace stylerf::nn
