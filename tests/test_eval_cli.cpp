@@ -96,6 +96,15 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
   CHECK(fs::exists(dir / "rgb" / "frame_015.png"));
   CHECK(rgb["seconds"]["total"].is_number());
 
+  // The AlexNet trunk: another LPIPS, the same RMSE.
+  r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net alex --json '" +
+          (dir / "rgb_alex.json").string() + "'");
+  REQUIRE_MESSAGE(r.code == 0, r.output);
+  const auto alex = read_json(dir / "rgb_alex.json");
+  check_score(alex["score"], true);
+  CHECK(alex["score"]["short"]["rmse"] == rgb["score"]["short"]["rmse"]);
+  CHECK(alex["score"]["short"]["lpips"] != rgb["score"]["short"]["lpips"]);
+
   r = run("eval consistency --ckpt '" + ck.density + "' --method adain --style '" + fixture("cmyk.jpg") +
           "' --no-lpips --json '" + (dir / "adain.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
@@ -159,6 +168,7 @@ TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   expect("eval consistency --ckpt '" + ck.density + "' --method adain", "needs --style");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --frames 5", "--frames must be in [8, 1000]");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --depth-tol 0", "--depth-tol");
+  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net squeeze", "unknown net 'squeeze'");
   expect("eval consistency --ckpt '" + ck.density + "' --method stylerf --style '" + fixture("cmyk.jpg") + "'",
          "needs a style checkpoint");
   expect("eval consistency --ckpt '" + ck.style + "' --method rgb", "needs a density checkpoint");

@@ -39,7 +39,7 @@ namespace model = stylerf::model;
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 int run_consistency(int argc, char** argv) {
-  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device;
+  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg";
   cli::PathOptions p;
   bool no_lpips = false;
   po::options_description desc("stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [options]");
@@ -51,7 +51,8 @@ int run_consistency(int argc, char** argv) {
       "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
-      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")("json", po::value(&json_path), "write the scores here")(
+      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
+      "lpips-net", po::value(&lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")("json", po::value(&json_path), "write the scores here")(
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
       "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
@@ -73,6 +74,7 @@ int run_consistency(int argc, char** argv) {
     if (!why.empty()) throw Error("--style " + style_path + ": " + why);
   }
   cli::check_path_options(p);
+  const eval::LpipsNet net = eval::parse_lpips_net(lpips_net);
 
   cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "");
@@ -89,7 +91,7 @@ int run_consistency(int argc, char** argv) {
     styled = std::make_unique<model::StyleModel>(model::StyleModel::load(ck));
   const model::Geometry& geo = density ? density->geo : styled->features.geo;
   std::unique_ptr<eval::Lpips> lpips;
-  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default());
+  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));
 
   const auto t0 = Clock::now();
   const cli::PathSetup path = cli::path_setup(geo, scene, p);
@@ -130,7 +132,7 @@ int run_consistency(int argc, char** argv) {
                           {"path_frames", p.path_frames},
                           {"size", {path.cams.front().width, path.cams.front().height}},
                           {"depth_tolerance", p.depth_tolerance},
-                          {"lpips", lpips ? "vgg (v0.1), masked: see lib/eval/consistency.hpp" : "not measured"},
+                          {"lpips", lpips ? lpips_net + " (v0.1), masked: see lib/eval/consistency.hpp" : "not measured"},
                           {"score", score.to_json()},
                           {"seconds", {{"geometry", path.seconds}, {"frames", render_s}, {"scoring", score_s},
                                        {"total", seconds_since(t0)}}}};

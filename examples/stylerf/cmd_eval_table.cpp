@@ -151,7 +151,7 @@ void markdown_rows(std::ostream& md, const std::vector<MethodRows>& methods) {
 
 int run_eval_table(int argc, char** argv) {
   std::vector<std::string> groups, style_args;
-  std::string out, device;
+  std::string out, device, lpips_net = "vgg";
   PathOptions p;
   int max_styles = 5, fps = 8;
   bool no_lpips = false;
@@ -166,7 +166,8 @@ int run_eval_table(int argc, char** argv) {
       "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
-      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")("fps", po::value(&fps)->default_value(8),
+      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
+      "lpips-net", po::value(&lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")("fps", po::value(&fps)->default_value(8),
                                                           "side-by-side video frame rate")(
       "output,o", po::value(&out), "output directory")("chunk", po::value(&p.chunk)->default_value(8192),
                                                         "rays per renderer call")(
@@ -179,6 +180,7 @@ int run_eval_table(int argc, char** argv) {
     return vm.count("help") ? 0 : 2;
   }
   check_path_options(p);
+  const eval::LpipsNet net = eval::parse_lpips_net(lpips_net);
   if (out.empty()) throw Error("-o DIR is required");
   if (max_styles < 0) throw Error("--max-styles must be >= 0");
   if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
@@ -222,7 +224,7 @@ int run_eval_table(int argc, char** argv) {
   init_runtime(device, false);
   auto adain = style::AdainModel::load_default();
   std::unique_ptr<eval::Lpips> lpips;
-  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default());
+  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));
   const auto dist = lpips_distance(lpips.get());
   fs::create_directories(out);
   const auto t_all = Clock::now();
@@ -323,7 +325,7 @@ int run_eval_table(int argc, char** argv) {
      << "First " << p.frames << " frames of each scene's default path of " << p.path_frames
      << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
      << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
-     << (lpips ? "VGG v0.1, masked (each layer's map averaged over valid pixels)" : "not measured")
+     << (lpips ? lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
      << ". Means over styles and frame pairs. Plot colours: ";
   for (size_t i = 0; i < (results.empty() ? 0 : results.front().methods.size()); ++i)
     md << (i ? ", " : "") << results.front().methods[i].name << " " << eval::plot_colour_name(int(i));
@@ -353,7 +355,7 @@ int run_eval_table(int argc, char** argv) {
   const double total = seconds_since(t_all);
   md << "\n(" << fmt(total, 0) << " s in all)\n";
   nlohmann::json doc = {{"frames", p.frames},         {"path_frames", p.path_frames}, {"depth_tolerance", p.depth_tolerance},
-                        {"lpips", lpips ? "vgg" : "none"}, {"seconds", total},          {"scenes", nlohmann::json::array()}};
+                        {"lpips", lpips ? lpips_net : std::string("none")}, {"seconds", total},          {"scenes", nlohmann::json::array()}};
   for (const auto& r : results) doc["scenes"].push_back(r.json);
   host::write_file_atomic((fs::path(out) / "table.md").string(), md.str());
   host::write_file_atomic((fs::path(out) / "table.json").string(), doc.dump(2) + "\n");
