@@ -10,7 +10,8 @@
 // buffer is kept for the process and grown on demand (shared with the strided conv: conv_internal.hpp).
 // When one image's col would exceed the scratch limit (the device's max allocation, or
 // STYLERF_CONV_SCRATCH_BYTES if smaller) the image is processed in chunks of whole output rows; the GEMMs
-// take offsets and leading dimensions into the full tensors.
+// take offsets and leading dimensions into the full tensors. Those chunk loops are shared with the strided
+// conv (detail::conv_chunked_forward / _backward); this file supplies its im2col / col2im kernels.
 #include <algorithm>
 #include <cstdlib>
 #include <string>
@@ -68,18 +69,8 @@ ConvGeom check_conv(const char* op, const Tensor& x, const Tensor& w, Padding pa
   return g;
 }
 
-// Output rows per chunk so that a [CKK, rows*W] col fits under the scratch limit.
-int rows_per_chunk(const char* op, const ConvGeom& g) {
-  const size_t row_bytes = size_t(g.ckk()) * g.W * sizeof(float);
-  const size_t limit = detail::conv_scratch_limit_bytes();
-  if (row_bytes > limit)
-    throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
-                " bytes (Cin*k*k = " + std::to_string(g.ckk()) + ", W = " + std::to_string(g.W) +
-                "), more than the scratch limit of " + std::to_string(limit) + " bytes");
-  return int(std::min<size_t>(g.H, limit / row_bytes));
-}
-
-cl_mem scratch(size_t floats) { return detail::conv_scratch(floats); }
+// The im2col + GEMM shape for detail::conv_chunked_forward / _backward: output size = input size.
+detail::ColGemmGeom col_gemm_geom(const ConvGeom& g) { return {g.N, g.Cout, int(g.ckk()), g.H, g.W, "W"}; }
 
 void im2col(const Tensor& x, int n, const ConvGeom& g, cl_mem col, int y0, int rows) {
   host::launch("nn", "im2col", {size_t(rows), size_t(g.ckk())}, x, int(n * g.Cin * g.hw()), col, g.Cin, g.H, g.W,
@@ -124,6 +115,16 @@ cl_mem conv_scratch(size_t floats) {
   return t.mem();
 }
 
+int conv_rows_per_chunk(const char* op, const ColGemmGeom& g) {
+  const size_t row_bytes = size_t(g.ckk) * g.out_cols * sizeof(float);
+  const size_t limit = conv_scratch_limit_bytes();
+  if (row_bytes > limit)
+    throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
+                " bytes (Cin*k*k = " + std::to_string(g.ckk) + ", " + g.cols_name + " = " +
+                std::to_string(g.out_cols) + "), more than the scratch limit of " + std::to_string(limit) + " bytes");
+  return int(std::min<size_t>(g.out_rows, limit / row_bytes));
+}
+
 }  // namespace detail
 
 Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad) {
@@ -137,16 +138,8 @@ Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding
       host::gemm(Trans::No, Trans::No, g.Cout, hw, ckk, 1.0f, w.mem(), 0, ckk, x.mem(), size_t(n) * g.Cin * hw, hw,
                  0.0f, y.mem(), size_t(n) * g.Cout * hw, hw);
   } else {
-    const int chunk_rows = rows_per_chunk("conv2d_forward", g);
-    cl_mem col = scratch(size_t(ckk) * chunk_rows * g.W);
-    for (int n = 0; n < g.N; ++n) {
-      for (int y0 = 0; y0 < g.H; y0 += chunk_rows) {
-        const int rows = std::min(chunk_rows, g.H - y0), cols = rows * g.W;
-        im2col(x, n, g, col, y0, rows);
-        host::gemm(Trans::No, Trans::No, g.Cout, cols, ckk, 1.0f, w.mem(), 0, ckk, col, 0, cols, 0.0f, y.mem(),
-                   size_t(n) * g.Cout * hw + size_t(y0) * g.W, hw);
-      }
-    }
+    detail::conv_chunked_forward("conv2d_forward", col_gemm_geom(g), w.mem(), y.mem(),
+                                 [&](cl_mem col, int n, int y0, int rows) { im2col(x, n, g, col, y0, rows); });
   }
   if (b.defined()) {
     host::launch("nn", "bias_add", {size_t((hw + 7) / 8), size_t(g.N) * g.Cout}, y, b, g.Cout, hw);
@@ -181,27 +174,10 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
     return out;
   }
 
-  const int chunk_rows = rows_per_chunk("conv2d_backward", g);
-  cl_mem col = scratch(size_t(ckk) * chunk_rows * g.W);
-  bool first_dw = true;
-  for (int n = 0; n < g.N; ++n) {
-    for (int y0 = 0; y0 < g.H; y0 += chunk_rows) {
-      const int rows = std::min(chunk_rows, g.H - y0), cols = rows * g.W;
-      const size_t yo = size_t(n) * g.Cout * hw + size_t(y0) * g.W;
-      if (need_params) {
-        im2col(x, n, g, col, y0, rows);
-        host::gemm(Trans::No, Trans::Yes, g.Cout, ckk, cols, 1.0f, dy.mem(), yo, hw, col, 0, cols,
-                   first_dw ? 0.0f : 1.0f, out.dw.mem(), 0, ckk);
-        first_dw = false;
-      }
-      if (need_dx) {
-        // The in-order queue finishes the dW GEMM before this overwrites col.
-        host::gemm(Trans::Yes, Trans::No, ckk, cols, g.Cout, 1.0f, w.mem(), 0, ckk, dy.mem(), yo, hw, 0.0f, col, 0,
-                   cols);
-        col2im(col, out.dx, n, g, y0, rows, /*accumulate=*/y0 > 0);
-      }
-    }
-  }
+  detail::conv_chunked_backward(
+      "conv2d_backward", col_gemm_geom(g), w.mem(), dy.mem(), need_params ? out.dw.mem() : nullptr, need_dx,
+      [&](cl_mem col, int n, int y0, int rows) { im2col(x, n, g, col, y0, rows); },
+      [&](cl_mem col, int n, int y0, int rows, bool accumulate) { col2im(col, out.dx, n, g, y0, rows, accumulate); });
   return out;
 }
 

@@ -6,15 +6,15 @@
 //   dW       dW[Cout, CKK]   += dY_n[Cout, HoWo] x col_n^T               (beta = 1 after the first chunk)
 //   db       sum of dY over n and pixels
 //
-// CKK = Cin * k * k. The col scratch is conv.cpp's (conv_internal.hpp); when one image's col exceeds the
-// scratch limit the image is processed in chunks of whole output rows, as conv2d does. A chunk of output
-// rows [oy0, oy0 + rows) reads input rows [oy0 s - p, (oy0 + rows - 1) s - p + k), so with s < k
-// neighbouring chunks share input rows: the first chunk writes all of dx, later ones add.
+// CKK = Cin * k * k. The col scratch and the row-chunk loops are shared with conv.cpp (conv_internal.hpp);
+// this file supplies its im2col / col2im kernels. When one image's col exceeds the scratch limit the image
+// is processed in chunks of whole output rows, as conv2d does. A chunk of output rows [oy0, oy0 + rows)
+// reads input rows [oy0 s - p, (oy0 + rows - 1) s - p + k), so with s < k neighbouring chunks share input
+// rows: the first chunk writes all of dx, later ones add.
 #include <algorithm>
 #include <string>
 
 #include "host/error.hpp"
-#include "host/gemm.hpp"
 #include "host/launch.hpp"
 #include "lib/nn/conv_internal.hpp"
 #include "lib/nn/ops.hpp"
@@ -23,7 +23,6 @@ namespace stylerf::nn {
 namespace {
 
 using host::Error;
-using host::Trans;
 
 struct Geom {
   int N, Cin, Cout, H, W, K, S, P, Ho, Wo;
@@ -71,16 +70,8 @@ Geom check_geom(const char* op, const Tensor& x, const Tensor& w, int stride, in
   return g;
 }
 
-// Output rows per chunk so that a [CKK, rows*Wo] col fits under the scratch limit.
-int rows_per_chunk(const char* op, const Geom& g) {
-  const size_t row_bytes = size_t(g.ckk()) * g.Wo * sizeof(float);
-  const size_t limit = detail::conv_scratch_limit_bytes();
-  if (row_bytes > limit)
-    throw Error(std::string(op) + ": one output row of the im2col matrix needs " + std::to_string(row_bytes) +
-                " bytes (Cin*k*k = " + std::to_string(g.ckk()) + ", Wo = " + std::to_string(g.Wo) +
-                "), more than the scratch limit of " + std::to_string(limit) + " bytes");
-  return int(std::min<size_t>(g.Ho, limit / row_bytes));
-}
+// The im2col + GEMM shape for detail::conv_chunked_forward / _backward: chunks of output rows (Ho x Wo).
+detail::ColGemmGeom col_gemm_geom(const Geom& g) { return {g.N, g.Cout, int(g.ckk()), g.Ho, g.Wo, "Wo"}; }
 
 void im2col(const Tensor& x, int n, const Geom& g, cl_mem col, int oy0, int rows) {
   host::launch("strided", "im2col_strided", {size_t(rows), size_t(g.ckk())}, x, int(n * g.Cin * g.hw()), col, g.Cin,
@@ -113,17 +104,9 @@ Tensor conv2d_strided_forward(const Tensor& x, const Tensor& w, const Tensor& b,
   const Geom g = check_geom("conv2d_strided_forward", x, w, stride, pad);
   if (b.defined()) expect_shape(b, {g.Cout}, "conv2d_strided_forward", "bias");
   Tensor y({g.N, g.Cout, g.Ho, g.Wo}, "conv2d_strided_forward output");
-  const int howo = int(g.howo()), ckk = int(g.ckk());
-  const int chunk_rows = rows_per_chunk("conv2d_strided_forward", g);
-  cl_mem col = detail::conv_scratch(size_t(ckk) * chunk_rows * g.Wo);
-  for (int n = 0; n < g.N; ++n) {
-    for (int oy0 = 0; oy0 < g.Ho; oy0 += chunk_rows) {
-      const int rows = std::min(chunk_rows, g.Ho - oy0), cols = rows * g.Wo;
-      im2col(x, n, g, col, oy0, rows);
-      host::gemm(Trans::No, Trans::No, g.Cout, cols, ckk, 1.0f, w.mem(), 0, ckk, col, 0, cols, 0.0f, y.mem(),
-                 size_t(n) * g.Cout * howo + size_t(oy0) * g.Wo, howo);
-    }
-  }
+  const int howo = int(g.howo());
+  detail::conv_chunked_forward("conv2d_strided_forward", col_gemm_geom(g), w.mem(), y.mem(),
+                               [&](cl_mem col, int n, int oy0, int rows) { im2col(x, n, g, col, oy0, rows); });
   if (b.defined())
     host::launch("nn", "bias_add", {size_t((howo + 7) / 8), size_t(g.N) * g.Cout}, y, b, g.Cout, howo);
   return y;
@@ -135,34 +118,19 @@ Conv2dGrads conv2d_strided_backward(const Tensor& x, const Tensor& w, const Tens
   expect_shape(dy, {g.N, g.Cout, g.Ho, g.Wo}, "conv2d_strided_backward", "dy");
   Conv2dGrads out;
   if (!need_dx && !need_params) return out;
-  const int howo = int(g.howo()), ckk = int(g.ckk());
+  const int howo = int(g.howo());
   if (need_dx) out.dx = Tensor({g.N, g.Cin, g.H, g.W}, "conv2d_strided_backward dx");
   if (need_params) {
     out.dw = Tensor(w.shape(), "conv2d_strided_backward dw");
     out.db = Tensor({g.Cout}, "conv2d_strided_backward db");
     host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, howo);
   }
-  const int chunk_rows = rows_per_chunk("conv2d_strided_backward", g);
-  cl_mem col = detail::conv_scratch(size_t(ckk) * chunk_rows * g.Wo);
-  bool first_dw = true;
-  for (int n = 0; n < g.N; ++n) {
-    for (int oy0 = 0; oy0 < g.Ho; oy0 += chunk_rows) {
-      const int rows = std::min(chunk_rows, g.Ho - oy0), cols = rows * g.Wo;
-      const size_t yo = size_t(n) * g.Cout * howo + size_t(oy0) * g.Wo;
-      if (need_params) {
-        im2col(x, n, g, col, oy0, rows);
-        host::gemm(Trans::No, Trans::Yes, g.Cout, ckk, cols, 1.0f, dy.mem(), yo, howo, col, 0, cols,
-                   first_dw ? 0.0f : 1.0f, out.dw.mem(), 0, ckk);
-        first_dw = false;
-      }
-      if (need_dx) {
-        // The in-order queue finishes the dW GEMM before this overwrites col.
-        host::gemm(Trans::Yes, Trans::No, ckk, cols, g.Cout, 1.0f, w.mem(), 0, ckk, dy.mem(), yo, howo, 0.0f, col, 0,
-                   cols);
-        col2im(col, out.dx, n, g, oy0, rows, /*accumulate=*/oy0 > 0);
-      }
-    }
-  }
+  detail::conv_chunked_backward(
+      "conv2d_strided_backward", col_gemm_geom(g), w.mem(), dy.mem(), need_params ? out.dw.mem() : nullptr, need_dx,
+      [&](cl_mem col, int n, int oy0, int rows) { im2col(x, n, g, col, oy0, rows); },
+      [&](cl_mem col, int n, int oy0, int rows, bool accumulate) {
+        col2im(col, out.dx, n, g, oy0, rows, accumulate);
+      });
   return out;
 }
 
