@@ -104,13 +104,19 @@ RefTensor ref_pool(const RefTensor& x) {  // floor for odd sizes
   return y;
 }
 
-std::vector<RefTensor> ref_taps(const io::Image& im) {
-  const auto st = nn::load_weights(lpips_path());
+// The trunks' input (lpips' scaling layer, both nets): [0, 1] RGB -> (2 v - 1 - shift) / scale.
+RefTensor ref_scaled_input(const io::Image& im) {
   const double shift[3] = {-0.030, -0.088, -0.188}, scale[3] = {0.458, 0.448, 0.450};
   RefTensor h{3, im.height, im.width, std::vector<double>(im.data.size())};
   for (int c = 0; c < 3; ++c)
     for (int y = 0; y < im.height; ++y)
       for (int x = 0; x < im.width; ++x) h.at(c, y, x) = (2.0 * im.at(c, y, x) - 1.0 - shift[c]) / scale[c];
+  return h;
+}
+
+std::vector<RefTensor> ref_taps(const io::Image& im) {
+  const auto st = nn::load_weights(lpips_path());
+  RefTensor h = ref_scaled_input(im);
   // cfg [64, 64, M, 128, 128, M, 256, 256, 256, M, 512, 512, 512, M, 512, 512, 512]; tap before each M and at the end
   const int cfg[] = {64, 64, 0, 128, 128, 0, 256, 256, 256, 0, 512, 512, 512, 0, 512, 512, 512};
   std::vector<RefTensor> taps;
@@ -129,9 +135,10 @@ std::vector<RefTensor> ref_taps(const io::Image& im) {
   return taps;
 }
 
-double ref_lpips(const io::Image& a, const io::Image& b) {
-  const auto st = nn::load_weights(lpips_path());
-  const auto ta = ref_taps(a), tb = ref_taps(b);
+// The metric from the two images' taps: the sum over the 5 taps of the spatial mean of the map, with the
+// linear heads of `net`'s weights file.
+double ref_lpips_of_taps(LpipsNet net, const std::vector<RefTensor>& ta, const std::vector<RefTensor>& tb) {
+  const auto st = nn::load_weights(lpips_path(net));
   double total = 0;
   for (int l = 0; l < 5; ++l) {
     const int hw = ta[l].H * ta[l].W;
@@ -141,6 +148,10 @@ double ref_lpips(const io::Image& a, const io::Image& b) {
     total += s / hw;
   }
   return total;
+}
+
+double ref_lpips(const io::Image& a, const io::Image& b) {
+  return ref_lpips_of_taps(LpipsNet::Vgg, ref_taps(a), ref_taps(b));
 }
 
 // AlexNet: a k x k conv with stride and zero padding (torch's Conv2d), a k x k stride-s max pool (floor).
@@ -182,11 +193,7 @@ RefTensor ref_pool3(const RefTensor& x) {  // 3x3, stride 2
 
 std::vector<RefTensor> ref_taps_alex(const io::Image& im) {
   const auto st = nn::load_weights(lpips_path(LpipsNet::Alex));
-  const double shift[3] = {-0.030, -0.088, -0.188}, scale[3] = {0.458, 0.448, 0.450};
-  RefTensor h{3, im.height, im.width, std::vector<double>(im.data.size())};
-  for (int c = 0; c < 3; ++c)
-    for (int y = 0; y < im.height; ++y)
-      for (int x = 0; x < im.width; ++x) h.at(c, y, x) = (2.0 * im.at(c, y, x) - 1.0 - shift[c]) / scale[c];
+  RefTensor h = ref_scaled_input(im);
   struct L {
     int cout, k, stride, pad;
   };
@@ -204,17 +211,7 @@ std::vector<RefTensor> ref_taps_alex(const io::Image& im) {
 }
 
 double ref_lpips_alex(const io::Image& a, const io::Image& b) {
-  const auto st = nn::load_weights(lpips_path(LpipsNet::Alex));
-  const auto ta = ref_taps_alex(a), tb = ref_taps_alex(b);
-  double total = 0;
-  for (int l = 0; l < 5; ++l) {
-    const int hw = ta[l].H * ta[l].W;
-    const auto dm = ref_map(ta[l].v, tb[l].v, d(st.get("lin." + std::to_string(l) + ".weight").data), ta[l].C, hw);
-    double s = 0;
-    for (double v : dm) s += v;
-    total += s / hw;
-  }
-  return total;
+  return ref_lpips_of_taps(LpipsNet::Alex, ref_taps_alex(a), ref_taps_alex(b));
 }
 
 // ---- images -------------------------------------------------------------------------------------------
@@ -232,6 +229,69 @@ io::Image pattern(int w, int h, uint64_t seed) {
         im.data[i] = std::min(1.0f, std::max(0.0f, v + noise[i]));
       }
   return im;
+}
+
+// ---- checks run for both trunks -------------------------------------------------------------------------
+
+// The masked tests' images for a W x H image a: the mask is 1 on the left third (x < W / 3) and 0 elsewhere;
+// b is a with uniform [0, 1] noise in the right third (x >= 2 W / 3), inside is a with the same noise in
+// the left third.
+struct MaskedNoise {
+  std::vector<float> mask;
+  io::Image b, inside;
+};
+
+MaskedNoise masked_noise(const io::Image& a) {
+  const int W = a.width, H = a.height;
+  MaskedNoise m{std::vector<float>(size_t(W) * H, 0.0f), a, a};
+  const auto noise = testing::random_uniform(a.data.size(), 9, 0.0f, 1.0f);
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        if (c == 0 && x < W / 3) m.mask[size_t(y) * W + x] = 1.0f;
+        const size_t i = (size_t(c) * H + y) * W + x;
+        if (x >= 2 * W / 3) m.b.data[i] = noise[i];
+        if (x < W / 3) m.inside.data[i] = noise[i];
+      }
+  return m;
+}
+
+// `net`'s distances against the official lpips 0.1.4 values (`key` of each pair in pairs.json) in
+// ../shared/reference/lpips; says so and checks nothing when that folder is absent.
+void check_official_values(LpipsNet net, const char* key) {
+  const std::string dir = testing::shared_reference_dir("lpips");
+  if (dir.empty()) {
+    MESSAGE("../shared/reference/lpips is absent (no ../shared on this machine, or STYLERF_TEST_DATA unset): the "
+            "comparison with the official lpips values is not run; the other LPIPS tests still are");
+    return;
+  }
+  const auto j = nlohmann::json::parse(host::read_file(dir + "/pairs.json"));
+  REQUIRE(j["pairs"].size() == 6);
+  for (const auto& pair : j["pairs"]) {
+    const std::string fa = pair["a"], fb = pair["b"];
+    const double want = pair[key];
+    const double got = lpips(net).distance(io::load_image(dir + "/" + fa), io::load_image(dir + "/" + fb));
+    MESSAGE(std::setprecision(7) << fa << " vs " << fb << ": ours " << got << ", official " << want << ", |diff| "
+                                 << std::fabs(got - want));
+    CHECK(std::fabs(got - want) <= 1e-3);
+  }
+}
+
+// For two 64x48 patterns a, b: d(a, a) == 0, d(a, b) == d(b, a) > 0, and 0 < d(a, slightly noisy a) < d(a, b).
+// Returns d(a, b).
+double check_identity_symmetry(const eval::Lpips& l) {
+  const io::Image a = pattern(64, 48, 3), b = pattern(64, 48, 4);
+  CHECK(l.distance(a, a) == 0.0);
+  const double ab = l.distance(a, b), ba = l.distance(b, a);
+  CHECK(ab > 0.0);
+  CHECK(ab == doctest::Approx(ba).epsilon(1e-6));
+  io::Image slightly = a;
+  const auto noise = testing::random_uniform(a.data.size(), 5, -0.02f, 0.02f);
+  for (size_t i = 0; i < a.data.size(); ++i) slightly.data[i] = std::min(1.0f, std::max(0.0f, a.data[i] + noise[i]));
+  const double small = l.distance(a, slightly);
+  CHECK(small > 0.0);
+  CHECK(small < ab);
+  return ab;
 }
 
 }  // namespace
@@ -384,36 +444,12 @@ TEST_CASE("lpips: matches a double-precision CPU reference (odd sizes floor at e
 
 TEST_CASE("lpips: the official values of ../shared/reference/lpips (lpips 0.1.4, VGG)") {
   require_weights();
-  const std::string dir = testing::shared_reference_dir("lpips");
-  if (dir.empty()) {
-    MESSAGE("../shared/reference/lpips is absent (no ../shared on this machine, or STYLERF_TEST_DATA unset): the "
-            "comparison with the official lpips values is not run; the other LPIPS tests still are");
-    return;
-  }
-  const auto j = nlohmann::json::parse(host::read_file(dir + "/pairs.json"));
-  REQUIRE(j["pairs"].size() == 6);
-  for (const auto& pair : j["pairs"]) {
-    const std::string fa = pair["a"], fb = pair["b"];
-    const double want = pair["lpips_vgg"];
-    const double got = lpips().distance(io::load_image(dir + "/" + fa), io::load_image(dir + "/" + fb));
-    MESSAGE(std::setprecision(7) << fa << " vs " << fb << ": ours " << got << ", official " << want << ", |diff| " << std::fabs(got - want));
-    CHECK(std::fabs(got - want) <= 1e-3);
-  }
+  check_official_values(LpipsNet::Vgg, "lpips_vgg");
 }
 
 TEST_CASE("lpips: identity, symmetry, and a larger difference for a larger change") {
   require_weights();
-  const io::Image a = pattern(64, 48, 3), b = pattern(64, 48, 4);
-  CHECK(lpips().distance(a, a) == 0.0);
-  const double ab = lpips().distance(a, b), ba = lpips().distance(b, a);
-  CHECK(ab > 0.0);
-  CHECK(ab == doctest::Approx(ba).epsilon(1e-6));
-  io::Image slightly = a;
-  const auto noise = testing::random_uniform(a.data.size(), 5, -0.02f, 0.02f);
-  for (size_t i = 0; i < a.data.size(); ++i) slightly.data[i] = std::min(1.0f, std::max(0.0f, a.data[i] + noise[i]));
-  const double small = lpips().distance(a, slightly);
-  CHECK(small > 0.0);
-  CHECK(small < ab);
+  check_identity_symmetry(lpips());
 }
 
 TEST_CASE("lpips: masked distance") {
@@ -449,16 +485,7 @@ TEST_CASE("lpips: masked distance") {
   }
   SUBCASE("differences where the mask is 0 are (almost) ignored") {
     // Mask: the left third. b = a with noise in the right third (32 px away from the masked-in region).
-    std::vector<float> mask(size_t(W) * H, 0.0f);
-    io::Image b = a;
-    const auto noise = testing::random_uniform(a.data.size(), 9, 0.0f, 1.0f);
-    for (int c = 0; c < 3; ++c)
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-          if (c == 0 && x < W / 3) mask[size_t(y) * W + x] = 1.0f;
-          const size_t i = (size_t(c) * H + y) * W + x;
-          if (x >= 2 * W / 3) b.data[i] = noise[i];
-        }
+    const auto [mask, b, inside] = masked_noise(a);
     const double unmasked = lpips().distance(a, b), masked = lpips().distance(a, b, mask);
     INFO("unmasked " << unmasked << ", masked " << masked);
     CHECK(unmasked > 0.05);
@@ -466,10 +493,6 @@ TEST_CASE("lpips: masked distance") {
     // about 1/75 of unmasked here.
     CHECK(masked < 0.05 * unmasked);
     // The same noise inside the mask counts fully.
-    io::Image inside = a;
-    for (int c = 0; c < 3; ++c)
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W / 3; ++x) inside.data[(size_t(c) * H + y) * W + x] = noise[(size_t(c) * H + y) * W + x];
     CHECK(lpips().distance(a, inside, mask) > 4.0 * masked);
   }
   SUBCASE("an all-zero mask gives 0; bad masks are refused") {
@@ -568,41 +591,14 @@ TEST_CASE("lpips alex: matches a double-precision CPU reference (odd sizes floor
 
 TEST_CASE("lpips alex: the official values of ../shared/reference/lpips (lpips 0.1.4, AlexNet)") {
   require_weights(LpipsNet::Alex);
-  const std::string dir = testing::shared_reference_dir("lpips");
-  if (dir.empty()) {
-    MESSAGE("../shared/reference/lpips is absent (no ../shared on this machine, or STYLERF_TEST_DATA unset): the "
-            "comparison with the official lpips values is not run; the other LPIPS tests still are");
-    return;
-  }
-  const auto j = nlohmann::json::parse(host::read_file(dir + "/pairs.json"));
-  REQUIRE(j["pairs"].size() == 6);
-  for (const auto& pair : j["pairs"]) {
-    const std::string fa = pair["a"], fb = pair["b"];
-    const double want = pair["lpips_alex"];
-    const double got =
-        lpips(LpipsNet::Alex).distance(io::load_image(dir + "/" + fa), io::load_image(dir + "/" + fb));
-    MESSAGE(std::setprecision(7) << fa << " vs " << fb << ": ours " << got << ", official " << want << ", |diff| "
-                                 << std::fabs(got - want));
-    CHECK(std::fabs(got - want) <= 1e-3);
-  }
+  check_official_values(LpipsNet::Alex, "lpips_alex");
 }
 
 TEST_CASE("lpips alex: identity, symmetry, and a larger difference for a larger change") {
   require_weights(LpipsNet::Alex);
-  const eval::Lpips& l = lpips(LpipsNet::Alex);
-  const io::Image a = pattern(64, 48, 3), b = pattern(64, 48, 4);
-  CHECK(l.distance(a, a) == 0.0);
-  const double ab = l.distance(a, b), ba = l.distance(b, a);
-  CHECK(ab > 0.0);
-  CHECK(ab == doctest::Approx(ba).epsilon(1e-6));
-  io::Image slightly = a;
-  const auto noise = testing::random_uniform(a.data.size(), 5, -0.02f, 0.02f);
-  for (size_t i = 0; i < a.data.size(); ++i) slightly.data[i] = std::min(1.0f, std::max(0.0f, a.data[i] + noise[i]));
-  const double small = l.distance(a, slightly);
-  CHECK(small > 0.0);
-  CHECK(small < ab);
+  const double ab = check_identity_symmetry(lpips(LpipsNet::Alex));
   // A different metric from VGG's on the same pair.
-  CHECK(std::fabs(ab - lpips().distance(a, b)) > 1e-3);
+  CHECK(std::fabs(ab - lpips().distance(pattern(64, 48, 3), pattern(64, 48, 4))) > 1e-3);
 }
 
 TEST_CASE("lpips alex: masked distance") {
@@ -641,17 +637,7 @@ TEST_CASE("lpips alex: masked distance") {
   }
   SUBCASE("differences where the mask is 0 count much less") {
     // Mask: the left third. b = a with noise in the right third; the same noise inside the mask counts fully.
-    std::vector<float> mask(size_t(W) * H, 0.0f);
-    io::Image b = a, inside = a;
-    const auto noise = testing::random_uniform(a.data.size(), 9, 0.0f, 1.0f);
-    for (int c = 0; c < 3; ++c)
-      for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-          if (c == 0 && x < W / 3) mask[size_t(y) * W + x] = 1.0f;
-          const size_t i = (size_t(c) * H + y) * W + x;
-          if (x >= 2 * W / 3) b.data[i] = noise[i];
-          if (x < W / 3) inside.data[i] = noise[i];
-        }
+    const auto [mask, b, inside] = masked_noise(a);
     const double unmasked = l.distance(a, b), masked = l.distance(a, b, mask), in = l.distance(a, inside, mask);
     INFO("unmasked " << unmasked << ", masked " << masked << ", noise inside the mask " << in);
     CHECK(unmasked > 0.05);
