@@ -31,8 +31,7 @@ using host::Trans;
 
 constexpr int kPadZero = 0, kPadReflect = 1;  // must match kernels/nn.cl
 
-struct ConvGeom {
-  int N, Cin, Cout, H, W, K;
+struct ConvGeom : detail::ConvDims {
   int mode;
   int64_t ckk() const { return int64_t(Cin) * K * K; }
   int64_t hw() const { return int64_t(H) * W; }
@@ -45,20 +44,11 @@ ConvGeom check_conv(const char* op, const Tensor& x, const Tensor& w, Padding pa
   if (x.ndim() != 4) throw Error(std::string(op) + ": input must be [N,Cin,H,W], got " + dims(x));
   if (w.ndim() != 4) throw Error(std::string(op) + ": weight must be [Cout,Cin,k,k], got " + dims(w));
   ConvGeom g{};
-  g.N = int(x.dim(0));
-  g.Cin = int(x.dim(1));
-  g.H = int(x.dim(2));
-  g.W = int(x.dim(3));
-  g.Cout = int(w.dim(0));
-  g.K = int(w.dim(2));
+  detail::read_conv_dims(x, w, g);
   g.mode = pad == Padding::Reflect ? kPadReflect : kPadZero;
   if (w.dim(2) != w.dim(3) || (g.K != 1 && g.K != 3))
     throw Error(std::string(op) + ": kernel must be 1x1 or 3x3, weight has shape " + dims(w));
-  if (w.dim(1) != g.Cin)
-    throw Error(std::string(op) + ": channel mismatch: input " + dims(x) + " has " + std::to_string(g.Cin) +
-                " channels but weight " + dims(w) + " expects " + std::to_string(w.dim(1)));
-  if (g.N < 1 || g.Cin < 1 || g.Cout < 1 || g.H < 1 || g.W < 1)
-    throw Error(std::string(op) + ": empty input " + dims(x) + " or weight " + dims(w));
+  detail::check_conv_dims(op, x, w, g);
   if (pad == Padding::Reflect && g.K == 3 && (g.H < 2 || g.W < 2))
     throw Error(std::string(op) + ": reflect padding needs H, W >= 2, input is " + dims(x));
   // Kernels index with int.
@@ -89,6 +79,23 @@ void col2im(cl_mem col, Tensor& dx, int n, const ConvGeom& g, int y0, int rows, 
 }  // namespace
 
 namespace detail {
+
+void read_conv_dims(const Tensor& x, const Tensor& w, ConvDims& d) {
+  d.N = int(x.dim(0));
+  d.Cin = int(x.dim(1));
+  d.H = int(x.dim(2));
+  d.W = int(x.dim(3));
+  d.Cout = int(w.dim(0));
+  d.K = int(w.dim(2));
+}
+
+void check_conv_dims(const char* op, const Tensor& x, const Tensor& w, const ConvDims& d) {
+  if (w.dim(1) != d.Cin)
+    throw Error(std::string(op) + ": channel mismatch: input " + dims(x) + " has " + std::to_string(d.Cin) +
+                " channels but weight " + dims(w) + " expects " + std::to_string(w.dim(1)));
+  if (d.N < 1 || d.Cin < 1 || d.Cout < 1 || d.H < 1 || d.W < 1)
+    throw Error(std::string(op) + ": empty input " + dims(x) + " or weight " + dims(w));
+}
 
 namespace {
 Tensor& scratch_slot() {

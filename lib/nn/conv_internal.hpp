@@ -1,7 +1,8 @@
 // Internals shared by conv.cpp (stride-1 "same" conv2d) and conv_strided.cpp (general k x k conv with
-// stride and zero padding): the one process-wide im2col scratch buffer and its size limit, and the
-// row-chunked im2col + GEMM loops both convs run (they differ only in their im2col / col2im kernels and
-// in how input and output sizes relate, so those come in as callables and output sizes).
+// stride and zero padding), defined in conv.cpp: reading and checking the sizes both take from input and
+// weight, the one process-wide im2col scratch buffer and its size limit, and the row-chunked im2col + GEMM
+// loops both convs run (they differ only in their im2col / col2im kernels and in how input and output
+// sizes relate, so those come in as callables and output sizes).
 #pragma once
 #include <CL/cl.h>
 
@@ -9,8 +10,21 @@
 #include <cstddef>
 
 #include "host/gemm.hpp"
+#include "host/tensor.hpp"
 
 namespace stylerf::nn::detail {
+
+// Sizes both convs read from input x [N, Cin, H, W] and weight w [Cout, Cin, K, K]; their geometry
+// structs derive from it.
+struct ConvDims {
+  int N, Cin, Cout, H, W, K;
+};
+
+// Fills d from x and w (both 4-D: the caller has checked).
+void read_conv_dims(const host::Tensor& x, const host::Tensor& w, ConvDims& d);
+
+// Throws (naming `op`, x and w) when w's input channels are not x's, or when any size in d is < 1.
+void check_conv_dims(const char* op, const host::Tensor& x, const host::Tensor& w, const ConvDims& d);
 
 // The device's max allocation, or STYLERF_CONV_SCRATCH_BYTES if smaller.
 size_t conv_scratch_limit_bytes();

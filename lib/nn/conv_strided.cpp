@@ -24,8 +24,8 @@ namespace {
 
 using host::Error;
 
-struct Geom {
-  int N, Cin, Cout, H, W, K, S, P, Ho, Wo;
+struct Geom : detail::ConvDims {
+  int S, P, Ho, Wo;
   int64_t ckk() const { return int64_t(Cin) * K * K; }
   int64_t hw() const { return int64_t(H) * W; }
   int64_t howo() const { return int64_t(Ho) * Wo; }
@@ -42,19 +42,10 @@ Geom check_geom(const char* op, const Tensor& x, const Tensor& w, int stride, in
   if (stride < 1) throw Error(o + ": stride must be >= 1, got " + std::to_string(stride));
   if (pad < 0) throw Error(o + ": padding must be >= 0, got " + std::to_string(pad));
   Geom g{};
-  g.N = int(x.dim(0));
-  g.Cin = int(x.dim(1));
-  g.H = int(x.dim(2));
-  g.W = int(x.dim(3));
-  g.Cout = int(w.dim(0));
-  g.K = int(w.dim(2));
+  detail::read_conv_dims(x, w, g);
   g.S = stride;
   g.P = pad;
-  if (w.dim(1) != g.Cin)
-    throw Error(o + ": channel mismatch: input " + dims(x) + " has " + std::to_string(g.Cin) + " channels but weight " +
-                dims(w) + " expects " + std::to_string(w.dim(1)));
-  if (g.N < 1 || g.Cin < 1 || g.Cout < 1 || g.H < 1 || g.W < 1)
-    throw Error(o + ": empty input " + dims(x) + " or weight " + dims(w));
+  detail::check_conv_dims(op, x, w, g);
   if (int64_t(g.K) > int64_t(g.H) + 2 * int64_t(pad) || int64_t(g.K) > int64_t(g.W) + 2 * int64_t(pad))
     throw Error(o + ": the " + std::to_string(g.K) + "x" + std::to_string(g.K) + " kernel is larger than the input " +
                 std::to_string(g.H) + "x" + std::to_string(g.W) + " (H x W) padded by " + std::to_string(pad) +
