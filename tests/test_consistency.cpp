@@ -323,4 +323,9 @@ TEST_CASE("the geometry renderer: opacity and depth of a trained density grid wi
     }
   }
   CHECK(covered > 0);
+  // Chunking (asked for, or bounded by the samples a call may produce) changes nothing.
+  const auto small = model::render_geometry(geo, scene, cam, 97);
+  const auto huge = model::render_geometry(geo, scene, cam, 1 << 30);
+  CHECK(small.acc == v.acc);
+  CHECK(huge.depth == v.depth);
 }

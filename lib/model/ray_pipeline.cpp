@@ -113,8 +113,14 @@ ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene:
   v.depth.resize(size_t(n));
   RayOptions opt;
   opt.background = background;
-  for (int64_t b = 0; b < n; b += chunk) {
-    const int64_t R = std::min<int64_t>(chunk, n - b);
+  // Every ray of a call may keep all of its samples, and a head holds per-sample activations (the RGB
+  // MLP: [kept, 128] floats), so a call is bounded to kMaxSamplesPerCall possible samples (1 GiB of such
+  // activations) whatever chunk is asked for: dense NDC scenes reach ~1700 samples a ray, and 8192 rays
+  // of them asked for a 2.7 GB buffer, beyond PoCL's 2 GiB per-buffer limit.
+  const int64_t step = std::max<int64_t>(
+      1, std::min<int64_t>(chunk, kMaxSamplesPerCall / std::max<int64_t>(1, g.max_samples)));
+  for (int64_t b = 0; b < n; b += step) {
+    const int64_t R = std::min<int64_t>(step, n - b);
     std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
     std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
     RayResult out = render_rays(g, head, Tensor::from_host(o, {R, 3}, "render origins"),

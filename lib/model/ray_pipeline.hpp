@@ -58,7 +58,9 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
                           const Tensor& dkept_acc, Tensor* ddensity);
 
 // A whole camera in chunks of rays (bounded memory): interleaved values [H*W*C], acc and depth [H*W]
-// (depth divided by acc where acc > 1e-6, else 0).
+// (depth divided by acc where acc > 1e-6, else 0). A chunk holds at most kMaxSamplesPerCall / max_samples
+// rays, whatever `chunk` says.
+constexpr int64_t kMaxSamplesPerCall = int64_t(1) << 21;
 struct ViewValues {
   int width = 0, height = 0, channels = 0;
   std::vector<float> value, acc, depth;
