@@ -36,6 +36,7 @@ RangeScore score_range(const std::vector<io::Image>& frames, const PathWarps::Ra
     p.t = t;
     p.s = s;
     p.valid_fraction = c.stats.valid_fraction();
+    p.stats = c.stats;
     valid_sum += p.valid_fraction;
     if (c.stats.valid == 0) {
       p.rmse = p.lpips = kNaN;
@@ -62,8 +63,15 @@ nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 nlohmann::json range_json(const RangeScore& r) {
   nlohmann::json pairs = nlohmann::json::array();
   for (const auto& p : r.pairs)
-    pairs.push_back({{"t", p.t}, {"s", p.s}, {"rmse", number(p.rmse)}, {"lpips", number(p.lpips)},
-                     {"valid_fraction", p.valid_fraction}});
+    pairs.push_back({{"t", p.t},
+                     {"s", p.s},
+                     {"rmse", number(p.rmse)},
+                     {"lpips", number(p.lpips)},
+                     {"valid_fraction", p.valid_fraction},
+                     {"left_out", {{"background", p.stats.background},
+                                   {"no_depth", p.stats.no_depth},
+                                   {"off_image", p.stats.off_image},
+                                   {"occluded", p.stats.occluded}}}});
   return {{"k", r.k},           {"rmse", number(r.rmse)},       {"lpips", number(r.lpips)},
           {"skipped", r.skipped}, {"valid_fraction", r.valid_fraction}, {"pairs", pairs}};
 }

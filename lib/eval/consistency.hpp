@@ -42,6 +42,7 @@ struct PairScore {
   int t = 0, s = 0;              // frame t warped into frame s = t - k
   double rmse = 0, lpips = 0;    // NaN when nothing is valid (lpips: also when not measured)
   double valid_fraction = 0;
+  WarpStats stats;               // why the other pixels were left out
 };
 struct RangeScore {
   int k = 0;
