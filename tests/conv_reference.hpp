@@ -1,6 +1,7 @@
 // Double-precision CPU references shared by the conv-chain tests (VGG encoder, ConvStack decoders):
 // one image [C,H,W], 3x3 / 1x1 stride-1 "same" convs with reflect or zero padding, ReLU, x2 nearest
-// upsampling. Written from the definitions (PyTorch's Conv2d, ReflectionPad2d, Upsample(nearest)).
+// upsampling, 2x2 max pooling (odd sizes floor). Written from the definitions (PyTorch's Conv2d,
+// ReflectionPad2d, Upsample(nearest), MaxPool2d).
 #pragma once
 #include <algorithm>
 #include <vector>
@@ -54,6 +55,17 @@ inline RefTensor ref_upsample(const RefTensor& x) {
   for (int c = 0; c < x.C; ++c)
     for (int yy = 0; yy < y.H; ++yy)
       for (int xx = 0; xx < y.W; ++xx) y.at(c, yy, xx) = x.at(c, yy / 2, xx / 2);
+  return y;
+}
+
+// 2x2 max pooling, stride 2; odd sizes floor (the last row / column is in no window), as torch's MaxPool2d(2).
+inline RefTensor ref_pool(const RefTensor& x) {
+  RefTensor y{x.C, x.H / 2, x.W / 2, std::vector<double>(size_t(x.C) * (x.H / 2) * (x.W / 2))};
+  for (int c = 0; c < x.C; ++c)
+    for (int yy = 0; yy < y.H; ++yy)
+      for (int xx = 0; xx < y.W; ++xx)
+        y.at(c, yy, xx) = std::max(std::max(x.at(c, 2 * yy, 2 * xx), x.at(c, 2 * yy, 2 * xx + 1)),
+                                   std::max(x.at(c, 2 * yy + 1, 2 * xx), x.at(c, 2 * yy + 1, 2 * xx + 1)));
   return y;
 }
 

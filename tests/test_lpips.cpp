@@ -32,6 +32,7 @@ namespace fs = std::filesystem;
 using namespace stylerf;
 using host::Tensor;
 using testing::check_close;
+using testing::ref_pool;
 using testing::RefTensor;
 
 namespace {
@@ -93,16 +94,6 @@ const eval::Lpips& lpips(LpipsNet net = LpipsNet::Vgg) {
 }
 
 // ---- a double CPU reference of the whole metric, independent of lib/eval/lpips.cpp ---------------------
-
-RefTensor ref_pool(const RefTensor& x) {  // floor for odd sizes
-  RefTensor y{x.C, x.H / 2, x.W / 2, std::vector<double>(size_t(x.C) * (x.H / 2) * (x.W / 2))};
-  for (int c = 0; c < x.C; ++c)
-    for (int yy = 0; yy < y.H; ++yy)
-      for (int xx = 0; xx < y.W; ++xx)
-        y.at(c, yy, xx) = std::max(std::max(x.at(c, 2 * yy, 2 * xx), x.at(c, 2 * yy, 2 * xx + 1)),
-                                   std::max(x.at(c, 2 * yy + 1, 2 * xx), x.at(c, 2 * yy + 1, 2 * xx + 1)));
-  return y;
-}
 
 // The trunks' input (lpips' scaling layer, both nets): [0, 1] RGB -> (2 v - 1 - shift) / scale.
 RefTensor ref_scaled_input(const io::Image& im) {

@@ -38,18 +38,9 @@ namespace {
 
 using testing::ref_conv;
 using testing::ref_relu;
+using testing::ref_pool;
 using testing::ref_upsample;
 using testing::RefTensor;
-
-RefTensor ref_pool(const RefTensor& x) {
-  RefTensor y{x.C, x.H / 2, x.W / 2, std::vector<double>(size_t(x.C) * (x.H / 2) * (x.W / 2))};
-  for (int c = 0; c < x.C; ++c)
-    for (int yy = 0; yy < y.H; ++yy)
-      for (int xx = 0; xx < y.W; ++xx)
-        y.at(c, yy, xx) = std::max(std::max(x.at(c, 2 * yy, 2 * xx), x.at(c, 2 * yy, 2 * xx + 1)),
-                                   std::max(x.at(c, 2 * yy + 1, 2 * xx), x.at(c, 2 * yy + 1, 2 * xx + 1)));
-  return y;
-}
 
 // VGG-19 up to relu4_1 from the raw weights, written independently of lib/nn/vgg.cpp's tables.
 struct RefVgg {
