@@ -3,6 +3,7 @@
 #pragma once
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <sys/wait.h>
 
@@ -24,6 +25,12 @@ inline CliRun run_cli(const std::string& args) {
   r.output.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// A JSON file the tool wrote.
+inline nlohmann::json read_json(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  return nlohmann::json::parse(f);
 }
 
 }  // namespace stylerf::testing

@@ -3,7 +3,10 @@
 #include <string>
 #include <unistd.h>
 
+#include "lib/io/checkpoint.hpp"
+#include "lib/model/style_model.hpp"
 #include "lib/scene/make_scene.hpp"
+#include "lib/scene/scene_meta.hpp"
 #include "lib/train/density_trainer.hpp"
 
 namespace stylerf::testing {
@@ -50,6 +53,33 @@ const model::Geometry& small_geometry() {
     return t.model().geo;
   }();
   return g;
+}
+
+const SmallStageFiles& small_stage_files() {
+  static SmallStageFiles files = [] {
+    const scene::Scene& sc = small_scene();
+    model::FeatureFieldConfig fc;
+    fc.rank = {8, 8, 8};
+    model::FeatureModel f = model::FeatureModel::create(small_geometry(), fc, model::DecoderProfile::Fast, 3);
+    const nlohmann::json meta = scene::scene_meta(sc.root, scene::LoadOptions{}, sc);
+    SmallStageFiles out{(small_work_dir() / "cli_features.ckpt").string(), (small_work_dir() / "cli_style.ckpt").string()};
+    {
+      io::Checkpoint ck;
+      ck.kind = "features";
+      f.save(ck);
+      ck.meta["scene"] = meta;
+      io::save_checkpoint(out.features, ck);
+    }
+    model::StyleModel m = model::StyleModel::create(std::move(f), style::SictMode::VolumeAdaptive, true, 5);
+    m.sict.running_var.value = host::Tensor::full({256}, 0.05f);
+    io::Checkpoint ck;
+    ck.kind = "style";
+    m.save(ck);
+    ck.meta["scene"] = meta;
+    io::save_checkpoint(out.style, ck);
+    return out;
+  }();
+  return files;
 }
 
 }  // namespace stylerf::testing

@@ -12,8 +12,6 @@
 
 #include "lib/io/checkpoint.hpp"
 #include "lib/io/image.hpp"
-#include "lib/model/style_model.hpp"
-#include "lib/scene/scene_meta.hpp"
 #include "tests/cli_runner.hpp"
 #include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
@@ -30,8 +28,8 @@ testing::CliRun run(const std::string& args) { return testing::run_cli(args); }
 struct Checkpoints {
   std::string density, style;
 };
-// A short density stage through the CLI, and an untrained stylizer over the shared small geometry (the
-// plumbing is under test here, not the quality).
+// A short density stage through the CLI, and the shared untrained style stage over the small geometry
+// (the plumbing is under test here, not the quality).
 const Checkpoints& checkpoints() {
   static Checkpoints c = [] {
     const scene::Scene& sc = testing::small_scene();
@@ -41,15 +39,8 @@ const Checkpoints& checkpoints() {
                        "' --iters 60 --init-voxels 24^3 --final-voxels 32^3 --upsample-at 40 --mask-at 40 "
                        "--density-rank 8,8,8 --app-rank 8,8,8 --eval-views 1 --force -o '" + out.density + "'");
     REQUIRE_MESSAGE(r.code == 0, r.output);
-    model::FeatureFieldConfig fc;
-    fc.rank = {8, 8, 8};
-    model::FeatureModel f = model::FeatureModel::create(testing::small_geometry(), fc, model::DecoderProfile::Fast, 3);
-    model::StyleModel m = model::StyleModel::create(std::move(f), style::SictMode::VolumeAdaptive, true, 5);
-    m.sict.running_var.value = host::Tensor::full({256}, 0.05f);
-    io::Checkpoint ck;
-    ck.kind = "style";
-    m.save(ck);
-    ck.meta["scene"] = scene::scene_meta(sc.root, scene::LoadOptions{}, sc);
+    // The shared untrained style stage, with two held-out styles recorded (eval table's default styles).
+    io::Checkpoint ck = io::load_checkpoint(testing::small_stage_files().style, "style");
     ck.meta["styles"] = {{"train", nlohmann::json::array()}, {"holdout", {fixture("cmyk.jpg"), fixture("rgb16.png")}}};
     out.style = (testing::small_work_dir() / "eval_style.ckpt").string();
     io::save_checkpoint(out.style, ck);
@@ -58,10 +49,7 @@ const Checkpoints& checkpoints() {
   return c;
 }
 
-nlohmann::json read_json(const fs::path& p) {
-  std::ifstream f(p);
-  return nlohmann::json::parse(f);
-}
+using testing::read_json;
 
 void check_score(const nlohmann::json& score, bool lpips) {
   CHECK(score["short"]["pairs"].size() == 15);  // 16 frames: t = 1..15 into t-1

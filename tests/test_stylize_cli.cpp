@@ -12,12 +12,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "lib/io/checkpoint.hpp"
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
-#include "lib/model/style_model.hpp"
 #include "lib/scene/make_scene.hpp"
-#include "lib/scene/scene_meta.hpp"
 #include "tests/cli_runner.hpp"
 #include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
@@ -32,43 +29,10 @@ std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_F
 using Run = testing::CliRun;
 Run stylerf_cli(const std::string& args) { return testing::run_cli(args); }
 
-// A style checkpoint (untrained stylizer: the plumbing is under test, not the quality) and a feature one.
-struct Checkpoints {
-  std::string style, features;
-};
-const Checkpoints& checkpoints() {
-  static Checkpoints c = [] {
-    const scene::Scene& sc = testing::small_scene();
-    model::FeatureFieldConfig fc;
-    fc.rank = {8, 8, 8};
-    model::FeatureModel f = model::FeatureModel::create(testing::small_geometry(), fc, model::DecoderProfile::Fast, 3);
-    const nlohmann::json meta = scene::scene_meta(sc.root, scene::LoadOptions{}, sc);
-    Checkpoints out;
-    out.features = (testing::small_work_dir() / "cli_features.ckpt").string();
-    out.style = (testing::small_work_dir() / "cli_style.ckpt").string();
-    {
-      io::Checkpoint ck;
-      ck.kind = "features";
-      f.save(ck);
-      ck.meta["scene"] = meta;
-      io::save_checkpoint(out.features, ck);
-    }
-    model::StyleModel m = model::StyleModel::create(std::move(f), style::SictMode::VolumeAdaptive, true, 5);
-    m.sict.running_var.value = host::Tensor::full({256}, 0.05f);
-    io::Checkpoint ck;
-    ck.kind = "style";
-    m.save(ck);
-    ck.meta["scene"] = meta;
-    io::save_checkpoint(out.style, ck);
-    return out;
-  }();
-  return c;
-}
+using Checkpoints = testing::SmallStageFiles;
+const Checkpoints& checkpoints() { return testing::small_stage_files(); }
 
-nlohmann::json read_json(const fs::path& p) {
-  std::ifstream f(p);
-  return nlohmann::json::parse(f);
-}
+using testing::read_json;
 
 bool finite_png(const fs::path& p) {
   const io::Image img = io::load_image(p.string());
