@@ -17,9 +17,7 @@ namespace po = boost::program_options;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
+using stylerf::cli::seconds_since;
 
 int run_adain(int argc, char** argv) {
   std::string content, style, output, device;

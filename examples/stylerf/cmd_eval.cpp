@@ -36,7 +36,7 @@ namespace cli = stylerf::cli;
 namespace eval = stylerf::eval;
 namespace model = stylerf::model;
 
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using stylerf::cli::seconds_since;
 
 int run_consistency(int argc, char** argv) {
   std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg";

@@ -39,8 +39,6 @@ namespace {
 using host::Error;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
 std::vector<std::string> split(const std::string& s, char sep) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -204,22 +202,26 @@ int run_eval_table(int argc, char** argv) {
   }
   if (!style_args.empty() && explicit_styles.empty()) throw Error("--styles: no readable image");
 
+  // The style checkpoints of every group, loaded once (before the work: a wrong kind is refused early).
+  std::vector<std::vector<io::Checkpoint>> style_cks(scene_ckpts.size());
+  for (size_t gi = 0; gi < scene_ckpts.size(); ++gi)
+    for (size_t i = 1; i < scene_ckpts[gi].size(); ++i) {
+      style_cks[gi].push_back(io::load_checkpoint(scene_ckpts[gi][i], ""));
+      if (style_cks[gi].back().kind != "style")
+        throw Error("--scene-ckpts: " + scene_ckpts[gi][i] + " holds a '" + style_cks[gi].back().kind +
+                    "' stage, not a style stage");
+    }
   // Without --styles: the held-out styles (never trained on) of the first style checkpoint given, for
   // every scene, so scenes without a style stage are scored on the same styles.
   std::vector<std::string> default_styles;
-  if (explicit_styles.empty()) {
-    for (const auto& g : scene_ckpts)
-      for (size_t i = 0; i < g.size() && default_styles.empty(); ++i) {
-        const auto ck = io::load_checkpoint(g[i], "");
-        if (ck.kind != "style") continue;
+  for (const auto& group : style_cks)
+    for (const auto& ck : group)
+      if (explicit_styles.empty() && default_styles.empty()) {
         default_styles = ck.meta.value("styles", nlohmann::json::object())
                              .value("holdout", nlohmann::json::array())
                              .get<std::vector<std::string>>();
-        if (default_styles.empty()) throw Error(g[i] + " holds no held-out styles; give --styles");
+        if (default_styles.empty()) throw Error(ck.path + " holds no held-out styles; give --styles");
       }
-    if (default_styles.empty())
-      throw Error("--styles is needed: no style checkpoint was given to take held-out styles from");
-  }
 
   init_runtime(device, false);
   auto adain = style::AdainModel::load_default();
@@ -229,23 +231,19 @@ int run_eval_table(int argc, char** argv) {
   fs::create_directories(out);
   const auto t_all = Clock::now();
   std::vector<SceneResult> results;
-  for (const auto& group : scene_ckpts) {
+  for (size_t gi = 0; gi < scene_ckpts.size(); ++gi) {
+    const auto& group = scene_ckpts[gi];
     const auto ck_d = io::load_checkpoint(group.front(), "");
     if (ck_d.kind != "density")
       throw Error("--scene-ckpts: the first checkpoint of a group must be a density checkpoint; " + group.front() +
                   " holds a '" + ck_d.kind + "' stage");
+    if (explicit_styles.empty() && default_styles.empty())
+      throw Error("--styles is needed: no style checkpoint was given to take held-out styles from");
     const auto scene = scene_of_checkpoint(ck_d);
     const auto density = model::load_model(ck_d);
-    std::vector<io::Checkpoint> style_cks;
-    for (size_t i = 1; i < group.size(); ++i) {
-      style_cks.push_back(io::load_checkpoint(group[i], ""));
-      if (style_cks.back().kind != "style")
-        throw Error("--scene-ckpts: " + group[i] + " holds a '" + style_cks.back().kind + "' stage, not a style stage");
-      check_same_scene_of(ck_d, style_cks.back(), scene);
-    }
-    std::vector<std::string> styles = explicit_styles;
-    if (styles.empty()) styles = default_styles;
-    styles = pick_evenly(styles, max_styles);
+    for (const auto& ck : style_cks[gi]) check_same_scene_of(ck_d, ck, scene);
+    const std::vector<std::string> styles =
+        pick_evenly(explicit_styles.empty() ? default_styles : explicit_styles, max_styles);
 
     SceneResult res;
     res.name = scene.name;
@@ -260,9 +258,12 @@ int run_eval_table(int argc, char** argv) {
     std::cout << "  RGB: " << score_line(rgb_rows.scores.back()) << "\n";
     MethodRows adain_rows{"AdaIN (per frame)", {}, {}};
     std::vector<std::unique_ptr<model::StyleModel>> models;
+    std::vector<std::unique_ptr<style::StyleEncoder>> encoders;  // one per model: its codes are its own
     std::vector<MethodRows> style_rows;
-    for (const auto& ck : style_cks) {
+    for (const auto& ck : style_cks[gi]) {
       models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
+      encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
+                                                               style::StyleEncoder::default_cache_dir()));
       style_rows.push_back({style_model_label(ck), {}, {}});
     }
     std::vector<io::Image> first_adain, first_stylerf;
@@ -276,8 +277,8 @@ int run_eval_table(int argc, char** argv) {
                 << score_line(adain_rows.scores.back()) << "\n";
       if (si == 0) first_adain = a;
       for (size_t mi = 0; mi < models.size(); ++mi) {
-        style::StyleEncoder enc(models[mi]->dst, adain.encoder, style::StyleEncoder::default_cache_dir());
-        const auto f = eval::stylerf_frames(*models[mi], scene, path.cams, enc.encode(st).code, scene.effects.background);
+        const auto f =
+            eval::stylerf_frames(*models[mi], scene, path.cams, encoders[mi]->encode(st).code, scene.effects.background);
         style_rows[mi].styles.push_back(st);
         style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));
         std::cout << "    " << style_rows[mi].name << ": " << score_line(style_rows[mi].scores.back()) << "\n";

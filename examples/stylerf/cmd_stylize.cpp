@@ -40,7 +40,7 @@ namespace model = stylerf::model;
 namespace style = stylerf::style;
 namespace cli = stylerf::cli;
 
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+using stylerf::cli::seconds_since;
 
 std::vector<std::string> split(const std::string& s, char sep) {
   std::vector<std::string> out;
@@ -83,14 +83,6 @@ std::vector<std::string> expand_styles(const std::vector<std::string>& args) {
     out.insert(out.end(), files.begin(), files.end());
   }
   return out;
-}
-
-// The camera at --size: the longer side becomes `size`, the aspect kept.
-stylerf::scene::Camera sized(const stylerf::scene::Camera& c, int size) {
-  if (size <= 0) return c;
-  const int w = c.width >= c.height ? size : std::max(1, int(std::lround(double(size) * c.width / c.height)));
-  const int h = c.width >= c.height ? std::max(1, int(std::lround(double(size) * c.height / c.width))) : size;
-  return c.resized(w, h);
 }
 
 struct Job {  // one output set: a name, a folder, the code(s)
@@ -227,7 +219,7 @@ int run_stylize(int argc, char** argv) {
   {
     const int n = int(cams.size()), k = max_views > 0 ? std::min(max_views, n) : n;
     std::vector<stylerf::scene::Camera> picked;
-    for (int j = 0; j < k; ++j) ids.push_back(int(int64_t(j) * n / k)), picked.push_back(sized(cams[ids.back()], size));
+    for (int j = 0; j < k; ++j) ids.push_back(int(int64_t(j) * n / k)), picked.push_back(cams[ids.back()].with_longer_side(size));
     cams = picked;
   }
   std::unique_ptr<model::RegionHead> region;

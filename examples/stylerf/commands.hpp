@@ -1,5 +1,6 @@
 // The `stylerf` command line: each subcommand lives in its own cmd_*.cpp and registers itself here.
 #pragma once
+#include <chrono>
 #include <functional>
 #include <string>
 #include <vector>
@@ -23,5 +24,10 @@ struct Register {
 // Common options every subcommand accepts: --device SPEC (also STYLERF_DEVICE), --profile.
 // Initialises the OpenCL runtime on the chosen device.
 void init_runtime(const std::string& device_spec, bool profile);
+
+// Wall seconds since t (the commands' timings).
+inline double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
 
 }  // namespace stylerf::cli

@@ -97,13 +97,13 @@ ConsistencyScore score_frames(const std::vector<io::Image>& frames, const PathWa
   if (int(frames.size()) != warps.frames)
     throw Error("consistency: " + std::to_string(frames.size()) + " frames for warps of " +
                 std::to_string(warps.frames));
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const auto& c = warps.short_range.warps.empty() ? nullptr : &warps.short_range.warps.front();
-    if (c && (frames[i].width != c->width || frames[i].height != c->height))
+  if (warps.short_range.warps.empty()) throw Error("consistency: no warps (make them with path_warps)");
+  const Correspondence& c = warps.short_range.warps.front();
+  for (size_t i = 0; i < frames.size(); ++i)
+    if (frames[i].width != c.width || frames[i].height != c.height)
       throw Error("consistency: frame " + std::to_string(i) + " is " + std::to_string(frames[i].width) + "x" +
-                  std::to_string(frames[i].height) + ", the geometry's frames " + std::to_string(c->width) + "x" +
-                  std::to_string(c->height));
-  }
+                  std::to_string(frames[i].height) + ", the geometry's frames " + std::to_string(c.width) + "x" +
+                  std::to_string(c.height));
   ConsistencyScore s;
   s.short_range = score_range(frames, warps.short_range, lpips);
   s.long_range = score_range(frames, warps.long_range, lpips);

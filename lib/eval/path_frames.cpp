@@ -18,13 +18,7 @@ std::vector<scene::Camera> path_cameras(const scene::Scene& scene, int frames, i
   if (size < 0 || size > 4096) throw Error("consistency: --size must be in [0, 4096] (0: the scene's)");
   const auto path = scene::default_path(scene, path_frames);
   std::vector<scene::Camera> out(path.begin(), path.begin() + frames);
-  if (size > 0)
-    for (auto& c : out) {
-      const bool wide = c.width >= c.height;
-      const int w = wide ? size : std::max(1, int(std::lround(double(size) * c.width / c.height)));
-      const int h = wide ? std::max(1, int(std::lround(double(size) * c.height / c.width))) : size;
-      c = c.resized(w, h);
-    }
+  for (auto& c : out) c = c.with_longer_side(size);
   return out;
 }
 

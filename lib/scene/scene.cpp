@@ -1,5 +1,6 @@
 #include "lib/scene/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
@@ -24,6 +25,14 @@ Camera Camera::resized(int new_width, int new_height) const {
   c.width = new_width;
   c.height = new_height;
   return c;
+}
+
+Camera Camera::with_longer_side(int size) const {
+  if (size <= 0) return *this;
+  const bool wide = width >= height;
+  const int w = wide ? size : std::max(1, int(std::lround(double(size) * width / height)));
+  const int h = wide ? std::max(1, int(std::lround(double(size) * height / width))) : size;
+  return resized(w, h);
 }
 
 bool Camera::project(const std::array<float, 3>& p, float& px, float& py) const {

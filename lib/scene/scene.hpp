@@ -29,6 +29,8 @@ struct Camera {
   std::array<float, 3> forward() const { return {-c2w[0][2], -c2w[1][2], -c2w[2][2]}; }
   // Same camera with the image scaled to width x height (intrinsics scaled per axis).
   Camera resized(int new_width, int new_height) const;
+  // Same camera with its longer side `size` pixels and the aspect kept (size <= 0: unchanged).
+  Camera with_longer_side(int size) const;
   // Pixel coordinates (continuous, pixel centres at +0.5) of a world point; false if it is behind.
   bool project(const std::array<float, 3>& world, float& px, float& py) const;
 };
