@@ -17,6 +17,11 @@ struct BenchOptions {
   // geometry where every sample counts), the stage, the decoder profile and the patch side.
   std::string ckpt, profile = "fast";
   int stage = 2, size = 256;
+  // bench render only: the scene (default: the checkpoint's), held-out views to render, training steps to
+  // time, and the early-termination thresholds to compare (empty: the default only).
+  std::string scene;
+  int views = 3, steps = 10;
+  std::vector<float> erts;
 };
 
 int bench_gemm(const BenchOptions& opt);  // bench/bench_gemm.cpp
@@ -24,6 +29,7 @@ int bench_conv(const BenchOptions& opt);  // bench/bench_conv.cpp
 int bench_ops(const BenchOptions& opt);   // bench/bench_ops.cpp: every NN op's perf mode (GB/s or GFLOP/s)
 int bench_patch(const BenchOptions& opt); // bench/bench_patch.cpp: one patch-training step, part by part
 int bench_patch_style(const BenchOptions& opt);  // bench/bench_patch_style.cpp: one stage-3 step, part by part
-int bench_dst(const BenchOptions& opt);   // bench/bench_dst.cpp: deferred vs per-point style transformation
+int bench_dst(const BenchOptions& opt);
+int bench_render(const BenchOptions& opt);  // bench/bench_render.cpp: rays/s of rendering and training   // bench/bench_dst.cpp: deferred vs per-point style transformation
 
 }  // namespace stylerf::bench

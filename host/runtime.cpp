@@ -118,6 +118,9 @@ Runtime::~Runtime() {
 }
 
 std::string Runtime::program_source(const std::string& program) const {
+  // "a+b+c": the files concatenated in that order, one program (kernels that use the helpers of others).
+  if (const size_t plus = program.find('+'); plus != std::string::npos)
+    return program_source(program.substr(0, plus)) + "\n" + program_source(program.substr(plus + 1));
   if (const char* dir = std::getenv("STYLERF_KERNEL_DIR"); dir && *dir) {
     std::string path = std::string(dir) + "/" + program + ".cl";
     std::ifstream in(path, std::ios::binary);

@@ -46,7 +46,7 @@ class Runtime {
 
   // A kernel of kernels/<program>.cl built with the given options (e.g. "-DTILE=8"). Cached.
   cl_kernel kernel(const std::string& program, const std::string& name, const std::string& options = "");
-  // The source of kernels/<program>.cl (embedded, or from STYLERF_KERNEL_DIR).
+  // The source of kernels/<program>.cl (embedded, or from STYLERF_KERNEL_DIR); "a+b" is a.cl then b.cl.
   std::string program_source(const std::string& program) const;
 
   // Allocates a device buffer. Throws an Error naming `what`, the bytes asked for and the device's

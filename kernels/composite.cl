@@ -161,3 +161,55 @@ kernel void background_backward(global const float* dout, global const float* bg
   for (int c = 0; c < C; ++c) s = fma(dout[(long)r * C + c], bg[c], s);
   dacc[r] = (accumulate ? dacc[r] : 0.0f) - s;
 }
+
+// ---- deferred shading: per-ray normalisation by opacity, and scaling by it -------------------------------
+// A deferred head shades the weighted mean of a ray's features once, c = f(F / (a + eps)), and returns a c:
+// equal to per-sample shading sum_i w_i f(x_i) when one sample carries the ray's weight (a hard surface),
+// one network evaluation per ray instead of per sample. F [R, C] composited features, a [R] their opacity
+// (lib/render/deferred.hpp).
+
+// n[r, :] = F[r, :] / (a[r] + eps)
+kernel void opacity_normalise_forward(global const float* F, global const float* a, int R, int C, float eps,
+                                      global float* n) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const float inv = 1.0f / (fmax(a[r], 0.0f) + eps);
+  for (int c = 0; c < C; ++c) n[(long)r * C + c] = F[(long)r * C + c] * inv;
+}
+
+// dF = dn / (a + eps);  da[r] += -sum_c dn[r, c] F[r, c] / (a + eps)^2  (da accumulates; 0 where a < 0,
+// which the forward clamps).
+kernel void opacity_normalise_backward(global const float* F, global const float* a, global const float* dn, int R,
+                                       int C, float eps, global float* dF, global float* da) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const float inv = 1.0f / (fmax(a[r], 0.0f) + eps);
+  float s = 0.0f;
+  for (int c = 0; c < C; ++c) {
+    const long k = (long)r * C + c;
+    dF[k] = dn[k] * inv;
+    s = fma(dn[k], F[k], s);
+  }
+  if (a[r] >= 0.0f) da[r] -= s * inv * inv;
+}
+
+// y[r, :] = a[r] * c[r, :]
+kernel void opacity_scale_forward(global const float* c, global const float* a, int R, int C, global float* y) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  for (int j = 0; j < C; ++j) y[(long)r * C + j] = a[r] * c[(long)r * C + j];
+}
+
+// dc = a dy;  da[r] += sum_j dy[r, j] c[r, j]  (da accumulates).
+kernel void opacity_scale_backward(global const float* c, global const float* a, global const float* dy, int R, int C,
+                                   global float* dc, global float* da) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  float s = 0.0f;
+  for (int j = 0; j < C; ++j) {
+    const long k = (long)r * C + j;
+    dc[k] = a[r] * dy[k];
+    s = fma(dy[k], c[k], s);
+  }
+  da[r] += s;
+}

@@ -118,9 +118,11 @@ kernel void march_count(MARCH_ARGS, global int* counts) {
   counts[r] = c;
 }
 
-// Pass 2 (after the host's exclusive prefix sum of counts into offsets): the same walk, writing samples.
-kernel void march_write(MARCH_ARGS, global const int* offsets, global float* pos, global float* tvals,
-                        global float* deltas, global int* ray_index, float delta_scale) {
+// Pass 2 (after the host's exclusive prefix sum of counts into offsets): the same walk, writing samples,
+// and stopping after counts[r] of them (fewer than the walk has when a ray was terminated early:
+// kernels/march_density.cl).
+kernel void march_write(MARCH_ARGS, global const int* offsets, global const int* counts, global float* pos,
+                        global float* tvals, global float* deltas, global int* ray_index, float delta_scale) {
   const int r = get_global_id(0);
   if (r >= R) return;
   const MarchParams P = march_params(lox, loy, loz, hix, hiy, hiz, near, far, step, max_samples);
@@ -130,8 +132,9 @@ kernel void march_write(MARCH_ARGS, global const int* offsets, global float* pos
   float t0;
   const int n = ray_candidates(&P, o, d, jitter, &t0);
   int k = offsets[r];
+  const int end = k + counts[r];
   const MaskWalk W = mask_walk(&P, o, d, mx, my, mz);
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < n && k < end; ++i) {
     const float t = t0 + P.step * ((float)i + jitter);
     if (has_mask && !occupied_at(mask, &W, t)) continue;
     const float3 q = normalised_at(&P, o, d, t);

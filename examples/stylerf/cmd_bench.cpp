@@ -1,4 +1,4 @@
-// stylerf bench <gemm|conv|ops|field|density|targets|patch|dst> [--json FILE] [--repeats N] [--quick] [--device D]
+// stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <iostream>
@@ -13,9 +13,9 @@ namespace po = boost::program_options;
 
 namespace {
 int run_bench(int argc, char** argv) {
-  std::string which, device, parts;
+  std::string which, device, parts, erts;
   stylerf::bench::BenchOptions opt;
-  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst> [options]");
+  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
@@ -27,6 +27,10 @@ int run_bench(int argc, char** argv) {
       "stage", po::value(&opt.stage)->default_value(2), "patch: training stage (2 features, 3 style)")(
       "profile", po::value(&opt.profile)->default_value("fast"), "patch: decoder profile, fast | paper")(
       "size", po::value(&opt.size)->default_value(256), "patch: side in pixels (multiple of 8)")(
+      "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
+      "views", po::value(&opt.views)->default_value(3), "render: held-out views to render")(
+      "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(
+      "ert", po::value(&erts), "render: comma list of early-termination thresholds to compare (0: off)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
   po::options_description hidden;
   hidden.add_options()("which", po::value(&which));
@@ -45,8 +49,25 @@ int run_bench(int argc, char** argv) {
               << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n"
               << "  targets  stage-2 target reads: per-ray gather fwd/bwd, patch read (GB/s)\n"
               << "  patch    one patch step part by part (s, GFLOP/s): --stage 2|3 --profile fast|paper --size 256\n"
-              << "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n";
+              << "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n"
+              << "  render   rays/s and s/view of rendering, s/step of training, per kernel: --ckpt DENSITY\n"
+              << "           [--scene DIR] [--views N] [--steps K] [--ert 0,1e-4,1e-3]\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
+  }
+  if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--views must be >= 1 and --steps >= 0");
+  for (size_t a = 0; !erts.empty() && a <= erts.size();) {
+    const size_t b = std::min(erts.find(',', a), erts.size());
+    const std::string e = erts.substr(a, b - a);
+    size_t used = 0;
+    float v = -1;
+    try {
+      v = std::stof(e, &used);
+    } catch (const std::exception&) {
+    }
+    if (used != e.size() || !(v >= 0.0f && v < 1.0f))
+      throw std::runtime_error("--ert: '" + e + "' is not a threshold in [0, 1) (0 turns early termination off)");
+    opt.erts.push_back(v);
+    a = b + 1;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
   if (opt.budget_s < 0 || opt.knob_budget_s < 0) throw std::runtime_error("--budget and --knob-budget must be >= 0");
@@ -71,7 +92,8 @@ int run_bench(int argc, char** argv) {
   if (which == "targets") return stylerf::bench::bench_targets(opt);
   if (which == "patch") return stylerf::bench::bench_patch(opt);
   if (which == "dst") return stylerf::bench::bench_dst(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst)\n";
+  if (which == "render") return stylerf::bench::bench_render(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst, render)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);

@@ -55,10 +55,10 @@ std::array<int, 3> parse_rank(const std::string& s, const std::string& flag) {
 int run_train_density(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
-                        app_rank;
+                        app_rank, shading;
   int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
-  float lr_grid = -1, lr_net = -1;
+  float lr_grid = -1, lr_net = -1, ert = 1e-4f;
   double minutes = 0;
   bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
@@ -77,6 +77,10 @@ int run_train_density(int argc, char** argv) {
       "upsample-at", po::value(&upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
       "mask-at", po::value(&mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
       "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
+      "shading", po::value(&shading), "per-sample (TensoRF) | deferred (one MLP per ray on its mean feature; "
+                                      "default for forward-facing LLFF scenes)")(
+      "ert", po::value(&ert)->default_value(1e-4f, "1e-4"),
+      "early ray termination: stop a ray once its transmittance is below this (0: off)")(
       "density-rank", po::value(&density_rank), "density ranks per mode, e.g. 16,4,4")(
       "app-rank", po::value(&app_rank), "appearance ranks per mode, e.g. 48,12,12")(
       "lr-grid", po::value(&lr_grid), "grid learning rate (default 0.02)")(
@@ -109,10 +113,13 @@ int run_train_density(int argc, char** argv) {
   cli::check_int_range("--ckpt-every", ckpt_every, 0, 100000000);
   cli::check_int_range("--eval-views", eval_views, 0, 100000);
   if (vm.count("lr-grid")) cli::check_range("--lr-grid", lr_grid, 1e-8, 10);
+  cli::check_range("--ert", ert, 0.0, 0.5);
+  if (!shading.empty() && shading != "per-sample" && shading != "deferred")
+    throw Error("--shading: unknown '" + shading + "' (per-sample, deferred)");
   if (vm.count("lr-net")) cli::check_range("--lr-net", lr_net, 1e-8, 10);
   if (resume && (vm.count("final-voxels") || vm.count("init-voxels") || vm.count("upsample-at") || vm.count("mask-at") ||
                  vm.count("density-rank") || vm.count("app-rank") || vm.count("lr-grid") || vm.count("lr-net") ||
-                 vm.count("density-activation")))
+                 vm.count("density-activation") || vm.count("shading")))
     throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
   const int64_t vfinal = final_voxels.empty() ? 0 : parse_voxels(final_voxels, "--final-voxels");
   const int64_t vinit = init_voxels.empty() ? 0 : parse_voxels(init_voxels, "--init-voxels");
@@ -163,12 +170,16 @@ int run_train_density(int argc, char** argv) {
     if (!app_rank.empty()) cfg.model.app_rank = parse_rank(app_rank, "--app-rank");
     if (lr_grid > 0) cfg.lr_grid = lr_grid;
     if (lr_net > 0) cfg.lr_net = lr_net;
+    if (!shading.empty()) cfg.model.deferred_shading = shading == "deferred";
     trainer = std::make_unique<train::DensityTrainer>(scene, cfg);
   }
+  trainer->model().geo.ert_threshold = ert;
   const auto& cfg = trainer->config();
   std::cout << "density stage: " << trainer->model().describe() << "\n"
             << "  activation " << (cfg.model.act == stylerf::field::DensityActivation::Relu ? "relu" : "softplus")
-            << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", background "
+            << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", shading "
+            << (cfg.model.deferred_shading ? "deferred" : "per sample") << ", early termination "
+            << (ert > 0 ? "below " + std::to_string(ert) : std::string("off")) << ", background "
             << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
             << "  " << cfg.schedule.describe() << "\n"
             << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net

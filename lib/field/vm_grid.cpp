@@ -77,7 +77,7 @@ VMGrid VMGrid::from_params(std::array<int, 3> res, std::array<int, 3> rank, Tens
 }
 
 // Build options that fix the ranks at compile time (see kernels/grid.cl, vm_layout).
-static std::string rank_options(const std::array<int, 3>& rank) {
+std::string rank_build_options(const std::array<int, 3>& rank) {
   return "-DRANK0=" + std::to_string(rank[0]) + " -DRANK1=" + std::to_string(rank[1]) +
          " -DRANK2=" + std::to_string(rank[2]);
 }
@@ -88,7 +88,7 @@ constexpr size_t kPointGroup = 64;
 
 template <class... Args>
 static void grid_launch(const std::array<int, 3>& rank, const char* kernel, size_t global, const Args&... args) {
-  launch_with_local("grid", kernel, rank_options(rank), {global}, {kPointGroup}, args...);
+  launch_with_local("grid", kernel, rank_build_options(rank), {global}, {kPointGroup}, args...);
 }
 
 static void check_points(const Tensor& pts, const char* op) {
@@ -141,7 +141,7 @@ static void scatter(const VMGrid& g, const Tensor& pts, const Tensor& dsrc, cons
   const int copies = std::max(1, std::min<int>(static_cast<int>(dev.compute_units), (n + 4095) / 4096));
   const int chunk = (n + copies - 1) / copies;
   Tensor& scratch = scatter_scratch(int64_t(copies - 1) * g.numel());
-  launch_with_local("grid", "vm_scatter_private", rank_options(g.rank), {size_t(copies)}, {1}, pts, g.params, dsrc, sigma, dgrid,
+  launch_with_local("grid", "vm_scatter_private", rank_build_options(g.rank), {size_t(copies)}, {1}, pts, g.params, dsrc, sigma, dgrid,
                     scratch, n, chunk, g.res[0], g.res[1], g.res[2], g.rank[0], g.rank[1], g.rank[2], kind, int(act));
   if (copies > 1)
     launch("grid", "vm_reduce_copies", {size_t(g.numel())}, scratch, dgrid, int(g.numel()), copies - 1);

@@ -51,6 +51,9 @@ struct VMGrid {
 // ---- sampling ------------------------------------------------------------------------------------------
 // pts [N,3] normalised -> sigma [N].
 Tensor density_forward(const VMGrid& g, const Tensor& pts, DensityActivation act);
+// The build options of kernels/grid.cl for a grid of these ranks (-DRANKn: constant rank loops); also
+// used by programs that include grid.cl (the early-termination march).
+std::string rank_build_options(const std::array<int, 3>& rank);
 // dgrid += d(sum dsigma * sigma)/d(params), from the forward output sigma (activation derivative is a function
 // of sigma). dgrid has params' shape; zero it before the first backward of a step.
 void density_backward(const VMGrid& g, const Tensor& pts, const Tensor& sigma, const Tensor& dsigma, Tensor& dgrid,

@@ -1,5 +1,7 @@
 #include "lib/model/density_model.hpp"
 
+#include "lib/render/composite_values.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -25,7 +27,8 @@ json DensityModelConfig::to_json() const {
               {"step_ratio", step_ratio},
               {"weight_threshold", weight_threshold},
               {"mask_threshold", mask_threshold},
-              {"init_scale", init_scale}};
+              {"init_scale", init_scale},
+              {"shading", deferred_shading ? "deferred" : "per-sample"}};
 }
 
 DensityModelConfig DensityModelConfig::from_json(const json& j) {
@@ -42,6 +45,11 @@ DensityModelConfig DensityModelConfig::from_json(const json& j) {
   c.weight_threshold = j.at("weight_threshold").get<float>();
   c.mask_threshold = j.at("mask_threshold").get<float>();
   c.init_scale = j.at("init_scale").get<float>();
+  // Checkpoints from before deferred shading have no "shading": they shade per sample.
+  const std::string shading = j.value("shading", std::string("per-sample"));
+  if (shading != "per-sample" && shading != "deferred")
+    throw Error("unknown shading '" + shading + "' (per-sample, deferred)");
+  c.deferred_shading = shading == "deferred";
   return c;
 }
 
@@ -76,7 +84,7 @@ DensityModel DensityModel::create(const scene::Scene& scene, const DensityModelC
   g.weight_threshold = cfg.weight_threshold;
   g.density = field::VMGrid::create(res, cfg.density_rank, cfg.init_scale, seed * 3 + 1);
   m.rgb = RgbHead(field::VMGrid::create(res, cfg.app_rank, cfg.init_scale, seed * 3 + 2),
-                  field::AppearanceHead::create(head_config(cfg), seed * 3 + 3));
+                  field::AppearanceHead::create(head_config(cfg), seed * 3 + 3), cfg.deferred_shading);
   g.update_step();
   return m;
 }
@@ -160,16 +168,38 @@ RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool t
   RayOptions opt;
   opt.jitter = train;
   opt.seed = seed;
-  opt.background = geo.background_tensor();
-  return render_rays(geo, rgb, origins, dirs, opt, ctx);
+  if (!rgb.deferred()) {
+    opt.background = geo.background_tensor();
+    return render_rays(geo, rgb, origins, dirs, opt, ctx);
+  }
+  // Deferred: the pipeline composites appearance features; the head shades them once per ray, and the
+  // background goes behind the shaded colour (so not through the pipeline, whose values are features).
+  RayResult r = render_rays(geo, rgb, origins, dirs, opt, ctx);
+  r.value = rgb.shade(r.value, r.kept_acc, cfg.view_dependent ? dirs : Tensor(), ctx ? &ctx->shading : nullptr);
+  if (geo.has_background) render::background_forward(r.value, r.acc, geo.background_tensor());
+  return r;
 }
 
 void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb) {
-  render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &density_param().grad_buffer());
+  Tensor& ddensity = density_param().grad_buffer();
+  if (!rgb.deferred()) {
+    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity);
+    return;
+  }
+  Tensor dacc;  // the background's gradient w.r.t. the opacity over all samples
+  if (geo.has_background) render::background_backward(drgb, geo.background_tensor(), dacc, false);
+  Tensor dkept_acc;
+  const Tensor dF = rgb.shade_backward(*ctx.shading, drgb, dkept_acc);
+  render_rays_backward(geo, rgb, ctx, dF, dkept_acc, &ddensity, dacc);
+}
+
+ViewValues DensityModel::render_camera(const scene::Scene& scene, const scene::Camera& cam, int chunk) const {
+  return model::render_camera(
+      geo, 3, [&](const Tensor& o, const Tensor& d) { return render(o, d, false, 0, nullptr); }, scene, cam, chunk);
 }
 
 ViewValues render_view(const DensityModel& m, const scene::Scene& scene, const scene::Camera& cam, int chunk) {
-  return render_camera(m.geo, m.rgb, scene, cam, m.geo.background_tensor(), chunk);
+  return m.render_camera(scene, cam, chunk);
 }
 
 // ---- checkpoints -------------------------------------------------------------------------------------------
@@ -217,7 +247,7 @@ DensityModel load_model(const io::Checkpoint& ck) {
         res, m.cfg.density_rank, ck.device("model.density", {field::VMGrid::numel_of(res, m.cfg.density_rank)}));
     // The head's shapes come from a fresh head of the stored layout; its parameters are then loaded by name.
     m.rgb = RgbHead(field::VMGrid::create(res, m.cfg.app_rank, 0.0f, 0),
-                    field::AppearanceHead::create(head_config(m.cfg), 0));
+                    field::AppearanceHead::create(head_config(m.cfg), 0), m.cfg.deferred_shading);
     m.rgb.load(ck, "model.");
     if (mask_res[0] > 0) g.mask = unpack_mask(ck.get("model.mask"), mask_res, ck.path);
   } catch (const json::exception& e) {

@@ -27,6 +27,9 @@ struct DensityModelConfig {
   float weight_threshold = 1e-4f; // TensoRF rayMarch_weight_thres: samples below get no appearance
   float mask_threshold = 1e-4f;   // TensoRF alpha_mask_thre
   float init_scale = 0.1f;        // TensoRF: factors ~ 0.1 * N(0, 1)
+  // Shading (lib/model/rgb_head.hpp): false, per kept sample (TensoRF); true, deferred: once per ray on
+  // the weighted mean of its appearance features (one MLP evaluation per ray).
+  bool deferred_shading = false;
 
   nlohmann::json to_json() const;
   static DensityModelConfig from_json(const nlohmann::json& j);
@@ -68,6 +71,8 @@ class DensityModel : public nn::Module {
   RayResult render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed, RayContext* ctx) const;
   // drgb [R,3] -> gradients accumulated into every parameter.
   void render_backward(const RayContext& ctx, const Tensor& drgb);
+  // Chunked rendering of a whole camera: the chunk loop of render_camera around render().
+  ViewValues render_camera(const scene::Scene& scene, const scene::Camera& cam, int chunk = 8192) const;
 
  private:
   nn::Param density_{"density", 0, Tensor()};

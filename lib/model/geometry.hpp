@@ -37,6 +37,10 @@ struct Geometry {
   float step_ratio = 0.5f;       // samples per voxel side (TensoRF)
   float distance_scale = 25.0f;  // TensoRF
   float weight_threshold = 1e-4f;  // samples below this weight get no value (TensoRF's app mask)
+  // Early ray termination: a ray stops after the sample that takes its transmittance below this (0: off,
+  // every candidate is sampled). A run-time knob, not stored: it changes a ray's opacity by less than
+  // itself and, at or below weight_threshold, no sample that gets a value.
+  float ert_threshold = 1e-4f;
   float step = 0;                // t units between samples (derived: update_step)
   float mask_step = 0;           // box-unit step the alpha mask is built with (TensoRF: its stepSize)
   int max_samples = 0;

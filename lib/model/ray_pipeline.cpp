@@ -4,6 +4,7 @@
 
 #include "host/error.hpp"
 #include "lib/field/vm_grid.hpp"
+#include "lib/nn/ops.hpp"
 #include "lib/scene/rays.hpp"
 
 namespace stylerf::model {
@@ -27,7 +28,12 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
   const int64_t R = origins.dim(0);
   const int C = head.channels();
   if (opt.background.defined()) host::expect_shape(opt.background, {C}, "render_rays", "background");
-  render::Samples s = render::march(origins, dirs, g.march_config(opt.jitter, opt.seed), g.active_mask());
+  render::DensityMarch ert;
+  ert.grid = &g.density;
+  ert.act = g.act;
+  ert.ert_threshold = g.ert_threshold;
+  render::Samples s = render::march(origins, dirs, g.march_config(opt.jitter, opt.seed), g.active_mask(),
+                                    g.ert_threshold > 0.0f ? &ert : nullptr);
   if (ctx) {
     *ctx = RayContext{};
     ctx->samples = s;
@@ -35,7 +41,7 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
   }
   if (s.count == 0) return empty_result(R, C, opt.background);
 
-  Tensor sigma = field::density_forward(g.density, s.positions, g.act);
+  Tensor sigma = s.sigma.defined() ? s.sigma : field::density_forward(g.density, s.positions, g.act);
   render::Weights w = render::weights_forward(s, sigma);
   render::Kept k = render::keep_by_weight(s, w.w, g.weight_threshold);
 
@@ -81,7 +87,7 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
 }
 
 void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
-                          const Tensor& dkept_acc, Tensor* ddensity) {
+                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc_after) {
   const render::Samples& s = ctx.samples;
   if (s.count == 0) return;
   Tensor dw_full;  // [S]: gradient w.r.t. every sample's weight
@@ -94,16 +100,33 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
   if (!ddensity) return;
   Tensor dacc;  // the background term's gradient w.r.t. the opacity of all samples
   if (ctx.background.defined() && dvalue.defined()) render::background_backward(dvalue, ctx.background, dacc, false);
+  if (dacc_after.defined()) {
+    host::expect_shape(dacc_after, {ctx.samples.ray_count.numel()}, host::DType::F32, "render_rays_backward", "dacc");
+    if (dacc.defined())
+      nn::axpby(1.0f, dacc_after, 1.0f, dacc);
+    else
+      dacc = dacc_after;
+  }
   Tensor dsigma = render::weights_backward(s, ctx.sigma, dw_full, dacc, Tensor());
   field::density_backward(g.density, s.positions, ctx.sigma, dsigma, *ddensity, g.act);
 }
 
 ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
                          const scene::Camera& cam, const Tensor& background, int chunk) {
+  RayOptions opt;
+  opt.background = background;
+  return render_camera(
+      g, head.channels(),
+      [&](const Tensor& o, const Tensor& d) { return render_rays(g, head, o, d, opt, nullptr); }, scene, cam,
+      chunk);
+}
+
+ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& render, const scene::Scene& scene,
+                         const scene::Camera& cam, int chunk) {
   if (chunk < 1) throw Error("render_camera: chunk must be >= 1");
   const scene::Rays rays = scene::camera_rays(scene, cam);
   const int64_t n = static_cast<int64_t>(rays.size());
-  const int C = head.channels();
+  const int C = channels;
   ViewValues v;
   v.width = cam.width;
   v.height = cam.height;
@@ -111,8 +134,6 @@ ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene:
   v.value.resize(size_t(n) * C);
   v.acc.resize(size_t(n));
   v.depth.resize(size_t(n));
-  RayOptions opt;
-  opt.background = background;
   // Every ray of a call may keep all of its samples, and a head holds per-sample activations (the RGB
   // MLP: [kept, 128] floats), so a call is bounded to kMaxSamplesPerCall possible samples (1 GiB of such
   // activations) whatever chunk is asked for: dense NDC scenes reach ~1700 samples a ray, and 8192 rays
@@ -123,8 +144,10 @@ ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene:
     const int64_t R = std::min<int64_t>(step, n - b);
     std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
     std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
-    RayResult out = render_rays(g, head, Tensor::from_host(o, {R, 3}, "render origins"),
-                                Tensor::from_host(d, {R, 3}, "render directions"), opt, nullptr);
+    RayResult out = render(Tensor::from_host(o, {R, 3}, "render origins"), Tensor::from_host(d, {R, 3}, "render directions"));
+    if (out.value.ndim() != 2 || out.value.dim(0) != R || out.value.dim(1) != C)
+      throw Error("render_camera: a chunk of " + std::to_string(R) + " rays rendered to shape " +
+                  host::shape_str(out.value.shape()) + ", expected [" + std::to_string(R) + ", " + std::to_string(C) + "]");
     const auto val = out.value.to_host(), acc = out.acc.to_host(), depth = out.depth.to_host();
     std::copy(val.begin(), val.end(), v.value.begin() + int64_t(C) * b);
     for (int64_t i = 0; i < R; ++i) {

@@ -1,5 +1,6 @@
 // The ray pipeline shared by every stage:
-//   march (box, near/far, jitter when training, alpha-mask skip) -> sigma = density grid -> weights
+//   march (box, near/far, jitter when training, alpha-mask skip, early termination evaluating the density
+//   as it goes; without it, sigma = density grid on every sample) -> weights
 //   (lib/render/weights.hpp) -> keep samples with w >= geometry.weight_threshold (compacted list) -> the
 //   value head on the kept samples only -> weighted sum over them (lib/render/composite_values.hpp)
 //   (+ (1 - acc) * background when one is given).
@@ -8,6 +9,7 @@
 // background term -> weights_backward -> dsigma -> density grid gradient (only when one is asked for:
 // the geometry is frozen after stage 1). The sample selection itself has no gradient.
 #pragma once
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -46,6 +48,9 @@ struct RayContext {
   Tensor kept_values;
   std::unique_ptr<SampleHead::Context> head;
   Tensor background;
+  // What a model shading the composited values per ray keeps for its backward (a deferred head,
+  // lib/render/deferred.hpp); the pipeline itself leaves it empty.
+  std::unique_ptr<SampleHead::Context> shading;
 };
 
 // origins, dirs [R,3] in the ray space.
@@ -53,9 +58,10 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
                       const RayOptions& opt, RayContext* ctx);
 
 // dvalue [R, C], dkept_acc [R] (either may be undefined). The head's gradients are accumulated; when
-// ddensity is given, the density grid's gradient is added to it.
+// ddensity is given, the density grid's gradient is added to it. dacc [R] (optional): a gradient w.r.t. the
+// opacity over all samples from terms composited after the pipeline (a background added by the caller).
 void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
-                          const Tensor& dkept_acc, Tensor* ddensity);
+                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc = Tensor());
 
 // A whole camera in chunks of rays (bounded memory): interleaved values [H*W*C], acc and depth [H*W]
 // (depth divided by acc where acc > 1e-6, else 0). A chunk holds at most kMaxSamplesPerCall / max_samples
@@ -67,5 +73,9 @@ struct ViewValues {
 };
 ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
                          const scene::Camera& cam, const Tensor& background, int chunk = 8192);
+// The same loop for a model that renders rays its own way (C channels per ray): render(origins, dirs).
+using RenderRaysFn = std::function<RayResult(const Tensor& origins, const Tensor& dirs)>;
+ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& render, const scene::Scene& scene,
+                         const scene::Camera& cam, int chunk = 8192);
 
 }  // namespace stylerf::model

@@ -10,15 +10,27 @@
 
 namespace stylerf::model {
 
+// Two ways to shade (DensityModelConfig::shading):
+// - per sample (TensoRF): the head's values are RGB, each kept sample through basis + MLP, then composited;
+// - deferred (lib/render/deferred.hpp): the head's values are the raw appearance features (sum of ranks
+//   channels), composited by the pipeline; shade() then runs basis + MLP once per ray on their weighted
+//   mean and scales by the opacity. One MLP evaluation per ray instead of per kept sample.
 class RgbHead : public SampleHead {
  public:
   RgbHead() = default;
-  RgbHead(field::VMGrid app, const field::AppearanceHead& mlp);
+  RgbHead(field::VMGrid app, const field::AppearanceHead& mlp, bool deferred = false);
 
-  int channels() const override { return 3; }
-  bool wants_view_dirs() const override { return cfg_.view_dependent; }
+  bool deferred() const { return deferred_; }
+  int channels() const override { return deferred_ ? rank_[0] + rank_[1] + rank_[2] : 3; }
+  bool wants_view_dirs() const override { return cfg_.view_dependent && !deferred_; }
   Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const override;
   void backward(const Context& ctx, const Tensor& dvalues) override;
+
+  // Deferred shading of composited features F [R, F] with opacity kept_acc [R] (and ray directions
+  // [R,3] when view-dependent): rgb [R,3] before any background.
+  Tensor shade(const Tensor& F, const Tensor& kept_acc, const Tensor& dirs, std::unique_ptr<Context>* ctx) const;
+  // drgb [R,3] -> the MLP's gradients accumulated; returns dF and sets dkept_acc.
+  Tensor shade_backward(const Context& ctx, const Tensor& drgb, Tensor& dkept_acc);
   void collect_params(std::vector<nn::Param*>& out) override;
 
   // Views of the parameters (shallow: they share the parameters' buffers).
@@ -33,6 +45,7 @@ class RgbHead : public SampleHead {
   field::AppearanceHeadConfig cfg_;
   nn::Param app_;
   nn::Param mlp_[7];  // basis, w1, b1, w2, b2, w3, b3
+  bool deferred_ = false;
 };
 
 }  // namespace stylerf::model

@@ -45,7 +45,8 @@ static const Tensor& no_mask() {
   return dummy;
 }
 
-Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask) {
+Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask,
+              const DensityMarch* density) {
   host::expect_dtype(origins, host::DType::F32, "march", "origins");
   if (origins.ndim() != 2 || origins.dim(1) != 3)
     throw Error("march: origins have shape " + host::shape_str(origins.shape()) + ", expected [R, 3]");
@@ -64,10 +65,28 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
   const auto& lo = cfg.box_lo;
   const auto& hi = cfg.box_hi;
 
+  if (density) {
+    if (!density->grid || !density->grid->params.defined()) throw Error("march: early termination without a density grid");
+    if (!(density->ert_threshold > 0.0f && density->ert_threshold < 1.0f))
+      throw Error("march: early-termination threshold " + std::to_string(density->ert_threshold) + " is not in (0, 1)");
+  }
+
   Samples s;
   Tensor counts({R}, host::DType::I32, "ray sample counts");
-  launch_with_local("render", "march_count", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
-         cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz, counts);
+  Tensor staged;  // early termination: [R, cap] sigma of each ray's samples, before compaction
+  const int cap = cfg.max_samples;
+  if (density) {
+    const field::VMGrid& g = *density->grid;
+    staged = Tensor({int64_t(R) * std::max(cap, 1)}, "staged sample density");
+    launch_with_local("grid+render+march_density", "march_density_count", field::rank_build_options(g.rank),
+                      {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
+                      cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx,
+                      my, mz, g.params, g.res[0], g.res[1], g.res[2], g.rank[0], g.rank[1], g.rank[2], int(density->act),
+                      cfg.delta_scale, density->ert_threshold, std::max(cap, 1), staged, counts);
+  } else {
+    launch_with_local("render", "march_count", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
+           cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz, counts);
+  }
   std::vector<int32_t> offsets;
   s.count = exclusive_scan(counts.to_host_i32(), offsets);
   s.ray_count = counts;
@@ -79,7 +98,12 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
   s.ray_index = Tensor({S}, host::DType::I32, "sample ray index");
   launch_with_local("render", "march_write", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
          cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz,
-         s.ray_offset, s.positions, s.t, s.deltas, s.ray_index, cfg.delta_scale);
+         s.ray_offset, counts, s.positions, s.t, s.deltas, s.ray_index, cfg.delta_scale);
+  if (density) {
+    s.sigma = Tensor({S}, "density");
+    launch_with_local("grid+render+march_density", "stage_compact", field::rank_build_options(density->grid->rank),
+                      {size_t(R)}, {kGroup}, staged, s.ray_offset, counts, R, std::max(cap, 1), s.sigma);
+  }
   return s;
 }
 

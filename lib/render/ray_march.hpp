@@ -13,6 +13,7 @@
 
 #include "host/tensor.hpp"
 #include "lib/field/alpha_mask.hpp"
+#include "lib/field/vm_grid.hpp"
 
 namespace stylerf::render {
 
@@ -42,6 +43,17 @@ struct Samples {
   Tensor ray_index;    // [S]   I32: which ray
   Tensor ray_offset;   // [R]   I32: first sample of ray r
   Tensor ray_count;    // [R]   I32: samples of ray r (consecutive)
+  Tensor sigma;        // [S]   density, when marched with a DensityMarch (else undefined)
+};
+
+// Early ray termination: march with the density grid and stop each ray after the sample that brings
+// its transmittance below ert_threshold (kernels/march_density.cl). sigma is then computed by the march
+// (equal to field::density_forward at the sample positions) and returned in Samples::sigma. Samples past
+// the stop would weigh less than ert_threshold; the ray's opacity changes by less than that.
+struct DensityMarch {
+  const field::VMGrid* grid = nullptr;
+  field::DensityActivation act = field::DensityActivation::Softplus;
+  float ert_threshold = 1e-4f;  // in (0, 1)
 };
 
 // Checks what an op over a sample list reads: ray_offset and ray_count defined, I32 and [R] alike.
@@ -49,6 +61,8 @@ struct Samples {
 int64_t check_ray_lists(const Tensor& ray_offset, const Tensor& ray_count, const char* op);
 
 // origins, dirs: [R,3] F32, world. mask may be null (no skipping); its voxels are U8 [mz, my, mx].
-Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask);
+// density: null for plain marching (every candidate the mask keeps), else early termination.
+Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg, const field::AlphaMask* mask,
+              const DensityMarch* density = nullptr);
 
 }  // namespace stylerf::render

@@ -93,6 +93,9 @@ DensityTrainConfig default_density_config(const scene::Scene& scene) {
     c.tv_app = 1.0f;
   }
   c.model.view_dependent = scene.effects.view_dependence;
+  // Forward-facing captures keep hundreds of samples a ray (NDC, little empty space) where the per-sample
+  // MLP is most of a step; their default is deferred shading (one MLP evaluation per ray).
+  c.model.deferred_shading = scene.effects.ndc;
   c.schedule.upsample_at = {2000, 3000, 4000, 5500};
   c.schedule.voxels_init = 128LL * 128 * 128;
   return c;
