@@ -24,6 +24,7 @@
 #include "lib/field/vm_grid.hpp"
 #include "lib/render/composite.hpp"
 #include "lib/render/composite_values.hpp"
+#include "lib/render/deferred.hpp"
 #include "lib/render/weights.hpp"
 #include "lib/render/ray_march.hpp"
 
@@ -181,6 +182,28 @@ int bench_field(const BenchOptions& opt) {
                               field::ScatterMode::Atomic);
     });
     add("density bwd atomic", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
+
+    // Early ray termination: the march evaluates the density as it goes (kernels/march_density.cl). On
+    // this thin random grid no ray stops, so the row is the march + density pair above fused; on a dense
+    // grid (every value + 0.5) rays stop early and the row shows the saving. Per ray, and GB/s of the
+    // samples written and the taps read up to the stops.
+    for (bool dense : {false, true}) {
+      field::VMGrid g = dens;
+      if (dense) {
+        g = field::VMGrid::create({G, G, G}, {16, 4, 4}, 0.1f, 1);
+        auto v = g.params.to_host();
+        for (auto& x : v) x += 0.5f;
+        g.params.upload(v);
+      }
+      render::DensityMarch dm{&g, field::DensityActivation::Relu, 1e-4f};
+      render::Samples se;
+      const std::string name = dense ? "march+density ERT (dense: stops)" : "march+density ERT (thin: no stop)";
+      ms = timed(name, false, [&] { se = render::march(to, td, mc, nullptr, &dm); });
+      if (ms >= 0)
+        std::printf("samples with early termination: %lld (%.0f per ray)\n", (long long)se.count,
+                    double(se.count) / R);
+      add(name, ms, R, "Mrays/s", double(se.count) * (28 + 6 * 24 * 4) + R * 32.0);
+    }
   }
   const int64_t Nm = sm.count;  // appearance runs on the (masked, compacted) samples, as in training
   {
@@ -240,6 +263,22 @@ int bench_field(const BenchOptions& opt) {
       ms = timed(bwd, false, [&] { render::composite_values_backward(layout, kw, vals, dout, Tensor()); });
       add(bwd, ms, K, "Msmp/s", K * (4.0 + 3 * 4.0 * C + 8) + R * 4.0 * C);
     }
+  }
+
+  // ---- deferred shading's per-ray ops (lib/render/deferred.hpp), at the appearance features' 72 channels ----
+  {
+    const int C = 72;
+    Tensor F = Tensor::full({R, C}, 0.25f), a = Tensor::full({R}, 0.5f), g = Tensor::full({R, C}, 1e-3f);
+    Tensor da = Tensor::zeros({R});
+    const double rc = double(R) * C;
+    ms = timed("deferred normalise fwd C=72", false, [&] { render::opacity_normalise_forward(F, a); });
+    add("deferred normalise fwd C=72", ms, R, "Mrays/s", rc * 8.0 + R * 4.0);
+    ms = timed("deferred normalise bwd C=72", false, [&] { render::opacity_normalise_backward(F, a, g, da); });
+    add("deferred normalise bwd C=72", ms, R, "Mrays/s", rc * 12.0 + R * 12.0);
+    ms = timed("deferred scale fwd C=72", false, [&] { render::opacity_scale_forward(F, a); });
+    add("deferred scale fwd C=72", ms, R, "Mrays/s", rc * 8.0 + R * 4.0);
+    ms = timed("deferred scale bwd C=72", false, [&] { render::opacity_scale_backward(F, a, g, da); });
+    add("deferred scale bwd C=72", ms, R, "Mrays/s", rc * 12.0 + R * 12.0);
   }
 
   if (!opt.json_path.empty()) {

@@ -156,10 +156,9 @@ int bench_render(const BenchOptions& opt) {
   if (!smeta.empty()) scene::check_same_scene(smeta, sc, lo.downsample, opt.ckpt);
   if (sc.test.empty()) throw host::Error("bench render: scene " + sc.root + " has no held-out views");
   const int views = opt.quick ? 1 : opt.views, steps = opt.quick ? 2 : opt.steps;
-  std::vector<float> erts = opt.erts;
-  if (erts.empty()) erts.push_back(model::Geometry{}.ert_threshold);
-
   model::DensityModel m = model::load_model(ck);
+  std::vector<float> erts = opt.erts;
+  if (erts.empty()) erts.push_back(m.geo.ert_threshold);  // the scene's default
   std::cout << "bench render: " << opt.ckpt << " on " << sc.root << " (" << sc.train.size() << " train, "
             << sc.test.size() << " test views, " << sc.test[0].camera.width << "x" << sc.test[0].camera.height
             << ")\n  " << m.describe() << "\n";

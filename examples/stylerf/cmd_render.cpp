@@ -17,6 +17,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "host/error.hpp"
@@ -100,6 +101,8 @@ class FrameRenderer {
     else
       throw Error("render: checkpoint " + ck.path + " holds a '" + kind_ + "' stage; render takes density or features");
   }
+  // Early ray termination for every later render (0: off).
+  void set_ert(float threshold) { (density_ ? density_->geo : features_->geo).ert_threshold = threshold; }
   std::string describe() const {
     if (density_) return "density model: " + density_->describe();
     return std::string("feature model (") + model::decoder_profile_name(features_->profile) +
@@ -141,6 +144,7 @@ class FrameRenderer {
 int run_render(int argc, char** argv) {
   std::string ckpt, views = "test", out, scene_dir, device;
   int frames = 120, chunk = 8192, max_views = 0;
+  float ert = -1.0f;
   po::options_description desc("stylerf render --ckpt CKPT --views test|path [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "density- or feature-stage checkpoint")(
       "views", po::value(&views)->default_value("test"), "test (held-out views + metrics) or path (camera path)")(
@@ -149,6 +153,9 @@ int run_render(int argc, char** argv) {
       "scene", po::value(&scene_dir), "scene directory (default: the one the checkpoint was trained on)")(
       "max-views", po::value(&max_views)->default_value(0), "test: render this many evenly spaced views (0: all)")(
       "chunk", po::value(&chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
+      "ert", po::value(&ert),
+      "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
+      "for NDC scenes, whose rays rarely turn opaque)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -159,10 +166,12 @@ int run_render(int argc, char** argv) {
   }
   if (views != "test" && views != "path") throw Error("--views must be test or path (got '" + views + "')");
   if (frames < 1 || chunk < 1) throw Error("--frames and --chunk must be positive");
+  if (vm.count("ert")) stylerf::cli::check_range("--ert", ert, 0.0, 0.5);
   stylerf::cli::init_runtime(device, false);
 
   const auto ck = stylerf::io::load_checkpoint(ckpt, "");
   FrameRenderer renderer(ck);
+  if (vm.count("ert")) renderer.set_ert(ert);
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
   if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
   auto lo = stylerf::scene::load_options_from_meta(smeta);

@@ -79,8 +79,9 @@ int run_train_density(int argc, char** argv) {
       "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
       "shading", po::value(&shading), "per-sample (TensoRF) | deferred (one MLP per ray on its mean feature; "
                                       "default for forward-facing LLFF scenes)")(
-      "ert", po::value(&ert)->default_value(1e-4f, "1e-4"),
-      "early ray termination: stop a ray once its transmittance is below this (0: off)")(
+      "ert", po::value(&ert),
+      "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
+      "for NDC scenes, whose rays rarely turn opaque)")(
       "density-rank", po::value(&density_rank), "density ranks per mode, e.g. 16,4,4")(
       "app-rank", po::value(&app_rank), "appearance ranks per mode, e.g. 48,12,12")(
       "lr-grid", po::value(&lr_grid), "grid learning rate (default 0.02)")(
@@ -113,7 +114,7 @@ int run_train_density(int argc, char** argv) {
   cli::check_int_range("--ckpt-every", ckpt_every, 0, 100000000);
   cli::check_int_range("--eval-views", eval_views, 0, 100000);
   if (vm.count("lr-grid")) cli::check_range("--lr-grid", lr_grid, 1e-8, 10);
-  cli::check_range("--ert", ert, 0.0, 0.5);
+  if (vm.count("ert")) cli::check_range("--ert", ert, 0.0, 0.5);
   if (!shading.empty() && shading != "per-sample" && shading != "deferred")
     throw Error("--shading: unknown '" + shading + "' (per-sample, deferred)");
   if (vm.count("lr-net")) cli::check_range("--lr-net", lr_net, 1e-8, 10);
@@ -173,13 +174,15 @@ int run_train_density(int argc, char** argv) {
     if (!shading.empty()) cfg.model.deferred_shading = shading == "deferred";
     trainer = std::make_unique<train::DensityTrainer>(scene, cfg);
   }
-  trainer->model().geo.ert_threshold = ert;
+  if (vm.count("ert")) trainer->model().geo.ert_threshold = ert;
   const auto& cfg = trainer->config();
   std::cout << "density stage: " << trainer->model().describe() << "\n"
             << "  activation " << (cfg.model.act == stylerf::field::DensityActivation::Relu ? "relu" : "softplus")
             << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", shading "
             << (cfg.model.deferred_shading ? "deferred" : "per sample") << ", early termination "
-            << (ert > 0 ? "below " + std::to_string(ert) : std::string("off")) << ", background "
+            << (trainer->model().geo.ert_threshold > 0 ? "below " + std::to_string(trainer->model().geo.ert_threshold)
+                                                         : std::string("off"))
+            << ", background "
             << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
             << "  " << cfg.schedule.describe() << "\n"
             << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net

@@ -76,6 +76,7 @@ DensityModel DensityModel::create(const scene::Scene& scene, const DensityModelC
   g.near = scene.near;
   g.far = scene.far;
   g.ndc = scene.effects.ndc;
+  g.ert_threshold = Geometry::default_ert_threshold(g.ndc);
   g.has_background = scene.effects.background;
   g.background = scene.effects.background_rgb;
   g.act = cfg.act;
@@ -236,6 +237,7 @@ DensityModel load_model(const io::Checkpoint& ck) {
     g.near = j.at("near").get<float>();
     g.far = j.at("far").get<float>();
     g.ndc = j.at("ndc").get<bool>();
+    g.ert_threshold = Geometry::default_ert_threshold(g.ndc);
     g.has_background = j.at("has_background").get<bool>();
     g.background = j.at("background").get<std::array<float, 3>>();
     g.act = m.cfg.act;

@@ -135,6 +135,7 @@ Geometry Geometry::load(const io::Checkpoint& ck, const std::string& prefix) {
     g.near = j.at("near").get<float>();
     g.far = j.at("far").get<float>();
     g.ndc = j.at("ndc").get<bool>();
+    g.ert_threshold = Geometry::default_ert_threshold(g.ndc);
     g.has_background = j.at("has_background").get<bool>();
     g.background = j.at("background").get<std::array<float, 3>>();
     g.step_ratio = j.at("step_ratio").get<float>();

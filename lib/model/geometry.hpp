@@ -39,8 +39,12 @@ struct Geometry {
   float weight_threshold = 1e-4f;  // samples below this weight get no value (TensoRF's app mask)
   // Early ray termination: a ray stops after the sample that takes its transmittance below this (0: off,
   // every candidate is sampled). A run-time knob, not stored: it changes a ray's opacity by less than
-  // itself and, at or below weight_threshold, no sample that gets a value.
+  // itself and, at or below weight_threshold, no sample that gets a value. Default: default_ert_threshold.
   float ert_threshold = 1e-4f;
+  // 1e-4 for object captures, whose rays turn opaque at the surface (lego: half the samples go, renders
+  // 1.9x faster); 0 for NDC scenes, whose rays mostly stay partly transparent to the far plane (fern: 2% of
+  // samples go, and the per-ray march costs more than it saves: 5.8 vs 5.0 s a view). bench render.
+  static float default_ert_threshold(bool ndc) { return ndc ? 0.0f : 1e-4f; }
   float step = 0;                // t units between samples (derived: update_step)
   float mask_step = 0;           // box-unit step the alpha mask is built with (TensoRF: its stepSize)
   int max_samples = 0;
