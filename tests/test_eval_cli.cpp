@@ -204,3 +204,27 @@ TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the pro
   expect("lpips " + a + " " + small + " --net alex", "is 48x40 but");
   expect("lpips " + a + " " + b + " --net squeeze", "--net squeeze: unknown trunk (use vgg or alex)");
 }
+
+TEST_CASE("bench render: seconds per view and per step for each --ert, per-kernel breakdown, JSON") {
+  const auto json_path = testing::small_work_dir() / "bench_render.json";
+  const auto r = run("bench render --ckpt '" + checkpoints().density + "' --views 2 --steps 2 --ert 0,1e-4 --json '" +
+                     json_path.string() + "'");
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("early termination off") != std::string::npos);
+  CHECK(r.output.find("s/view") != std::string::npos);
+  CHECK(r.output.find("s/step") != std::string::npos);
+  const auto j = read_json(json_path);
+  REQUIRE(j["rows"].size() == 2);
+  for (const auto& row : j["rows"]) {
+    CHECK(double(row["render"]["s_per_view"]) > 0);
+    CHECK(double(row["render"]["psnr"]) > 10);
+    CHECK(double(row["train"]["s_per_step"]) > 0);
+    CHECK(double(row["train"]["samples_per_ray"]) > 0);
+    CHECK(row["render"]["kernel_s_per_view"].size() > 3);
+  }
+  // The same model renders the same views whether or not rays stop early (the samples past a stop weigh
+  // less than 1e-4).
+  CHECK(double(j["rows"][0]["render"]["psnr"]) == doctest::Approx(double(j["rows"][1]["render"]["psnr"])).epsilon(1e-3));
+  CHECK(double(j["rows"][1]["train"]["samples_per_ray"]) <= double(j["rows"][0]["train"]["samples_per_ray"]));
+}

@@ -181,6 +181,9 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   expect(td + "--eval-views -1 -o " + out, "--eval-views");
   expect(td + "--init-voxels 64^3 --final-voxels 32^3 -o " + out, "must not exceed --final-voxels");
   expect(td + "--final-voxels 100000^3 -o " + out, "beyond the largest grid");
+  expect(td + "--ert nan -o " + out, "--ert must be a number");
+  expect(td + "--ert 0.9 -o " + out, "--ert must be a number");
+  expect(td + "--shading fancy -o " + out, "--shading: unknown 'fancy'");
   expect(td, "-o CKPT is required");
   expect(td + "-o '" + d.string() + "'", "is a folder");
   std::ofstream((d / "a_file").string()) << "x";
@@ -195,6 +198,10 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   expect(small, "exists: pass --resume to continue it or --force");
   expect(td + "--resume --iters 10 -o " + out, "already at iteration 12");
   expect(td + "--resume --lr-grid 0.1 -o " + out, "drop the model and schedule options");
+  expect(td + "--resume --shading deferred -o " + out, "drop the model and schedule options");
+  expect("render --ckpt " + out + " --ert -1 -o '" + (d / "r").string() + "'", "--ert must be a number");
+  expect("bench render --ckpt " + out + " --ert 0,x", "--ert: 'x' is not a threshold");
+  expect("bench render", "--ckpt (a density checkpoint) is required");
   expect("render --ckpt '" + d.string() + "' -o '" + (d / "r").string() + "'", "is a folder, not a checkpoint file");
   // Another scene's folder: another name.
   scene::MakeSceneOptions mo;
