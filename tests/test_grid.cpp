@@ -405,6 +405,16 @@ TEST_CASE("TV and L1 regularisers: forward vs reference, backward vs finite diff
   dgrid.zero();
   field::l1_backward(g, wl1, dgrid);
   check_close(dgrid.to_host(), fd_l1, 1e-4, 1e-6, "L1 grad");  // no parameter is within h of 0
+  // A plane row longer than one work-group (70 x rank 2 = 140 elements along u, groups of 64).
+  {
+    VMGrid w = VMGrid::create({70, 9, 5}, {1, 2, 1}, 0.5f, 42);
+    Ref wref = ref_of(w);
+    const auto wp = testing::to_double(w.params.to_host());
+    const auto fd = testing::finite_difference([&](const std::vector<double>& x) { return wtv * wref.tv(x); }, wp);
+    Tensor dw = Tensor::zeros(w.params.shape());
+    field::tv_backward(w, wtv, dw);
+    check_close(dw.to_host(), fd, 1e-4, 1e-6, "TV grad, rows over several work-groups");
+  }
   // Constant planes: TV 0 with zero gradient (no NaN).
   VMGrid c = VMGrid::from_params(g.res, g.rank, Tensor::full(g.params.shape(), 0.25f));
   CHECK(field::tv_forward(c) == 0.0);

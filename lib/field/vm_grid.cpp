@@ -177,9 +177,19 @@ double tv_forward(const VMGrid& g) {
 }
 
 void tv_backward(const VMGrid& g, float weight, Tensor& dgrid) {
-  const int64_t n = g.plane_offset(3);
-  launch("grid", "vm_tv_backward", {size_t(n)}, g.params, dgrid, weight, g.res[0], g.res[1], g.res[2], g.rank[0],
-         g.rank[1], g.rank[2]);
+  if (dgrid.numel() != g.numel())
+    throw Error("tv_backward: gradient has " + std::to_string(dgrid.numel()) + " values, grid has " +
+                std::to_string(g.numel()));
+  static const int kU[3] = {0, 0, 1}, kV[3] = {1, 2, 2};  // plane axes of each mode (grid.cl: mode_u, mode_v)
+  for (int m = 0; m < 3; ++m) {
+    const int nu = g.res[kU[m]], nv = g.res[kV[m]], R = g.rank[m];
+    if (R == 0) continue;
+    const float cu = 2.0f / float(R * nv * (nu - 1)), cv = 2.0f / float(R * (nv - 1) * nu);
+    // Rows of 64 elements along u: group (64, 1), global rounded up (the kernel guards its index).
+    const size_t gx = (size_t(nu) * R + 63) / 64 * 64;
+    host::launch_with_local("grid", "vm_tv_backward", "", {gx, size_t(nv)}, {64, 1}, g.params, dgrid, weight,
+                            int(g.plane_offset(m)), nu, nv, R, cu, cv);
+  }
 }
 
 double l1_forward(const VMGrid& g) {
