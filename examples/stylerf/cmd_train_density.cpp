@@ -77,8 +77,8 @@ int run_train_density(int argc, char** argv) {
       "upsample-at", po::value(&upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
       "mask-at", po::value(&mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
       "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
-      "shading", po::value(&shading), "per-sample (TensoRF) | deferred (one MLP per ray on its mean feature; "
-                                      "default for forward-facing LLFF scenes)")(
+      "shading", po::value(&shading), "deferred (default: one MLP per ray on its mean feature) | per-sample "
+                                      "(TensoRF: one MLP per kept sample)")(
       "ert", po::value(&ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
       "for NDC scenes, whose rays rarely turn opaque)")(

@@ -93,9 +93,10 @@ DensityTrainConfig default_density_config(const scene::Scene& scene) {
     c.tv_app = 1.0f;
   }
   c.model.view_dependent = scene.effects.view_dependence;
-  // Forward-facing captures keep hundreds of samples a ray (NDC, little empty space) where the per-sample
-  // MLP is most of a step; their default is deferred shading (one MLP evaluation per ray).
-  c.model.deferred_shading = scene.effects.ndc;
+  // Deferred shading (one MLP evaluation per ray) by default: at equal time it trained lego 1/4 to 33.36 dB
+  // in 10 min (9196 steps) against 31.46 dB per sample (2848 steps), and fern 1/8 to 25.68 dB in 30 min,
+  // where the per-sample MLP was most of a step. --shading per-sample is TensoRF's.
+  c.model.deferred_shading = true;
   c.schedule.upsample_at = {2000, 3000, 4000, 5500};
   c.schedule.voxels_init = 128LL * 128 * 128;
   return c;
