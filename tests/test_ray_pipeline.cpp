@@ -59,6 +59,20 @@ void make_rays(Tensor& o, Tensor& d) {
   d = Tensor::from_host(dv, {7, 3});
 }
 
+// An RGB head over g's grid (6 appearance features, basis 5, hidden 8). Hidden biases of +3 keep every ReLU
+// of the MLP active: with ~100 samples x 8 units, some pre-activation would otherwise sit within any
+// finite-difference step of a kink (the MLP alone is tested at its kinks' sides in test_appearance).
+model::RgbHead small_rgb_head(const model::Geometry& g, bool deferred) {
+  field::AppearanceHeadConfig hc;
+  hc.features = 6;
+  hc.basis_dim = 5;
+  hc.hidden = 8;
+  field::AppearanceHead mlp = field::AppearanceHead::create(hc, 13);
+  mlp.b1.fill(3.0f);
+  mlp.b2.fill(3.0f);
+  return model::RgbHead(field::VMGrid::create(g.res(), {2, 2, 2}, 0.5f, 12), mlp, deferred);
+}
+
 // Compares p's accumulated gradient with central differences of loss() at a few entries of p.
 void check_param_fd(nn::Param& p, const std::function<double()>& loss, int probes, double h, const std::string& what) {
   const auto grad = p.grad.to_host();
@@ -95,17 +109,7 @@ double dot_host(const Tensor& t, const std::vector<double>& g) {
 
 TEST_CASE("ray pipeline: the composed render backward (RGB head, background) matches finite differences") {
   model::Geometry g = small_geometry();
-  field::AppearanceHeadConfig hc;
-  hc.features = 6;
-  hc.basis_dim = 5;
-  hc.hidden = 8;
-  // Hidden biases of +3 keep every ReLU of the MLP active: with ~100 samples x 8 units, some pre-activation
-  // would otherwise sit within any finite-difference step of a kink (the MLP alone is tested at its kinks'
-  // sides in test_appearance).
-  field::AppearanceHead mlp = field::AppearanceHead::create(hc, 13);
-  mlp.b1.fill(3.0f);
-  mlp.b2.fill(3.0f);
-  model::RgbHead head(field::VMGrid::create(g.res(), {2, 2, 2}, 0.5f, 12), mlp);
+  model::RgbHead head = small_rgb_head(g, false);
   Tensor o, d;
   make_rays(o, d);
   model::RayOptions opt;
@@ -207,7 +211,7 @@ TEST_CASE("ray pipeline: no samples at all (every ray misses) gives the backgrou
 
 namespace {
 
-// A density model on small_geometry with the given shading: hidden biases +3 keep the MLP off its kinks.
+// A density model on small_geometry with the given shading.
 model::DensityModel small_density_model(bool deferred, bool background) {
   model::DensityModel m;
   m.geo = small_geometry();
@@ -215,14 +219,7 @@ model::DensityModel small_density_model(bool deferred, bool background) {
   m.geo.background = {0.9f, 0.2f, 0.4f};
   m.cfg.deferred_shading = deferred;
   m.cfg.view_dependent = false;
-  field::AppearanceHeadConfig hc;
-  hc.features = 6;
-  hc.basis_dim = 5;
-  hc.hidden = 8;
-  field::AppearanceHead mlp = field::AppearanceHead::create(hc, 13);
-  mlp.b1.fill(3.0f);
-  mlp.b2.fill(3.0f);
-  m.rgb = model::RgbHead(field::VMGrid::create(m.geo.res(), {2, 2, 2}, 0.5f, 12), mlp, deferred);
+  m.rgb = small_rgb_head(m.geo, deferred);
   return m;
 }
 
