@@ -2,6 +2,8 @@
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "bench/bench.hpp"
 #include "bench/bench_density.hpp"
@@ -12,6 +14,17 @@
 namespace po = boost::program_options;
 
 namespace {
+// "a,b,c" -> {a, b, c}; an empty string -> {} (an empty item between commas stays, and is refused by the caller).
+std::vector<std::string> comma_list(const std::string& s) {
+  std::vector<std::string> out;
+  for (size_t a = 0; !s.empty() && a <= s.size();) {
+    const size_t b = std::min(s.find(',', a), s.size());
+    out.push_back(s.substr(a, b - a));
+    a = b + 1;
+  }
+  return out;
+}
+
 int run_bench(int argc, char** argv) {
   std::string which, device, parts, erts;
   stylerf::bench::BenchOptions opt;
@@ -55,9 +68,7 @@ int run_bench(int argc, char** argv) {
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--views must be >= 1 and --steps >= 0");
-  for (size_t a = 0; !erts.empty() && a <= erts.size();) {
-    const size_t b = std::min(erts.find(',', a), erts.size());
-    const std::string e = erts.substr(a, b - a);
+  for (const std::string& e : comma_list(erts)) {
     size_t used = 0;
     float v = -1;
     try {
@@ -67,13 +78,10 @@ int run_bench(int argc, char** argv) {
     if (used != e.size() || !(v >= 0.0f && v < 1.0f))
       throw std::runtime_error("--ert: '" + e + "' is not a threshold in [0, 1) (0 turns early termination off)");
     opt.erts.push_back(v);
-    a = b + 1;
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
   if (opt.budget_s < 0 || opt.knob_budget_s < 0) throw std::runtime_error("--budget and --knob-budget must be >= 0");
-  for (size_t a = 0; !parts.empty() && a <= parts.size();) {
-    const size_t b = std::min(parts.find(',', a), parts.size());
-    const std::string p = parts.substr(a, b - a);
+  for (const std::string& p : comma_list(parts)) {
     const bool ops = which == "ops";
     const bool known = ops ? (p == "spatial" || p == "norm" || p == "layout" || p == "style" || p == "eval")
                            : (p == "lego" || p == "fern" || p == "knobs");
@@ -81,7 +89,6 @@ int run_bench(int argc, char** argv) {
       throw std::runtime_error("--parts: unknown part '" + p + "' for bench " + which +
                                (ops ? " (spatial, norm, layout, style, eval)" : " (lego, fern, knobs)"));
     opt.parts.push_back(p);
-    a = b + 1;
   }
   stylerf::cli::init_runtime(device, false);
   if (which == "gemm") return stylerf::bench::bench_gemm(opt);
