@@ -30,6 +30,7 @@ int bench_ops(const BenchOptions& opt);   // bench/bench_ops.cpp: every NN op's 
 int bench_patch(const BenchOptions& opt); // bench/bench_patch.cpp: one patch-training step, part by part
 int bench_patch_style(const BenchOptions& opt);  // bench/bench_patch_style.cpp: one stage-3 step, part by part
 int bench_dst(const BenchOptions& opt);
+int bench_decoder_step(const BenchOptions& opt);  // bench/bench_decoder_step.cpp: torch_step.py's work, s/step
 int bench_render(const BenchOptions& opt);  // bench/bench_render.cpp: rays/s of rendering and training   // bench/bench_dst.cpp: deferred vs per-point style transformation
 
 }  // namespace stylerf::bench

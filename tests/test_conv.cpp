@@ -1,6 +1,7 @@
-// conv2d (im2col + GEMM, col2im gather): forward against a double-precision CPU reference, backward
-// (dx, dw, db) against central finite differences of that reference, hard magnitudes, edge shapes,
-// the row-chunked path, and the error messages for bad shapes.
+// conv2d, every algorithm (im2col + GEMM with the col2im gather; Winograd F(2x2,3x3) and F(4x4,3x3) with
+// their transforms' adjoints): forward against a double-precision CPU reference, backward (dx, dw, db)
+// against central finite differences of that reference, hard magnitudes, odd and edge shapes (partial
+// Winograd tiles), the row-chunked path, and the error messages for bad shapes.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -27,8 +28,12 @@ struct Case {
   bool bias;
 };
 
+// The algorithm run_forward / run_backward ask for; each test loops over kAlgos with ForAlgo.
+nn::ConvAlgo g_algo = nn::ConvAlgo::Im2col;
+const nn::ConvAlgo kAlgos[] = {nn::ConvAlgo::Im2col, nn::ConvAlgo::Winograd2, nn::ConvAlgo::Winograd4};
+
 std::string name(const Case& c) {
-  return "N=" + std::to_string(c.N) + " Cin=" + std::to_string(c.Cin) + " Cout=" + std::to_string(c.Cout) +
+  return std::string(nn::conv_algo_name(g_algo)) + " N=" + std::to_string(c.N) + " Cin=" + std::to_string(c.Cin) + " Cout=" + std::to_string(c.Cout) +
          " H=" + std::to_string(c.H) + " W=" + std::to_string(c.W) + " k=" + std::to_string(c.K) +
          (c.pad == Padding::Reflect ? " reflect" : " zero") + (c.bias ? " bias" : "");
 }
@@ -83,14 +88,14 @@ nn::Conv2dGrads run_backward(const Case& c, const Data& d, bool need_dx = true, 
   Tensor x = Tensor::from_host(d.x, {c.N, c.Cin, c.H, c.W});
   Tensor w = Tensor::from_host(d.w, {c.Cout, c.Cin, c.K, c.K});
   Tensor dy = Tensor::from_host(d.dy, {c.N, c.Cout, c.H, c.W});
-  return nn::conv2d_backward(x, w, dy, c.pad, need_dx, need_params);
+  return nn::conv2d_backward(x, w, dy, c.pad, need_dx, need_params, g_algo);
 }
 
 std::vector<float> run_forward(const Case& c, const Data& d) {
   Tensor x = Tensor::from_host(d.x, {c.N, c.Cin, c.H, c.W});
   Tensor w = Tensor::from_host(d.w, {c.Cout, c.Cin, c.K, c.K});
   Tensor b = c.bias ? Tensor::from_host(d.b, {c.Cout}) : Tensor();
-  return nn::conv2d_forward(x, w, b, c.pad).to_host();
+  return nn::conv2d_forward(x, w, b, c.pad, g_algo).to_host();
 }
 
 // Forward check. Tolerance: float accumulation over Cin*k*k <= 144 unit-scale products gives errors of
@@ -140,38 +145,55 @@ struct ScratchLimit {
 };
 
 
+// Runs f once per algorithm with g_algo set.
+template <class F>
+void for_each_algo(F&& f) {
+  for (nn::ConvAlgo a : kAlgos) {
+    g_algo = a;
+    CAPTURE(nn::conv_algo_name(a));
+    f();
+  }
+  g_algo = nn::ConvAlgo::Im2col;
+}
+
 }  // namespace
 
 TEST_CASE("conv2d forward matches the double reference (k=3 zero/reflect, k=1, bias or not)") {
-  uint64_t seed = 10;
-  for (int k : {3, 1})
-    for (Padding pad : {Padding::Zero, Padding::Reflect})
-      for (bool bias : {false, true}) check_forward({2, 3, 5, 7, 6, k, pad, bias}, seed++);
-  // Wider rows exercise the 8-wide vector paths of im2col and bias_add; 16 channels a real GEMM size.
-  check_forward({1, 2, 3, 5, 21, 3, Padding::Reflect, true}, 30);
-  check_forward({1, 2, 3, 5, 21, 3, Padding::Zero, false}, 31);
-  check_forward({1, 16, 8, 24, 32, 3, Padding::Reflect, true}, 32);
+  for_each_algo([&] {
+    uint64_t seed = 10;
+    for (int k : {3, 1})
+      for (Padding pad : {Padding::Zero, Padding::Reflect})
+        for (bool bias : {false, true}) check_forward({2, 3, 5, 7, 6, k, pad, bias}, seed++);
+    // Wider rows exercise the 8-wide vector paths of im2col and bias_add; 16 channels a real GEMM size.
+    check_forward({1, 2, 3, 5, 21, 3, Padding::Reflect, true}, 30);
+    check_forward({1, 2, 3, 5, 21, 3, Padding::Zero, false}, 31);
+    check_forward({1, 16, 8, 24, 32, 3, Padding::Reflect, true}, 32);
+  });
 }
 
 TEST_CASE("conv2d backward dx, dw, db match finite differences") {
-  uint64_t seed = 100;
-  for (int k : {3, 1})
-    for (Padding pad : {Padding::Zero, Padding::Reflect}) check_backward({2, 3, 5, 7, 6, k, pad, false}, seed++);
-  // 8-wide vector path of col2im, including the reflected columns inside a vector.
-  check_backward({1, 2, 3, 4, 19, 3, Padding::Reflect, false}, 110);
-  check_backward({1, 2, 3, 4, 19, 3, Padding::Zero, false}, 111);
+  for_each_algo([&] {
+    uint64_t seed = 100;
+    for (int k : {3, 1})
+      for (Padding pad : {Padding::Zero, Padding::Reflect}) check_backward({2, 3, 5, 7, 6, k, pad, false}, seed++);
+    // 8-wide vector path of col2im, including the reflected columns inside a vector.
+    check_backward({1, 2, 3, 4, 19, 3, Padding::Reflect, false}, 110);
+    check_backward({1, 2, 3, 4, 19, 3, Padding::Zero, false}, 111);
+  });
 }
 
 TEST_CASE("conv2d reflect edge cases: H, W = 2 and 3 (rows 1 and H-2 coincide)") {
-  for (int s : {2, 3}) {
-    Case c{1, 2, 2, s, s, 3, Padding::Reflect, true};
-    check_forward(c, 200 + s);
-    check_backward(c, 210 + s);
-  }
-  // 2 x 9: both row reflections hit every row, columns take the vector path.
-  Case c{2, 2, 3, 2, 9, 3, Padding::Reflect, true};
-  check_forward(c, 220);
-  check_backward(c, 221);
+  for_each_algo([&] {
+    for (int s : {2, 3}) {
+      Case c{1, 2, 2, s, s, 3, Padding::Reflect, true};
+      check_forward(c, 200 + s);
+      check_backward(c, 210 + s);
+    }
+    // 2 x 9: both row reflections hit every row, columns take the vector path.
+    Case c{2, 2, 3, 2, 9, 3, Padding::Reflect, true};
+    check_forward(c, 220);
+    check_backward(c, 221);
+  });
 }
 
 TEST_CASE("conv2d row-chunked path (scratch limit smaller than one image's col) matches") {
@@ -197,66 +219,72 @@ TEST_CASE("conv2d row-chunked path (scratch limit smaller than one image's col) 
 }
 
 TEST_CASE("conv2d backward computes only what is asked for") {
-  Case c{1, 2, 3, 4, 5, 3, Padding::Reflect, false};
-  Data d = make_data(c, 400);
-  auto only_dx = run_backward(c, d, true, false);
-  CHECK(only_dx.dx.defined());
-  CHECK(!only_dx.dw.defined());
-  CHECK(!only_dx.db.defined());
-  auto only_params = run_backward(c, d, false, true);
-  CHECK(!only_params.dx.defined());
-  CHECK(only_params.dw.defined());
-  auto both = run_backward(c, d);
-  // Same results whichever way they are requested (no dependence on leftover scratch content).
-  CHECK(only_dx.dx.to_host() == both.dx.to_host());
-  CHECK(only_params.dw.to_host() == both.dw.to_host());
+  for_each_algo([&] {
+    Case c{1, 2, 3, 4, 5, 3, Padding::Reflect, false};
+    Data d = make_data(c, 400);
+    auto only_dx = run_backward(c, d, true, false);
+    CHECK(only_dx.dx.defined());
+    CHECK(!only_dx.dw.defined());
+    CHECK(!only_dx.db.defined());
+    auto only_params = run_backward(c, d, false, true);
+    CHECK(!only_params.dx.defined());
+    CHECK(only_params.dw.defined());
+    auto both = run_backward(c, d);
+    // Same results whichever way they are requested (no dependence on leftover scratch content).
+    CHECK(only_dx.dx.to_host() == both.dx.to_host());
+    CHECK(only_params.dw.to_host() == both.dw.to_host());
+  });
 }
 
 TEST_CASE("conv2d with huge and tiny magnitudes stays finite and accurate") {
-  Case c{1, 3, 4, 5, 6, 3, Padding::Reflect, false};
-  struct Scale {
-    float x, w, g;
-  };
-  // Huge inputs with tiny weights (products O(1)), huge products (1e34 each, sums < FLT_MAX),
-  // tiny inputs (1e-30, still normal floats), tiny weights.
-  for (Scale s : {Scale{1e15f, 1e-15f, 1e15f}, Scale{1e17f, 1e17f, 1.0f}, Scale{1e-30f, 1.0f, 1.0f},
-                  Scale{1.0f, 1e-30f, 1e-5f}}) {
-    CAPTURE(s.x);
-    CAPTURE(s.w);
-    Data d = make_data(c, 500, s.x, s.w, s.g);
-    const auto xd = to_double(d.x), wd = to_double(d.w), gd = to_double(d.dy);
-    auto want = ref_conv(c, xd, wd, {});
-    const double ys = double(s.x) * s.w;
-    // Relative accuracy as in the unit-scale test, with atol scaled to the output magnitude.
-    check_close(run_forward(c, d), want, 1e-4, 1e-4 * ys, "conv2d_forward scaled");
+  for_each_algo([&] {
+    Case c{1, 3, 4, 5, 6, 3, Padding::Reflect, false};
+    struct Scale {
+      float x, w, g;
+    };
+    // Huge inputs with tiny weights (products O(1)), huge products (1e34 each, sums < FLT_MAX),
+    // tiny inputs (1e-30, still normal floats), tiny weights.
+    for (Scale s : {Scale{1e15f, 1e-15f, 1e15f}, Scale{1e17f, 1e17f, 1.0f}, Scale{1e-30f, 1.0f, 1.0f},
+                    Scale{1.0f, 1e-30f, 1e-5f}}) {
+      CAPTURE(s.x);
+      CAPTURE(s.w);
+      Data d = make_data(c, 500, s.x, s.w, s.g);
+      const auto xd = to_double(d.x), wd = to_double(d.w), gd = to_double(d.dy);
+      auto want = ref_conv(c, xd, wd, {});
+      const double ys = double(s.x) * s.w;
+      // Relative accuracy as in the unit-scale test, with atol scaled to the output magnitude.
+      check_close(run_forward(c, d), want, 1e-4, 1e-4 * ys, "conv2d_forward scaled");
 
-    auto g = run_backward(c, d);
-    auto fx = [&](const std::vector<double>& v) { return testing::dot(gd, ref_conv(c, v, wd, {})); };
-    auto fw = [&](const std::vector<double>& v) { return testing::dot(gd, ref_conv(c, xd, v, {})); };
-    std::vector<size_t> idx;
-    for (size_t i = 0; i < xd.size(); i += 7) idx.push_back(i);
-    auto want_dx = testing::finite_difference_at(fx, xd, idx, 1e-2 * s.x);
-    auto dx = g.dx.to_host();
-    std::vector<float> got_dx;
-    for (size_t i : idx) got_dx.push_back(dx[i]);
-    check_close(got_dx, want_dx, 1e-4, 1e-4 * double(s.w) * s.g, "conv2d dx scaled");
-    check_close(g.dw.to_host(), testing::finite_difference(fw, wd, 1e-2 * s.w), 1e-4, 1e-4 * double(s.x) * s.g,
-                "conv2d dw scaled");
-    CHECK(testing::all_finite(g.db.to_host()));
-  }
+      auto g = run_backward(c, d);
+      auto fx = [&](const std::vector<double>& v) { return testing::dot(gd, ref_conv(c, v, wd, {})); };
+      auto fw = [&](const std::vector<double>& v) { return testing::dot(gd, ref_conv(c, xd, v, {})); };
+      std::vector<size_t> idx;
+      for (size_t i = 0; i < xd.size(); i += 7) idx.push_back(i);
+      auto want_dx = testing::finite_difference_at(fx, xd, idx, 1e-2 * s.x);
+      auto dx = g.dx.to_host();
+      std::vector<float> got_dx;
+      for (size_t i : idx) got_dx.push_back(dx[i]);
+      check_close(got_dx, want_dx, 1e-4, 1e-4 * double(s.w) * s.g, "conv2d dx scaled");
+      check_close(g.dw.to_host(), testing::finite_difference(fw, wd, 1e-2 * s.w), 1e-4, 1e-4 * double(s.x) * s.g,
+                  "conv2d dw scaled");
+      CHECK(testing::all_finite(g.db.to_host()));
+    }
+  });
 }
 
 TEST_CASE("conv2d of a constant input: interior outputs equal the weight sum, no NaN") {
-  // Reflect padding of a constant image is constant, so every output is sum(w) * value + b.
-  Case c{1, 2, 3, 6, 10, 3, Padding::Reflect, true};
-  Data d = make_data(c, 600);
-  std::fill(d.x.begin(), d.x.end(), 2.0f);
-  auto y = run_forward(c, d);
-  for (int co = 0; co < c.Cout; ++co) {
-    double s = d.b[co];
-    for (int i = 0; i < c.Cin * 9; ++i) s += 2.0 * d.w[co * c.Cin * 9 + i];
-    for (int p = 0; p < c.H * c.W; ++p) CHECK(y[co * c.H * c.W + p] == doctest::Approx(s).epsilon(1e-5));
-  }
+  for_each_algo([&] {
+    // Reflect padding of a constant image is constant, so every output is sum(w) * value + b.
+    Case c{1, 2, 3, 6, 10, 3, Padding::Reflect, true};
+    Data d = make_data(c, 600);
+    std::fill(d.x.begin(), d.x.end(), 2.0f);
+    auto y = run_forward(c, d);
+    for (int co = 0; co < c.Cout; ++co) {
+      double s = d.b[co];
+      for (int i = 0; i < c.Cin * 9; ++i) s += 2.0 * d.w[co * c.Cin * 9 + i];
+      for (int p = 0; p < c.H * c.W; ++p) CHECK(y[co * c.H * c.W + p] == doctest::Approx(s).epsilon(1e-5));
+    }
+  });
 }
 
 TEST_CASE("conv2d bad shapes give clear errors") {

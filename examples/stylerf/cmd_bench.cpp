@@ -1,4 +1,4 @@
-// stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render> [--json FILE] [--repeats N] [--quick] [--device D]
+// stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render|decoder-step> [--json FILE] [--repeats N] [--quick] [--device D]
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <iostream>
@@ -10,6 +10,7 @@
 #include "bench/bench_field.hpp"
 #include "bench/bench_targets.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "lib/nn/conv_algo.hpp"
 
 namespace po = boost::program_options;
 
@@ -26,9 +27,9 @@ std::vector<std::string> comma_list(const std::string& s) {
 }
 
 int run_bench(int argc, char** argv) {
-  std::string which, device, parts, erts;
+  std::string which, device, parts, erts, decoder, conv_algo;
   stylerf::bench::BenchOptions opt;
-  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render> [options]");
+  po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render|decoder-step> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
@@ -44,6 +45,8 @@ int run_bench(int argc, char** argv) {
       "views", po::value(&opt.views)->default_value(3), "render: held-out views to render")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(
       "ert", po::value(&erts), "render: comma list of early-termination thresholds to compare (0: off)")(
+      "decoder", po::value(&decoder), "decoder-step: decoder, paper | fast (default paper)")(
+      "conv-algo", po::value(&conv_algo), "3x3 conv algorithm: auto, im2col, winograd2, winograd4 (default auto)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
   po::options_description hidden;
   hidden.add_options()("which", po::value(&which));
@@ -64,7 +67,9 @@ int run_bench(int argc, char** argv) {
               << "  patch    one patch step part by part (s, GFLOP/s): --stage 2|3 --profile fast|paper --size 256\n"
               << "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n"
               << "  render   rays/s and s/view of rendering, s/step of training, per kernel: --ckpt DENSITY\n"
-              << "           [--scene DIR] [--views N] [--steps K] [--ert 0,1e-4,1e-3]\n";
+              << "           [--scene DIR] [--views N] [--steps K] [--ert 0,1e-4,1e-3]\n"
+              << "  decoder-step  torch_step.py's work (decoder + VGG + losses + backward + Adam), median s/step:\n"
+              << "           --size 256 --decoder paper|fast [--conv-algo A]\n";
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--views must be >= 1 and --steps >= 0");
@@ -90,6 +95,15 @@ int run_bench(int argc, char** argv) {
                                (ops ? " (spatial, norm, layout, style, eval)" : " (lego, fern, knobs)"));
     opt.parts.push_back(p);
   }
+  if (!decoder.empty()) {
+    if (which != "decoder-step") throw std::runtime_error("--decoder is an option of bench decoder-step (patch takes --profile)");
+    if (decoder != "paper" && decoder != "fast")
+      throw std::runtime_error("--decoder: '" + decoder + "' is not a decoder (paper, fast)");
+    opt.profile = decoder;
+  } else if (which == "decoder-step") {
+    opt.profile = "paper";
+  }
+  if (!conv_algo.empty()) stylerf::nn::set_default_conv_algo(stylerf::nn::parse_conv_algo(conv_algo));
   stylerf::cli::init_runtime(device, false);
   if (which == "gemm") return stylerf::bench::bench_gemm(opt);
   if (which == "conv") return stylerf::bench::bench_conv(opt);
@@ -100,7 +114,8 @@ int run_bench(int argc, char** argv) {
   if (which == "patch") return stylerf::bench::bench_patch(opt);
   if (which == "dst") return stylerf::bench::bench_dst(opt);
   if (which == "render") return stylerf::bench::bench_render(opt);
-  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst, render)\n";
+  if (which == "decoder-step") return stylerf::bench::bench_decoder_step(opt);
+  std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst, render, decoder-step)\n";
   return 2;
 }
 stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);

@@ -134,11 +134,16 @@ int conv_rows_per_chunk(const char* op, const ColGemmGeom& g) {
 
 }  // namespace detail
 
-Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad) {
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo) {
   const ConvGeom g = check_conv("conv2d_forward", x, w, pad);
   if (b.defined()) expect_shape(b, {g.Cout}, "conv2d_forward", "bias");
   Tensor y({g.N, g.Cout, g.H, g.W}, "conv2d_forward output");
   const int hw = int(g.hw()), ckk = int(g.ckk());
+  const ConvAlgo a = g.K == 3 ? resolve_conv_algo(algo, g.Cin, g.Cout, g.H, g.W, g.N) : ConvAlgo::Im2col;
+  if (a == ConvAlgo::Winograd2 || a == ConvAlgo::Winograd4) {
+    detail::winograd_forward(a == ConvAlgo::Winograd2 ? 2 : 4, g, g.mode, x, w, b, y);
+    return y;
+  }
   if (g.K == 1) {
     // The input image [Cin, HW] is already the col matrix.
     for (int n = 0; n < g.N; ++n)
@@ -155,7 +160,7 @@ Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding
 }
 
 Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
-                            bool need_params) {
+                            bool need_params, ConvAlgo algo) {
   const ConvGeom g = check_conv("conv2d_backward", x, w, pad);
   expect_shape(dy, {g.N, g.Cout, g.H, g.W}, "conv2d_backward", "dy");
   Conv2dGrads out;
@@ -168,6 +173,12 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
     host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, hw);
   }
 
+  const ConvAlgo a = g.K == 3 ? resolve_conv_algo(algo, g.Cin, g.Cout, g.H, g.W, g.N) : ConvAlgo::Im2col;
+  if (a == ConvAlgo::Winograd2 || a == ConvAlgo::Winograd4) {
+    detail::winograd_backward(a == ConvAlgo::Winograd2 ? 2 : 4, g, g.mode, x, w, dy, need_dx ? &out.dx : nullptr,
+                              need_params ? &out.dw : nullptr);
+    return out;
+  }
   if (g.K == 1) {
     for (int n = 0; n < g.N; ++n) {
       const size_t xo = size_t(n) * g.Cin * hw, yo = size_t(n) * g.Cout * hw;

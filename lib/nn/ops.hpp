@@ -7,6 +7,7 @@
 //          kernels/reduce.cl, kernels/elementwise.cl.
 #pragma once
 #include "host/tensor.hpp"
+#include "lib/nn/conv_algo.hpp"
 
 namespace stylerf::nn {
 
@@ -16,8 +17,9 @@ using host::Tensor;
 // ---- conv2d (stride 1, "same" size; kernel 1 or 3) ---------------------------------------------
 enum class Padding { Zero, Reflect };
 
-// x [N,Cin,H,W], w [Cout,Cin,k,k] (k = 1 or 3), b [Cout] or undefined -> y [N,Cout,H,W]
-Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad);
+// x [N,Cin,H,W], w [Cout,Cin,k,k] (k = 1 or 3), b [Cout] or undefined -> y [N,Cout,H,W]. `algo` picks how a
+// 3x3 conv runs (lib/nn/conv_algo.hpp; Auto: the measured default).
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo = ConvAlgo::Auto);
 struct Conv2dGrads {
   Tensor dx;  // undefined unless asked for
   Tensor dw;  // undefined unless asked for
@@ -25,7 +27,7 @@ struct Conv2dGrads {
 };
 // need_dx false skips the col2im work (frozen early layers); need_params false skips dW/db (frozen VGG).
 Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
-                            bool need_params);
+                            bool need_params, ConvAlgo algo = ConvAlgo::Auto);
 
 // ---- general conv2d: k x k, stride s, zero padding p (AlexNet's trunk) -----------------------------
 // x [N,Cin,H,W], w [Cout,Cin,k,k] (any k >= 1), b [Cout] or undefined -> y [N,Cout,Ho,Wo] with

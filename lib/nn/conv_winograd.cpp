@@ -1,0 +1,94 @@
+// Winograd F(m x m, 3 x 3) for the stride-1 "same" 3x3 conv (kernels/winograd.cl has the transforms and
+// their adjoints). Every image's tiles share one GEMM per transformed position xi:
+//   forward   M[xi] [Cout, T] = U[xi] [Cout, Cin] x V[xi] [Cin, T]
+//   dX        dV[xi] [Cin, T] = U[xi]^T x dM[xi]
+//   dW        dU[xi] [Cout, Cin] = dM[xi] x V[xi]^T          (V recomputed from x, not kept from forward)
+// The transformed tensors are pooled temporaries, returned when the call ends.
+#include <string>
+
+#include "host/gemm.hpp"
+#include "host/launch.hpp"
+#include "lib/nn/conv_internal.hpp"
+
+namespace stylerf::nn::detail {
+namespace {
+
+using host::Trans;
+
+struct Tiles {
+  int m, alpha, th, tw, T;
+  std::string options;
+};
+
+Tiles tiles_of(const ConvDims& d, int m) {
+  Tiles t;
+  t.m = m;
+  t.alpha = m + 2;
+  t.th = (d.H + m - 1) / m;
+  t.tw = (d.W + m - 1) / m;
+  t.T = d.N * t.th * t.tw;
+  t.options = "-DWINO_M=" + std::to_string(m);
+  return t;
+}
+
+template <class... Args>
+void launch_wino(const Tiles& t, const char* kernel, const host::Range& global, const Args&... args) {
+  host::launch_with_local("winograd", kernel, t.options, global, host::Range(0), args...);
+}
+
+host::Tensor filter_transform(const Tiles& t, const ConvDims& d, const host::Tensor& w) {
+  host::Tensor U({int64_t(t.alpha) * t.alpha, d.Cout, d.Cin}, "winograd filters");
+  launch_wino(t, "wino_filter_transform", {size_t(d.Cin), size_t(d.Cout)}, w, U, d.Cin, d.Cout);
+  return U;
+}
+
+host::Tensor input_transform(const Tiles& t, const ConvDims& d, const host::Tensor& x, int mode) {
+  host::Tensor V({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input tiles");
+  launch_wino(t, "wino_input_transform", {size_t(t.T), size_t(d.Cin)}, x, V, d.Cin, d.H, d.W, t.th, t.tw, t.T, mode);
+  return V;
+}
+
+// C[xi] = op(A[xi]) op(B[xi]) for every transformed position.
+void batched_gemm(const Tiles& t, Trans ta, Trans tb, int M, int N, int K, const host::Tensor& A, int lda,
+                  const host::Tensor& B, int ldb, host::Tensor& C, int ldc) {
+  const size_t a_plane = size_t(M) * K, b_plane = size_t(K) * N, c_plane = size_t(M) * N;
+  for (int xi = 0; xi < t.alpha * t.alpha; ++xi)
+    host::gemm(ta, tb, M, N, K, 1.0f, A.mem(), xi * a_plane, lda, B.mem(), xi * b_plane, ldb, 0.0f, C.mem(),
+               xi * c_plane, ldc);
+}
+
+}  // namespace
+
+void winograd_forward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
+                      const host::Tensor& b, host::Tensor& y) {
+  const Tiles t = tiles_of(d, m);
+  const host::Tensor U = filter_transform(t, d, w);
+  const host::Tensor V = input_transform(t, d, x, mode);
+  host::Tensor M({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output tiles");
+  batched_gemm(t, Trans::No, Trans::No, d.Cout, t.T, d.Cin, U, d.Cin, V, t.T, M, t.T);
+  launch_wino(t, "wino_output_transform", {size_t(t.T), size_t(d.Cout)}, M, b.defined() ? b : M,
+              b.defined() ? 1 : 0, y, d.Cout, d.H, d.W, t.th, t.tw, t.T);
+}
+
+void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
+                       const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw) {
+  const Tiles t = tiles_of(d, m);
+  host::Tensor dM({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output-tile gradient");
+  launch_wino(t, "wino_output_backward", {size_t(t.T), size_t(d.Cout)}, dy, dM, d.Cout, d.H, d.W, t.th, t.tw, t.T);
+  if (dw) {
+    const host::Tensor V = input_transform(t, d, x, mode);
+    host::Tensor dU({int64_t(t.alpha) * t.alpha, d.Cout, d.Cin}, "winograd filter gradient");
+    batched_gemm(t, Trans::No, Trans::Yes, d.Cout, d.Cin, t.T, dM, t.T, V, t.T, dU, d.Cin);
+    launch_wino(t, "wino_filter_backward", {size_t(d.Cin), size_t(d.Cout)}, dU, *dw, d.Cin, d.Cout);
+  }
+  if (dx) {
+    const host::Tensor U = filter_transform(t, d, w);
+    host::Tensor dV({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input-tile gradient");
+    batched_gemm(t, Trans::Yes, Trans::No, d.Cin, t.T, d.Cout, U, d.Cin, dM, t.T, dV, t.T);
+    launch_wino(t, "wino_input_backward", {size_t(t.T), size_t(d.Cin)}, dV, d.Cin, t.T);
+    launch_wino(t, "wino_input_gather", {size_t(d.W), size_t(d.H), size_t(d.N) * d.Cin}, dV, *dx, d.Cin, d.H, d.W,
+                t.th, t.tw, d.N, mode);
+  }
+}
+
+}  // namespace stylerf::nn::detail
