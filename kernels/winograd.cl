@@ -11,8 +11,8 @@
 // Layouts (row-major): U / dU [alpha^2][Cout][Cin]; V / dV [alpha^2][C][T]; M / dM [alpha^2][Cout][T],
 // where T = N * th * tw tiles, th = ceil(H / m), tw = ceil(W / m), tile t = (n * th + ty) * tw + tx covers
 // output rows ty*m .. ty*m+m-1 (those past the image are computed and dropped) and reads padded input rows
-// ty*m-1 .. ty*m+m. One work-item per (tile, channel), tiles along dimension 0 so that neighbouring
-// work-items write neighbouring elements of each [C][T] plane.
+// ty*m-1 .. ty*m+m. The tile kernels give each work-item 8 consecutive tiles of one tile row and one
+// channel, as float8 lanes: each of its alpha^2 values is one 8-float store into a [C][T] plane.
 
 #ifndef WINO_M
 #define WINO_M 2
@@ -23,22 +23,7 @@
 #define PAD_ZERO 0
 #define PAD_REFLECT 1
 
-#if WINO_M == 2
-__constant float BT[4][4] = {{1, 0, -1, 0}, {0, 1, 1, 0}, {0, -1, 1, 0}, {0, 1, 0, -1}};
-__constant float G[4][3] = {{1, 0, 0}, {0.5f, 0.5f, 0.5f}, {0.5f, -0.5f, 0.5f}, {0, 0, 1}};
-__constant float AT[2][4] = {{1, 1, 1, 0}, {0, 1, -1, -1}};
-#elif WINO_M == 4
-// Interpolation points 0, 1, -1, 2, -2 and infinity.
-__constant float BT[6][6] = {{4, 0, -5, 0, 1, 0},  {0, -4, -4, 1, 1, 0}, {0, 4, -4, -1, 1, 0},
-                             {0, -2, -1, 2, 1, 0}, {0, 2, -1, -2, 1, 0}, {0, 4, 0, -5, 0, 1}};
-__constant float G[6][3] = {{0.25f, 0, 0},
-                            {-1.0f / 6, -1.0f / 6, -1.0f / 6},
-                            {-1.0f / 6, 1.0f / 6, -1.0f / 6},
-                            {1.0f / 24, 1.0f / 12, 1.0f / 6},
-                            {1.0f / 24, -1.0f / 12, 1.0f / 6},
-                            {0, 0, 1}};
-__constant float AT[4][6] = {{1, 1, 1, 1, 1, 0}, {0, 1, -1, 2, -2, 0}, {0, 1, 1, 4, 4, 0}, {0, 1, -1, 8, -8, 1}};
-#else
+#if WINO_M != 2 && WINO_M != 4
 #error "WINO_M must be 2 or 4"
 #endif
 
@@ -50,19 +35,111 @@ inline int wino_source(int p, int n, int mode) {
   return -1;
 }
 
+// ---- 1-D transforms on 8 tiles at once ---------------------------------------------------------
+// The 2-D transforms apply these along columns, then rows. Written out (not matrix loops) so that only
+// the non-zero entries cost anything. bt: r = B^T d; b_adj: d = B r (its adjoint); at: o = A^T v;
+// a_adj: v = A o.
+typedef float8 v8;
+#define VEC 8
+
+#if WINO_M == 2
+inline void bt_1d(const v8* d, v8* r) {
+  r[0] = d[0] - d[2];
+  r[1] = d[1] + d[2];
+  r[2] = d[2] - d[1];
+  r[3] = d[1] - d[3];
+}
+inline void b_adj_1d(const v8* r, v8* d) {
+  d[0] = r[0];
+  d[1] = r[1] - r[2] + r[3];
+  d[2] = r[1] + r[2] - r[0];
+  d[3] = -r[3];
+}
+inline void at_1d(const v8* v, v8* o) {
+  o[0] = v[0] + v[1] + v[2];
+  o[1] = v[1] - v[2] - v[3];
+}
+// u = G g (3 -> alpha) and its adjoint g = G^T u, on plain floats (filters are small).
+inline void g_1d(const float* g, float* u) {
+  u[0] = g[0];
+  u[1] = 0.5f * (g[0] + g[1] + g[2]);
+  u[2] = 0.5f * (g[0] - g[1] + g[2]);
+  u[3] = g[2];
+}
+inline void g_adj_1d(const float* u, float* g) {
+  g[0] = u[0] + 0.5f * (u[1] + u[2]);
+  g[1] = 0.5f * (u[1] - u[2]);
+  g[2] = 0.5f * (u[1] + u[2]) + u[3];
+}
+inline void a_adj_1d(const v8* o, v8* v) {
+  v[0] = o[0];
+  v[1] = o[0] + o[1];
+  v[2] = o[0] - o[1];
+  v[3] = -o[1];
+}
+#else
+inline void bt_1d(const v8* d, v8* r) {
+  r[0] = 4.0f * d[0] - 5.0f * d[2] + d[4];
+  r[1] = d[3] + d[4] - 4.0f * (d[1] + d[2]);
+  r[2] = d[4] - d[3] + 4.0f * (d[1] - d[2]);
+  r[3] = d[4] - d[2] + 2.0f * (d[3] - d[1]);
+  r[4] = d[4] - d[2] + 2.0f * (d[1] - d[3]);
+  r[5] = 4.0f * d[1] - 5.0f * d[3] + d[5];
+}
+inline void b_adj_1d(const v8* r, v8* d) {
+  d[0] = 4.0f * r[0];
+  d[1] = 4.0f * (r[2] - r[1] + r[5]) + 2.0f * (r[4] - r[3]);
+  d[2] = -5.0f * r[0] - 4.0f * (r[1] + r[2]) - r[3] - r[4];
+  d[3] = r[1] - r[2] + 2.0f * (r[3] - r[4]) - 5.0f * r[5];
+  d[4] = r[0] + r[1] + r[2] + r[3] + r[4];
+  d[5] = r[5];
+}
+inline void at_1d(const v8* v, v8* o) {
+  o[0] = v[0] + v[1] + v[2] + v[3] + v[4];
+  o[1] = v[1] - v[2] + 2.0f * (v[3] - v[4]);
+  o[2] = v[1] + v[2] + 4.0f * (v[3] + v[4]);
+  o[3] = v[1] - v[2] + 8.0f * (v[3] - v[4]) + v[5];
+}
+inline void g_1d(const float* g, float* u) {
+  u[0] = 0.25f * g[0];
+  u[1] = -(g[0] + g[1] + g[2]) / 6.0f;
+  u[2] = -(g[0] - g[1] + g[2]) / 6.0f;
+  u[3] = g[0] / 24.0f + g[1] / 12.0f + g[2] / 6.0f;
+  u[4] = g[0] / 24.0f - g[1] / 12.0f + g[2] / 6.0f;
+  u[5] = g[2];
+}
+inline void g_adj_1d(const float* u, float* g) {
+  g[0] = 0.25f * u[0] - (u[1] + u[2]) / 6.0f + (u[3] + u[4]) / 24.0f;
+  g[1] = (u[2] - u[1]) / 6.0f + (u[3] - u[4]) / 12.0f;
+  g[2] = -(u[1] + u[2]) / 6.0f + (u[3] + u[4]) / 6.0f + u[5];
+}
+inline void a_adj_1d(const v8* o, v8* v) {
+  v[0] = o[0];
+  v[1] = o[0] + o[1] + o[2] + o[3];
+  v[2] = o[0] - o[1] + o[2] - o[3];
+  v[3] = o[0] + 2.0f * o[1] + 4.0f * o[2] + 8.0f * o[3];
+  v[4] = o[0] - 2.0f * o[1] + 4.0f * o[2] - 8.0f * o[3];
+  v[5] = o[3];
+}
+#endif
+
 // ---- filters ---------------------------------------------------------------------------------
 // U[xi][co][ci] = (G g G^T)[xi], g = w[co][ci] (3x3). Global: (Cin, Cout).
 __kernel void wino_filter_transform(__global const float* w, __global float* U, int Cin, int Cout) {
   const int ci = get_global_id(0), co = get_global_id(1);
   if (ci >= Cin || co >= Cout) return;
   __global const float* g = w + ((long)co * Cin + ci) * 9;
-  float Gg[WINO_A][3];
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < 3; ++j) Gg[i][j] = G[i][0] * g[j] + G[i][1] * g[3 + j] + G[i][2] * g[6 + j];
+  float col[3], u[WINO_A], gg[WINO_A][3];
+  for (int j = 0; j < 3; ++j) {  // G g, column by column
+    for (int i = 0; i < 3; ++i) col[i] = g[i * 3 + j];
+    g_1d(col, u);
+    for (int i = 0; i < WINO_A; ++i) gg[i][j] = u[i];
+  }
   const long plane = (long)Cout * Cin, at = (long)co * Cin + ci;
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j)
-      U[(i * WINO_A + j) * plane + at] = Gg[i][0] * G[j][0] + Gg[i][1] * G[j][1] + Gg[i][2] * G[j][2];
+  for (int i = 0; i < WINO_A; ++i) {  // (G g) G^T, row by row
+    g_1d(gg[i], u);
+    for (int j = 0; j < WINO_A; ++j) U[(i * WINO_A + j) * plane + at] = u[j];
+  }
 }
 
 // The adjoint: dw[co][ci] = G^T dU[.][co][ci] G (3x3), overwritten. Global: (Cin, Cout).
@@ -70,75 +147,121 @@ __kernel void wino_filter_backward(__global const float* dU, __global float* dw,
   const int ci = get_global_id(0), co = get_global_id(1);
   if (ci >= Cin || co >= Cout) return;
   const long plane = (long)Cout * Cin, at = (long)co * Cin + ci;
-  float t[3][WINO_A];  // G^T dU
-  for (int r = 0; r < 3; ++r)
-    for (int j = 0; j < WINO_A; ++j) t[r][j] = 0.0f;
+  float u[WINO_A][WINO_A], col[WINO_A], g[3], gu[3][WINO_A];
   for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) {
-      const float v = dU[(i * WINO_A + j) * plane + at];
-      for (int r = 0; r < 3; ++r) t[r][j] += G[i][r] * v;
-    }
-  __global float* g = dw + at * 9;
-  for (int r = 0; r < 3; ++r)
-    for (int s = 0; s < 3; ++s) {
-      float acc = 0.0f;
-      for (int j = 0; j < WINO_A; ++j) acc += t[r][j] * G[j][s];
-      g[r * 3 + s] = acc;
-    }
+    for (int j = 0; j < WINO_A; ++j) u[i][j] = dU[(i * WINO_A + j) * plane + at];
+  for (int j = 0; j < WINO_A; ++j) {  // G^T dU, column by column
+    for (int i = 0; i < WINO_A; ++i) col[i] = u[i][j];
+    g_adj_1d(col, g);
+    for (int r = 0; r < 3; ++r) gu[r][j] = g[r];
+  }
+  __global float* out = dw + at * 9;
+  for (int r = 0; r < 3; ++r) {  // (G^T dU) G, row by row
+    g_adj_1d(gu[r], g);
+    for (int s = 0; s < 3; ++s) out[r * 3 + s] = g[s];
+  }
+}
+
+// Lanes k of the 8 tiles: element j + k * m of a row segment.
+inline v8 lanes(const float* seg, int j) {
+  return (v8)(seg[j], seg[j + WINO_M], seg[j + 2 * WINO_M], seg[j + 3 * WINO_M], seg[j + 4 * WINO_M],
+              seg[j + 5 * WINO_M], seg[j + 6 * WINO_M], seg[j + 7 * WINO_M]);
+}
+
+// Work-items cover 8 consecutive tiles of one tile row: group g of row r = n * th + ty holds tiles
+// tx0 = 8 * (g % groups) .. tx0 + 7 (the last group of a row may be partial: `valid` lanes).
+#define TILE_GROUP_SETUP                                      \
+  const int groups = (tw + VEC - 1) / VEC;                    \
+  const int gx = g % groups, trow = g / groups;               \
+  const int ty = trow % th, n = trow / th;                    \
+  const int tx0 = gx * VEC, valid = min(VEC, tw - tx0);       \
+  const long t0 = (long)trow * tw + tx0;
+
+inline v8 load_lanes(__global const float* p, int valid) {
+  if (valid == VEC) return vload8(0, p);
+  v8 v = (v8)(0.0f);
+  float tmp[VEC];
+  for (int k = 0; k < VEC; ++k) tmp[k] = k < valid ? p[k] : 0.0f;
+  return vload8(0, tmp);
+}
+inline void store_lanes(v8 v, __global float* p, int valid) {
+  if (valid == VEC) {
+    vstore8(v, 0, p);
+    return;
+  }
+  float tmp[VEC];
+  vstore8(v, 0, tmp);
+  for (int k = 0; k < valid; ++k) p[k] = tmp[k];
 }
 
 // ---- input tiles -----------------------------------------------------------------------------
-// V[xi][c][t] = (B^T d B)[xi], d = the padded alpha x alpha input patch of tile t. Global: (T, C).
+// V[xi][c][t] = (B^T d B)[xi], d = the padded alpha x alpha input patch of tile t.
+// Global: (N * th * ceil(tw / 8), C).
+#define SEG (VEC * WINO_M + 2)
 __kernel void wino_input_transform(__global const float* x, __global float* V, int C, int H, int W, int th, int tw,
                                    int T, int mode) {
-  const int t = get_global_id(0), c = get_global_id(1);
-  if (t >= T || c >= C) return;
-  const int tx = t % tw, ty = (t / tw) % th, n = t / (tw * th);
+  const int g = get_global_id(0), c = get_global_id(1);
+  if (g >= T / tw * ((tw + VEC - 1) / VEC) || c >= C) return;
+  TILE_GROUP_SETUP
   __global const float* img = x + ((long)n * C + c) * H * W;
-  int sx[WINO_A];
-  for (int j = 0; j < WINO_A; ++j) sx[j] = wino_source(tx * WINO_M - 1 + j, W, mode);
-  float d[WINO_A][WINO_A];
+  const int xs = tx0 * WINO_M - 1;
+  const bool inner = xs >= 0 && xs + SEG <= W;
+  v8 d[WINO_A][WINO_A];
   for (int i = 0; i < WINO_A; ++i) {
     const int sy = wino_source(ty * WINO_M - 1 + i, H, mode);
-    for (int j = 0; j < WINO_A; ++j) d[i][j] = (sy >= 0 && sx[j] >= 0) ? img[(long)sy * W + sx[j]] : 0.0f;
+    float seg[SEG];
+    if (sy < 0) {
+      for (int k = 0; k < SEG; ++k) seg[k] = 0.0f;
+    } else if (inner) {
+      __global const float* src = img + (long)sy * W + xs;
+      for (int k = 0; k < SEG; ++k) seg[k] = src[k];
+    } else {
+      __global const float* src = img + (long)sy * W;
+      for (int k = 0; k < SEG; ++k) {
+        const int sx = wino_source(xs + k, W, mode);
+        seg[k] = sx >= 0 ? src[sx] : 0.0f;
+      }
+    }
+    for (int j = 0; j < WINO_A; ++j) d[i][j] = lanes(seg, j);
   }
-  float bd[WINO_A][WINO_A];  // B^T d
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) {
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += BT[i][k] * d[k][j];
-      bd[i][j] = acc;
-    }
-  const long plane = (long)C * T, at = (long)c * T + t;
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) {
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += bd[i][k] * BT[j][k];
-      V[(i * WINO_A + j) * plane + at] = acc;
-    }
+  v8 col[WINO_A], tmp[WINO_A][WINO_A];
+  for (int j = 0; j < WINO_A; ++j) {  // B^T d, column by column
+    v8 r[WINO_A];
+    for (int i = 0; i < WINO_A; ++i) col[i] = d[i][j];
+    bt_1d(col, r);
+    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = r[i];
+  }
+  const long plane = (long)C * T;
+  __global float* out = V + (long)c * T + t0;
+  for (int i = 0; i < WINO_A; ++i) {  // (B^T d) B, row by row
+    v8 r[WINO_A];
+    bt_1d(tmp[i], r);
+    for (int j = 0; j < WINO_A; ++j) store_lanes(r[j], out + (i * WINO_A + j) * plane, valid);
+  }
 }
 
-// The adjoint, step 1: dV[.][c][t] becomes dd = B dV B^T in place (each work-item owns its alpha^2
-// values). Global: (T, C).
-__kernel void wino_input_backward(__global float* dV, int C, int T) {
-  const int t = get_global_id(0), c = get_global_id(1);
-  if (t >= T || c >= C) return;
-  const long plane = (long)C * T, at = (long)c * T + t;
-  float v[WINO_A][WINO_A], bv[WINO_A][WINO_A];
+// The adjoint, step 1: dV[.][c][t] becomes dd = B dV B^T in place (each work-item owns its values).
+// Global: (N * th * ceil(tw / 8), C).
+__kernel void wino_input_backward(__global float* dV, int C, int th, int tw, int T) {
+  const int g = get_global_id(0), c = get_global_id(1);
+  if (g >= T / tw * ((tw + VEC - 1) / VEC) || c >= C) return;
+  TILE_GROUP_SETUP
+  const long plane = (long)C * T;
+  __global float* p = dV + (long)c * T + t0;
+  v8 v[WINO_A][WINO_A], tmp[WINO_A][WINO_A], col[WINO_A];
   for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) v[i][j] = dV[(i * WINO_A + j) * plane + at];
-  for (int i = 0; i < WINO_A; ++i)  // B dV: row i of B is column i of B^T
-    for (int j = 0; j < WINO_A; ++j) {
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += BT[k][i] * v[k][j];
-      bv[i][j] = acc;
-    }
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) {
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += bv[i][k] * BT[k][j];
-      dV[(i * WINO_A + j) * plane + at] = acc;
-    }
+    for (int j = 0; j < WINO_A; ++j) v[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
+  for (int j = 0; j < WINO_A; ++j) {
+    v8 r[WINO_A];
+    for (int i = 0; i < WINO_A; ++i) col[i] = v[i][j];
+    b_adj_1d(col, r);
+    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = r[i];
+  }
+  for (int i = 0; i < WINO_A; ++i) {
+    v8 r[WINO_A];
+    b_adj_1d(tmp[i], r);
+    for (int j = 0; j < WINO_A; ++j) store_lanes(r[j], p + (i * WINO_A + j) * plane, valid);
+  }
 }
 
 // Sum over the tiles covering padded coordinate (p, q) of their dd at that coordinate.
@@ -157,7 +280,8 @@ inline float wino_gather_point(__global const float* dd, long plane, long cbase,
 
 // Step 2: dx[n][c][y][x] = the sum over every padded coordinate that reads x[y][x] (the pixel itself and,
 // with reflect padding, the mirror row / column that copies it) of wino_gather_point. Overwrites dx.
-// Global: (W, H, N * C). p + 1 >= 0 always, so the integer divisions above round as floor.
+// Global: (W, H, N * C). The lower tile bounds above divide numbers >= -2; C's rounding towards zero
+// can only raise a negative bound to 0, which the max() gives anyway.
 __kernel void wino_input_gather(__global const float* dd, __global float* dx, int C, int H, int W, int th, int tw,
                                 int N, int mode) {
   const int x = get_global_id(0), y = get_global_id(1), nc = get_global_id(2);
@@ -181,63 +305,75 @@ __kernel void wino_input_gather(__global const float* dd, __global float* dx, in
 
 // ---- output tiles ----------------------------------------------------------------------------
 // y[n][co][ty*m + i][tx*m + j] = (A^T M A)[i][j] (+ bias[co]) for the outputs inside the image.
-// has_bias = 0: bias is not read. Global: (T, Cout).
+// has_bias = 0: bias is not read. Global: (N * th * ceil(tw / 8), Cout).
 __kernel void wino_output_transform(__global const float* M, __global const float* bias, int has_bias,
                                     __global float* y, int Cout, int H, int W, int th, int tw, int T) {
-  const int t = get_global_id(0), co = get_global_id(1);
-  if (t >= T || co >= Cout) return;
-  const int tx = t % tw, ty = (t / tw) % th, n = t / (tw * th);
-  const long plane = (long)Cout * T, at = (long)co * T + t;
-  float m[WINO_A][WINO_A], am[WINO_M][WINO_A];
+  const int g = get_global_id(0), co = get_global_id(1);
+  if (g >= T / tw * ((tw + VEC - 1) / VEC) || co >= Cout) return;
+  TILE_GROUP_SETUP
+  const long plane = (long)Cout * T;
+  __global const float* p = M + (long)co * T + t0;
+  v8 v[WINO_A][WINO_A], tmp[WINO_M][WINO_A], col[WINO_A];
   for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) m[i][j] = M[(i * WINO_A + j) * plane + at];
-  for (int i = 0; i < WINO_M; ++i)
-    for (int j = 0; j < WINO_A; ++j) {
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += AT[i][k] * m[k][j];
-      am[i][j] = acc;
-    }
+    for (int j = 0; j < WINO_A; ++j) v[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
+  for (int j = 0; j < WINO_A; ++j) {  // A^T M, column by column
+    v8 o[WINO_M];
+    for (int i = 0; i < WINO_A; ++i) col[i] = v[i][j];
+    at_1d(col, o);
+    for (int i = 0; i < WINO_M; ++i) tmp[i][j] = o[i];
+  }
   const float b = has_bias ? bias[co] : 0.0f;
-  __global float* out = y + ((long)n * Cout + co) * H * W;
+  __global float* img = y + ((long)n * Cout + co) * H * W;
+  const int x0 = tx0 * WINO_M;
+  const int xn = min(VEC * WINO_M, W - x0);  // columns inside the image
   for (int i = 0; i < WINO_M; ++i) {
     const int oy = ty * WINO_M + i;
     if (oy >= H) break;
+    v8 o[WINO_M];
+    at_1d(tmp[i], o);
+    float row[VEC * WINO_M], lane[VEC];
     for (int j = 0; j < WINO_M; ++j) {
-      const int ox = tx * WINO_M + j;
-      if (ox >= W) break;
-      float acc = 0.0f;
-      for (int k = 0; k < WINO_A; ++k) acc += am[i][k] * AT[j][k];
-      out[(long)oy * W + ox] = acc + b;
+      vstore8(o[j] + b, 0, lane);
+      for (int k = 0; k < VEC; ++k) row[k * WINO_M + j] = lane[k];
     }
+    __global float* dst = img + (long)oy * W + x0;
+    for (int k = 0; k < xn; ++k) dst[k] = row[k];
   }
 }
 
 // The adjoint: dM[.][co][t] = A dY A^T, dY the tile's m x m output gradient (zero past the image).
-// Global: (T, Cout).
+// Global: (N * th * ceil(tw / 8), Cout).
 __kernel void wino_output_backward(__global const float* dy, __global float* dM, int Cout, int H, int W, int th,
                                    int tw, int T) {
-  const int t = get_global_id(0), co = get_global_id(1);
-  if (t >= T || co >= Cout) return;
-  const int tx = t % tw, ty = (t / tw) % th, n = t / (tw * th);
-  __global const float* g = dy + ((long)n * Cout + co) * H * W;
-  float d[WINO_M][WINO_M];
-  for (int i = 0; i < WINO_M; ++i)
-    for (int j = 0; j < WINO_M; ++j) {
-      const int oy = ty * WINO_M + i, ox = tx * WINO_M + j;
-      d[i][j] = (oy < H && ox < W) ? g[(long)oy * W + ox] : 0.0f;
+  const int g = get_global_id(0), co = get_global_id(1);
+  if (g >= T / tw * ((tw + VEC - 1) / VEC) || co >= Cout) return;
+  TILE_GROUP_SETUP
+  __global const float* img = dy + ((long)n * Cout + co) * H * W;
+  const int x0 = tx0 * WINO_M;
+  const int xn = min(VEC * WINO_M, W - x0);
+  v8 d[WINO_M][WINO_M];
+  for (int i = 0; i < WINO_M; ++i) {
+    const int oy = ty * WINO_M + i;
+    float row[VEC * WINO_M];
+    for (int k = 0; k < VEC * WINO_M; ++k) row[k] = 0.0f;
+    if (oy < H) {
+      __global const float* src = img + (long)oy * W + x0;
+      for (int k = 0; k < xn; ++k) row[k] = src[k];
     }
-  float ad[WINO_A][WINO_M];  // A dY: row k of A is column k of A^T
-  for (int k = 0; k < WINO_A; ++k)
-    for (int j = 0; j < WINO_M; ++j) {
-      float acc = 0.0f;
-      for (int i = 0; i < WINO_M; ++i) acc += AT[i][k] * d[i][j];
-      ad[k][j] = acc;
-    }
-  const long plane = (long)Cout * T, at = (long)co * T + t;
-  for (int k = 0; k < WINO_A; ++k)
-    for (int l = 0; l < WINO_A; ++l) {
-      float acc = 0.0f;
-      for (int j = 0; j < WINO_M; ++j) acc += ad[k][j] * AT[j][l];
-      dM[(k * WINO_A + l) * plane + at] = acc;
-    }
+    for (int j = 0; j < WINO_M; ++j) d[i][j] = lanes(row, j);
+  }
+  v8 tmp[WINO_A][WINO_M], col[WINO_M];
+  for (int j = 0; j < WINO_M; ++j) {  // A dY, column by column
+    v8 v[WINO_A];
+    for (int i = 0; i < WINO_M; ++i) col[i] = d[i][j];
+    a_adj_1d(col, v);
+    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = v[i];
+  }
+  const long plane = (long)Cout * T;
+  __global float* out = dM + (long)co * T + t0;
+  for (int i = 0; i < WINO_A; ++i) {  // (A dY) A^T, row by row
+    v8 v[WINO_A];
+    a_adj_1d(tmp[i], v);
+    for (int j = 0; j < WINO_A; ++j) store_lanes(v[j], out + (i * WINO_A + j) * plane, valid);
+  }
 }

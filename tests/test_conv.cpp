@@ -168,6 +168,10 @@ TEST_CASE("conv2d forward matches the double reference (k=3 zero/reflect, k=1, b
     check_forward({1, 2, 3, 5, 21, 3, Padding::Reflect, true}, 30);
     check_forward({1, 2, 3, 5, 21, 3, Padding::Zero, false}, 31);
     check_forward({1, 16, 8, 24, 32, 3, Padding::Reflect, true}, 32);
+    // Rows wide enough that the Winograd tile kernels' 8-tile groups take their interior (unchecked) load
+    // path for F(2x2) and F(4x4), then a partial last group; odd H leaves partial tile rows.
+    check_forward({1, 2, 3, 5, 70, 3, Padding::Reflect, true}, 33);
+    check_forward({2, 3, 2, 7, 75, 3, Padding::Zero, true}, 34);
   });
 }
 
@@ -179,6 +183,9 @@ TEST_CASE("conv2d backward dx, dw, db match finite differences") {
     // 8-wide vector path of col2im, including the reflected columns inside a vector.
     check_backward({1, 2, 3, 4, 19, 3, Padding::Reflect, false}, 110);
     check_backward({1, 2, 3, 4, 19, 3, Padding::Zero, false}, 111);
+    // Interior and partial 8-tile groups of the Winograd kernels (see the forward test).
+    check_backward({1, 2, 3, 5, 70, 3, Padding::Reflect, false}, 112);
+    check_backward({2, 2, 2, 7, 75, 3, Padding::Zero, false}, 113);
   });
 }
 

@@ -6,11 +6,11 @@
 //   db       sum of dY over n and pixels
 // CKK = Cin * k * k. With k = 1 the input itself is the col matrix, so im2col / col2im are skipped.
 //
-// The col matrix is large (decoder layer 1 at 256x256: 2304 x 65536 floats = 604 MB), so one scratch
-// buffer is kept for the process and grown on demand (shared with the strided conv: conv_internal.hpp).
-// When one image's col would exceed the scratch limit (the device's max allocation, or
-// STYLERF_CONV_SCRATCH_BYTES if smaller) the image is processed in chunks of whole output rows; the GEMMs
-// take offsets and leading dimensions into the full tensors. Those chunk loops are shared with the strided
+// The col matrix is large (decoder layer 1 at 256x256: 2304 x 65536 floats = 604 MB), so it is bounded:
+// when one image's col would exceed the scratch limit (256 MiB, or STYLERF_CONV_SCRATCH_BYTES, never more
+// than the device's max allocation) the image is processed in chunks of whole output rows; the GEMMs take
+// offsets and leading dimensions into the full tensors. The scratch is a pooled temporary of each call.
+// 3x3 convs run Winograd unless asked otherwise (conv_algo.hpp, conv_winograd.cpp). Those chunk loops are shared with the strided
 // conv (detail::conv_chunked_forward / _backward); this file supplies its im2col / col2im kernels.
 #include <algorithm>
 #include <cstdlib>
@@ -97,30 +97,16 @@ void check_conv_dims(const char* op, const Tensor& x, const Tensor& w, const Con
     throw Error(std::string(op) + ": empty input " + dims(x) + " or weight " + dims(w));
 }
 
-namespace {
-Tensor& scratch_slot() {
-  static Tensor t;
-  return t;
-}
-}  // namespace
-
 size_t conv_scratch_limit_bytes() {
-  size_t limit = host::Runtime::instance().device().max_alloc_bytes;
+  size_t limit = std::min(host::Runtime::instance().device().max_alloc_bytes, kConvScratchDefaultBytes);
   if (const char* env = std::getenv("STYLERF_CONV_SCRATCH_BYTES")) {
     long long v = std::atoll(env);
-    if (v > 0) limit = std::min(limit, static_cast<size_t>(v));
+    if (v > 0) limit = std::min(host::Runtime::instance().device().max_alloc_bytes, static_cast<size_t>(v));
   }
   return limit;
 }
 
-cl_mem conv_scratch(size_t floats) {
-  Tensor& t = scratch_slot();
-  if (!t.defined() || size_t(t.numel()) < floats) {
-    t = Tensor();  // free the old one first: both may not fit at once
-    t = Tensor({int64_t(floats)}, "conv im2col scratch");
-  }
-  return t.mem();
-}
+Tensor conv_scratch(size_t floats) { return Tensor({int64_t(floats)}, "conv im2col scratch"); }
 
 int conv_rows_per_chunk(const char* op, const ColGemmGeom& g) {
   const size_t row_bytes = size_t(g.ckk) * g.out_cols * sizeof(float);

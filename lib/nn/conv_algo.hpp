@@ -20,7 +20,7 @@ void set_default_conv_algo(ConvAlgo a);
 ConvAlgo default_conv_algo();
 
 // The algorithm a 3x3 conv of these sizes runs when asked for `a` (never Auto). Winograd needs its
-// transformed input and output to fit under the conv scratch limit; otherwise im2col runs.
+// largest transformed tensor to fit in 1 GiB (or STYLERF_CONV_SCRATCH_BYTES); otherwise im2col runs.
 ConvAlgo resolve_conv_algo(ConvAlgo a, int cin, int cout, int h, int w, int n = 1);
 
 }  // namespace stylerf::nn

@@ -26,12 +26,14 @@ void read_conv_dims(const host::Tensor& x, const host::Tensor& w, ConvDims& d);
 // Throws (naming `op`, x and w) when w's input channels are not x's, or when any size in d is < 1.
 void check_conv_dims(const char* op, const host::Tensor& x, const host::Tensor& w, const ConvDims& d);
 
-// The device's max allocation, or STYLERF_CONV_SCRATCH_BYTES if smaller.
+// The im2col scratch bound: 256 MiB, or STYLERF_CONV_SCRATCH_BYTES when set; never above the device's
+// max allocation. 256 MiB keeps the col GEMMs large (decoder layer 1 at 256x256 runs in 3 chunks).
+constexpr size_t kConvScratchDefaultBytes = size_t(256) << 20;
 size_t conv_scratch_limit_bytes();
 
-// The col scratch buffer with room for at least `floats` floats. Grown, never shrunk; conv calls are
-// serialised on the one in-order queue, so reusing it between calls (and between the two convs) is safe.
-cl_mem conv_scratch(size_t floats);
+// A col scratch buffer of `floats` floats for one call: a pooled temporary (the runtime's buffer pool
+// hands the same buffer to the next call), released when the caller's Tensor goes.
+host::Tensor conv_scratch(size_t floats);
 
 // A conv's im2col + GEMM shape per image, in output terms: image n's col matrix is
 // [ckk, out_rows * out_cols], its output / dY slice [Cout, out_rows * out_cols].
@@ -57,7 +59,8 @@ void conv_chunked_forward(const char* op, const ColGemmGeom& g, cl_mem w, cl_mem
   using host::Trans;
   const int chunk_rows = conv_rows_per_chunk(op, g);
   const int hw = g.out_rows * g.out_cols, ckk = g.ckk;
-  cl_mem col = conv_scratch(size_t(ckk) * chunk_rows * g.out_cols);
+  const host::Tensor scratch = conv_scratch(size_t(ckk) * chunk_rows * g.out_cols);
+  cl_mem col = scratch.mem();
   for (int n = 0; n < g.N; ++n) {
     for (int row0 = 0; row0 < g.out_rows; row0 += chunk_rows) {
       const int rows = std::min(chunk_rows, g.out_rows - row0), cols = rows * g.out_cols;
@@ -79,7 +82,8 @@ void conv_chunked_backward(const char* op, const ColGemmGeom& g, cl_mem w, cl_me
   using host::Trans;
   const int chunk_rows = conv_rows_per_chunk(op, g);
   const int hw = g.out_rows * g.out_cols, ckk = g.ckk;
-  cl_mem col = conv_scratch(size_t(ckk) * chunk_rows * g.out_cols);
+  const host::Tensor scratch = conv_scratch(size_t(ckk) * chunk_rows * g.out_cols);
+  cl_mem col = scratch.mem();
   bool first_dw = true;
   for (int n = 0; n < g.N; ++n) {
     for (int row0 = 0; row0 < g.out_rows; row0 += chunk_rows) {

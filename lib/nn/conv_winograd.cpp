@@ -17,6 +17,7 @@ using host::Trans;
 
 struct Tiles {
   int m, alpha, th, tw, T;
+  size_t groups;  // work-items along dimension 0 of the tile kernels: 8 tiles of a tile row each
   std::string options;
 };
 
@@ -27,13 +28,19 @@ Tiles tiles_of(const ConvDims& d, int m) {
   t.th = (d.H + m - 1) / m;
   t.tw = (d.W + m - 1) / m;
   t.T = d.N * t.th * t.tw;
+  t.groups = size_t(d.N) * t.th * ((t.tw + 7) / 8);
   t.options = "-DWINO_M=" + std::to_string(m);
   return t;
 }
 
+// The tile kernels keep alpha^2 float8 values per work-item in private arrays; PoCL's CPU driver lays a
+// work-group's private arrays out side by side on its stack, so a driver-chosen work-group of hundreds of
+// work-items overflows it (F(4x4): 36 x 3 float8 arrays a work-item). Eight work-items a group is enough
+// to keep a CPU core busy and fits any stack; GPUs get 64 (one wavefront).
 template <class... Args>
 void launch_wino(const Tiles& t, const char* kernel, const host::Range& global, const Args&... args) {
-  host::launch_with_local("winograd", kernel, t.options, global, host::Range(0), args...);
+  const bool cpu = host::Runtime::instance().device().type & CL_DEVICE_TYPE_CPU;
+  host::launch_with_local("winograd", kernel, t.options, global, host::Range(cpu ? 8 : 64, 1), args...);
 }
 
 host::Tensor filter_transform(const Tiles& t, const ConvDims& d, const host::Tensor& w) {
@@ -44,7 +51,7 @@ host::Tensor filter_transform(const Tiles& t, const ConvDims& d, const host::Ten
 
 host::Tensor input_transform(const Tiles& t, const ConvDims& d, const host::Tensor& x, int mode) {
   host::Tensor V({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input tiles");
-  launch_wino(t, "wino_input_transform", {size_t(t.T), size_t(d.Cin)}, x, V, d.Cin, d.H, d.W, t.th, t.tw, t.T, mode);
+  launch_wino(t, "wino_input_transform", {t.groups, size_t(d.Cin)}, x, V, d.Cin, d.H, d.W, t.th, t.tw, t.T, mode);
   return V;
 }
 
@@ -66,7 +73,7 @@ void winograd_forward(int m, const ConvDims& d, int mode, const host::Tensor& x,
   const host::Tensor V = input_transform(t, d, x, mode);
   host::Tensor M({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output tiles");
   batched_gemm(t, Trans::No, Trans::No, d.Cout, t.T, d.Cin, U, d.Cin, V, t.T, M, t.T);
-  launch_wino(t, "wino_output_transform", {size_t(t.T), size_t(d.Cout)}, M, b.defined() ? b : M,
+  launch_wino(t, "wino_output_transform", {t.groups, size_t(d.Cout)}, M, b.defined() ? b : M,
               b.defined() ? 1 : 0, y, d.Cout, d.H, d.W, t.th, t.tw, t.T);
 }
 
@@ -74,7 +81,7 @@ void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x
                        const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw) {
   const Tiles t = tiles_of(d, m);
   host::Tensor dM({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output-tile gradient");
-  launch_wino(t, "wino_output_backward", {size_t(t.T), size_t(d.Cout)}, dy, dM, d.Cout, d.H, d.W, t.th, t.tw, t.T);
+  launch_wino(t, "wino_output_backward", {t.groups, size_t(d.Cout)}, dy, dM, d.Cout, d.H, d.W, t.th, t.tw, t.T);
   if (dw) {
     const host::Tensor V = input_transform(t, d, x, mode);
     host::Tensor dU({int64_t(t.alpha) * t.alpha, d.Cout, d.Cin}, "winograd filter gradient");
@@ -85,7 +92,7 @@ void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x
     const host::Tensor U = filter_transform(t, d, w);
     host::Tensor dV({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input-tile gradient");
     batched_gemm(t, Trans::Yes, Trans::No, d.Cin, t.T, d.Cout, U, d.Cin, dM, t.T, dV, t.T);
-    launch_wino(t, "wino_input_backward", {size_t(t.T), size_t(d.Cin)}, dV, d.Cin, t.T);
+    launch_wino(t, "wino_input_backward", {t.groups, size_t(d.Cin)}, dV, d.Cin, t.th, t.tw, t.T);
     launch_wino(t, "wino_input_gather", {size_t(d.W), size_t(d.H), size_t(d.N) * d.Cin}, dV, *dx, d.Cin, d.H, d.W,
                 t.th, t.tw, d.N, mode);
   }
