@@ -59,14 +59,14 @@ inline void at_1d(const v8* v, v8* o) {
   o[0] = v[0] + v[1] + v[2];
   o[1] = v[1] - v[2] - v[3];
 }
-// u = G g (3 -> alpha) and its adjoint g = G^T u, on plain floats (filters are small).
-inline void g_1d(const float* g, float* u) {
+// u = G g (3 -> alpha) and its adjoint g = G^T u.
+inline void g_1d(const v8* g, v8* u) {
   u[0] = g[0];
   u[1] = 0.5f * (g[0] + g[1] + g[2]);
   u[2] = 0.5f * (g[0] - g[1] + g[2]);
   u[3] = g[2];
 }
-inline void g_adj_1d(const float* u, float* g) {
+inline void g_adj_1d(const v8* u, v8* g) {
   g[0] = u[0] + 0.5f * (u[1] + u[2]);
   g[1] = 0.5f * (u[1] - u[2]);
   g[2] = 0.5f * (u[1] + u[2]) + u[3];
@@ -100,7 +100,7 @@ inline void at_1d(const v8* v, v8* o) {
   o[2] = v[1] + v[2] + 4.0f * (v[3] + v[4]);
   o[3] = v[1] - v[2] + 8.0f * (v[3] - v[4]) + v[5];
 }
-inline void g_1d(const float* g, float* u) {
+inline void g_1d(const v8* g, v8* u) {
   u[0] = 0.25f * g[0];
   u[1] = -(g[0] + g[1] + g[2]) / 6.0f;
   u[2] = -(g[0] - g[1] + g[2]) / 6.0f;
@@ -108,7 +108,7 @@ inline void g_1d(const float* g, float* u) {
   u[4] = g[0] / 24.0f - g[1] / 12.0f + g[2] / 6.0f;
   u[5] = g[2];
 }
-inline void g_adj_1d(const float* u, float* g) {
+inline void g_adj_1d(const v8* u, v8* g) {
   g[0] = 0.25f * u[0] - (u[1] + u[2]) / 6.0f + (u[3] + u[4]) / 24.0f;
   g[1] = (u[2] - u[1]) / 6.0f + (u[3] - u[4]) / 12.0f;
   g[2] = -(u[1] + u[2]) / 6.0f + (u[3] + u[4]) / 6.0f + u[5];
@@ -122,45 +122,6 @@ inline void a_adj_1d(const v8* o, v8* v) {
   v[5] = o[3];
 }
 #endif
-
-// ---- filters ---------------------------------------------------------------------------------
-// U[xi][co][ci] = (G g G^T)[xi], g = w[co][ci] (3x3). Global: (Cin, Cout).
-__kernel void wino_filter_transform(__global const float* w, __global float* U, int Cin, int Cout) {
-  const int ci = get_global_id(0), co = get_global_id(1);
-  if (ci >= Cin || co >= Cout) return;
-  __global const float* g = w + ((long)co * Cin + ci) * 9;
-  float col[3], u[WINO_A], gg[WINO_A][3];
-  for (int j = 0; j < 3; ++j) {  // G g, column by column
-    for (int i = 0; i < 3; ++i) col[i] = g[i * 3 + j];
-    g_1d(col, u);
-    for (int i = 0; i < WINO_A; ++i) gg[i][j] = u[i];
-  }
-  const long plane = (long)Cout * Cin, at = (long)co * Cin + ci;
-  for (int i = 0; i < WINO_A; ++i) {  // (G g) G^T, row by row
-    g_1d(gg[i], u);
-    for (int j = 0; j < WINO_A; ++j) U[(i * WINO_A + j) * plane + at] = u[j];
-  }
-}
-
-// The adjoint: dw[co][ci] = G^T dU[.][co][ci] G (3x3), overwritten. Global: (Cin, Cout).
-__kernel void wino_filter_backward(__global const float* dU, __global float* dw, int Cin, int Cout) {
-  const int ci = get_global_id(0), co = get_global_id(1);
-  if (ci >= Cin || co >= Cout) return;
-  const long plane = (long)Cout * Cin, at = (long)co * Cin + ci;
-  float u[WINO_A][WINO_A], col[WINO_A], g[3], gu[3][WINO_A];
-  for (int i = 0; i < WINO_A; ++i)
-    for (int j = 0; j < WINO_A; ++j) u[i][j] = dU[(i * WINO_A + j) * plane + at];
-  for (int j = 0; j < WINO_A; ++j) {  // G^T dU, column by column
-    for (int i = 0; i < WINO_A; ++i) col[i] = u[i][j];
-    g_adj_1d(col, g);
-    for (int r = 0; r < 3; ++r) gu[r][j] = g[r];
-  }
-  __global float* out = dw + at * 9;
-  for (int r = 0; r < 3; ++r) {  // (G^T dU) G, row by row
-    g_adj_1d(gu[r], g);
-    for (int s = 0; s < 3; ++s) out[r * 3 + s] = g[s];
-  }
-}
 
 // Lanes k of the 8 tiles: element j + k * m of a row segment.
 inline v8 lanes(const float* seg, int j) {
@@ -192,6 +153,60 @@ inline void store_lanes(v8 v, __global float* p, int valid) {
   float tmp[VEC];
   vstore8(v, 0, tmp);
   for (int k = 0; k < valid; ++k) p[k] = tmp[k];
+}
+
+// ---- filters ---------------------------------------------------------------------------------
+// U[xi][co][ci] = (G g G^T)[xi], g = w[co][ci] (3x3); a work-item transforms 8 consecutive input
+// channels (lanes) of one filter. Global: (ceil(Cin / 8), Cout).
+__kernel void wino_filter_transform(__global const float* w, __global float* U, int Cin, int Cout) {
+  const int cg = get_global_id(0), co = get_global_id(1);
+  const int ci0 = cg * VEC, valid = min(VEC, Cin - ci0);
+  if (valid <= 0 || co >= Cout) return;
+  __global const float* g = w + ((long)co * Cin + ci0) * 9;
+  v8 taps[9];
+  for (int r = 0; r < 9; ++r) {
+    float tmp[VEC];
+    for (int k = 0; k < VEC; ++k) tmp[k] = k < valid ? g[k * 9 + r] : 0.0f;
+    taps[r] = vload8(0, tmp);
+  }
+  v8 col[3], u[WINO_A], gg[WINO_A][3];
+  for (int j = 0; j < 3; ++j) {  // G g, column by column
+    for (int i = 0; i < 3; ++i) col[i] = taps[i * 3 + j];
+    g_1d(col, u);
+    for (int i = 0; i < WINO_A; ++i) gg[i][j] = u[i];
+  }
+  const long plane = (long)Cout * Cin;
+  __global float* out = U + (long)co * Cin + ci0;
+  for (int i = 0; i < WINO_A; ++i) {  // (G g) G^T, row by row
+    g_1d(gg[i], u);
+    for (int j = 0; j < WINO_A; ++j) store_lanes(u[j], out + (i * WINO_A + j) * plane, valid);
+  }
+}
+
+// The adjoint: dw[co][ci] = G^T dU[.][co][ci] G (3x3), overwritten; 8 input channels a work-item.
+// Global: (ceil(Cin / 8), Cout).
+__kernel void wino_filter_backward(__global const float* dU, __global float* dw, int Cin, int Cout) {
+  const int cg = get_global_id(0), co = get_global_id(1);
+  const int ci0 = cg * VEC, valid = min(VEC, Cin - ci0);
+  if (valid <= 0 || co >= Cout) return;
+  const long plane = (long)Cout * Cin;
+  __global const float* p = dU + (long)co * Cin + ci0;
+  v8 u[WINO_A][WINO_A], col[WINO_A], g[3], gu[3][WINO_A];
+  for (int i = 0; i < WINO_A; ++i)
+    for (int j = 0; j < WINO_A; ++j) u[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
+  for (int j = 0; j < WINO_A; ++j) {  // G^T dU, column by column
+    for (int i = 0; i < WINO_A; ++i) col[i] = u[i][j];
+    g_adj_1d(col, g);
+    for (int r = 0; r < 3; ++r) gu[r][j] = g[r];
+  }
+  float taps[9][VEC];
+  for (int r = 0; r < 3; ++r) {  // (G^T dU) G, row by row
+    g_adj_1d(gu[r], g);
+    for (int s = 0; s < 3; ++s) vstore8(g[s], 0, taps[r * 3 + s]);
+  }
+  __global float* out = dw + ((long)co * Cin + ci0) * 9;
+  for (int k = 0; k < valid; ++k)
+    for (int r = 0; r < 9; ++r) out[k * 9 + r] = taps[r][k];
 }
 
 // ---- input tiles -----------------------------------------------------------------------------
@@ -264,43 +279,108 @@ __kernel void wino_input_backward(__global float* dV, int C, int th, int tw, int
   }
 }
 
+// Step 2: dx = the sum, over the tiles whose patch covers a pixel, of their dd there. Pixel row a of the
+// m x m block under tile (ty, tx) lies in tile ty (patch row a + 1), in tile ty + 1 when a = m - 1 (row 0)
+// and in tile ty - 1 when a = 0 (row m + 1); columns likewise. A work-item gathers the blocks under 8
+// tiles of a tile row: each term is one float8 load of 8 neighbouring tiles' values. Overwrites dx; the
+// mirror rows / columns of reflect padding are added by wino_input_gather_reflect after it.
+// Global: (N * th * ceil(tw / 8), C).
+inline v8 load_shifted(__global const float* p, int dtx, int tx0, int valid, int tw) {
+  if (valid == VEC && tx0 + dtx >= 0 && tx0 + dtx + VEC <= tw) return vload8(0, p + dtx);
+  float tmp[VEC];
+  for (int k = 0; k < VEC; ++k) {
+    const int tx = tx0 + k + dtx;
+    tmp[k] = (k < valid && tx >= 0 && tx < tw) ? p[k + dtx] : 0.0f;
+  }
+  return vload8(0, tmp);
+}
+
+__kernel void wino_input_gather(__global const float* dd, __global float* dx, int C, int H, int W, int th, int tw,
+                                int T) {
+  const int g = get_global_id(0), c = get_global_id(1);
+  if (g >= T / tw * ((tw + VEC - 1) / VEC) || c >= C) return;
+  TILE_GROUP_SETUP
+  const long plane = (long)C * T;
+  __global const float* tiles = dd + (long)c * T + t0;
+  __global float* img = dx + ((long)n * C + c) * H * W;
+  const int x0 = tx0 * WINO_M, xn = min(VEC * WINO_M, W - x0);
+  for (int a = 0; a < WINO_M; ++a) {
+    const int oy = ty * WINO_M + a;
+    if (oy >= H) break;
+    // (tile row offset, patch row) of each tile covering this pixel row.
+    int dty[3], pi[3], nr = 0;
+    dty[nr] = 0, pi[nr++] = a + 1;
+    if (a == WINO_M - 1 && ty + 1 < th) dty[nr] = 1, pi[nr++] = 0;
+    if (a == 0 && ty >= 1) dty[nr] = -1, pi[nr++] = WINO_M + 1;
+    float row[VEC * WINO_M], lane[VEC];
+    for (int b = 0; b < WINO_M; ++b) {
+      int dtx[3], pj[3], nc = 0;
+      dtx[nc] = 0, pj[nc++] = b + 1;
+      if (b == WINO_M - 1) dtx[nc] = 1, pj[nc++] = 0;
+      if (b == 0) dtx[nc] = -1, pj[nc++] = WINO_M + 1;
+      v8 acc = (v8)(0.0f);
+      for (int r = 0; r < nr; ++r)
+        for (int q = 0; q < nc; ++q)
+          acc += load_shifted(tiles + (pi[r] * WINO_A + pj[q]) * plane + (long)dty[r] * tw, dtx[q], tx0, valid, tw);
+      vstore8(acc, 0, lane);
+      for (int k = 0; k < VEC; ++k) row[k * WINO_M + b] = lane[k];
+    }
+    __global float* dst = img + (long)oy * W + x0;
+    for (int k = 0; k < xn; ++k) dst[k] = row[k];
+  }
+}
+
 // Sum over the tiles covering padded coordinate (p, q) of their dd at that coordinate.
 inline float wino_gather_point(__global const float* dd, long plane, long cbase, int p, int q, int n, int th, int tw) {
-  // Tile ty reads padded rows ty*m-1 .. ty*m-1+alpha-1.
-  const int ty_lo = max(0, (p + 1 - (WINO_A - 1) + WINO_M - 1) / WINO_M), ty_hi = min(th - 1, (p + 1) / WINO_M);
-  const int tx_lo = max(0, (q + 1 - (WINO_A - 1) + WINO_M - 1) / WINO_M), tx_hi = min(tw - 1, (q + 1) / WINO_M);
+  // Tile ty reads padded rows ty*m-1 .. ty*m+m. The lower bounds divide numbers >= -2; C's rounding
+  // towards zero can only raise a negative bound to 0, which max() gives anyway.
+  const int ty_lo = max(0, (p - 1) / WINO_M), ty_hi = min(th - 1, (p + 1) / WINO_M);
+  const int tx_lo = max(0, (q - 1) / WINO_M), tx_hi = min(tw - 1, (q + 1) / WINO_M);
   float acc = 0.0f;
   for (int ty = ty_lo; ty <= ty_hi; ++ty)
     for (int tx = tx_lo; tx <= tx_hi; ++tx) {
       const int i = p - (ty * WINO_M - 1), j = q - (tx * WINO_M - 1);
+      if (i < 0 || i >= WINO_A || j < 0 || j >= WINO_A) continue;
       acc += dd[(i * WINO_A + j) * plane + cbase + (long)(n * th + ty) * tw + tx];
     }
   return acc;
 }
 
-// Step 2: dx[n][c][y][x] = the sum over every padded coordinate that reads x[y][x] (the pixel itself and,
-// with reflect padding, the mirror row / column that copies it) of wino_gather_point. Overwrites dx.
-// Global: (W, H, N * C). The lower tile bounds above divide numbers >= -2; C's rounding towards zero
-// can only raise a negative bound to 0, which the max() gives anyway.
-__kernel void wino_input_gather(__global const float* dd, __global float* dx, int C, int H, int W, int th, int tw,
-                                int N, int mode) {
-  const int x = get_global_id(0), y = get_global_id(1), nc = get_global_id(2);
-  if (x >= W || y >= H || nc >= N * C) return;
+// Reflect padding only, after wino_input_gather: the padded coordinates -1 and H (W) copy rows 1 and H-2
+// (columns 1 and W-2), so those pixels also collect the tiles' dd at the mirror coordinates. Work-item
+// (i, side, n*C + c): side 0 / 1 walk rows 1 and H-2 (i = x), sides 2 / 3 columns 1 and W-2 (i = y, rows
+// already walked skipped), so each pixel is visited once.
+__kernel void wino_input_gather_reflect(__global const float* dd, __global float* dx, int C, int H, int W, int th,
+                                        int tw, int N) {
+  const int i = get_global_id(0), side = get_global_id(1), nc = get_global_id(2);
+  if (side >= 4 || nc >= N * C) return;
+  const bool row_side = side < 2;
+  if (i >= (row_side ? W : H)) return;
+  int y, x;
+  if (row_side) {
+    y = side == 0 ? 1 : H - 2;
+    x = i;
+    if (side == 1 && y == 1) return;  // H = 3: one row
+  } else {
+    x = side == 2 ? 1 : W - 2;
+    y = i;
+    if (side == 3 && x == 1) return;
+    if (y == 1 || y == H - 2) return;  // done by a row side
+  }
   const int n = nc / C, c = nc % C;
   const long T = (long)N * th * tw, plane = (long)C * T, cbase = (long)c * T;
   int ps[3], qs[3], np = 0, nq = 0;
   ps[np++] = y;
   qs[nq++] = x;
-  if (mode == PAD_REFLECT) {
-    if (y == 1) ps[np++] = -1;
-    if (y == H - 2) ps[np++] = H;
-    if (x == 1) qs[nq++] = -1;
-    if (x == W - 2) qs[nq++] = W;
-  }
+  if (y == 1) ps[np++] = -1;
+  if (y == H - 2) ps[np++] = H;
+  if (x == 1) qs[nq++] = -1;
+  if (x == W - 2) qs[nq++] = W;
   float acc = 0.0f;
   for (int a = 0; a < np; ++a)
-    for (int b = 0; b < nq; ++b) acc += wino_gather_point(dd, plane, cbase, ps[a], qs[b], n, th, tw);
-  dx[(((long)n * C + c) * H + y) * W + x] = acc;
+    for (int b = 0; b < nq; ++b)
+      if (a > 0 || b > 0) acc += wino_gather_point(dd, plane, cbase, ps[a], qs[b], n, th, tw);
+  dx[(((long)n * C + c) * H + y) * W + x] += acc;
 }
 
 // ---- output tiles ----------------------------------------------------------------------------

@@ -186,6 +186,8 @@ TEST_CASE("conv2d backward dx, dw, db match finite differences") {
     // Interior and partial 8-tile groups of the Winograd kernels (see the forward test).
     check_backward({1, 2, 3, 5, 70, 3, Padding::Reflect, false}, 112);
     check_backward({2, 2, 2, 7, 75, 3, Padding::Zero, false}, 113);
+    // 11 input channels: a full and a partial 8-channel group of the Winograd filter kernels.
+    check_backward({1, 11, 2, 5, 9, 3, Padding::Reflect, false}, 114);
   });
 }
 

@@ -4,6 +4,7 @@
 //   dX        dV[xi] [Cin, T] = U[xi]^T x dM[xi]
 //   dW        dU[xi] [Cout, Cin] = dM[xi] x V[xi]^T          (V recomputed from x, not kept from forward)
 // The transformed tensors are pooled temporaries, returned when the call ends.
+#include <algorithm>
 #include <string>
 
 #include "host/gemm.hpp"
@@ -45,7 +46,7 @@ void launch_wino(const Tiles& t, const char* kernel, const host::Range& global, 
 
 host::Tensor filter_transform(const Tiles& t, const ConvDims& d, const host::Tensor& w) {
   host::Tensor U({int64_t(t.alpha) * t.alpha, d.Cout, d.Cin}, "winograd filters");
-  launch_wino(t, "wino_filter_transform", {size_t(d.Cin), size_t(d.Cout)}, w, U, d.Cin, d.Cout);
+  launch_wino(t, "wino_filter_transform", {size_t(d.Cin + 7) / 8, size_t(d.Cout)}, w, U, d.Cin, d.Cout);
   return U;
 }
 
@@ -86,15 +87,17 @@ void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x
     const host::Tensor V = input_transform(t, d, x, mode);
     host::Tensor dU({int64_t(t.alpha) * t.alpha, d.Cout, d.Cin}, "winograd filter gradient");
     batched_gemm(t, Trans::No, Trans::Yes, d.Cout, d.Cin, t.T, dM, t.T, V, t.T, dU, d.Cin);
-    launch_wino(t, "wino_filter_backward", {size_t(d.Cin), size_t(d.Cout)}, dU, *dw, d.Cin, d.Cout);
+    launch_wino(t, "wino_filter_backward", {size_t(d.Cin + 7) / 8, size_t(d.Cout)}, dU, *dw, d.Cin, d.Cout);
   }
   if (dx) {
     const host::Tensor U = filter_transform(t, d, w);
     host::Tensor dV({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input-tile gradient");
     batched_gemm(t, Trans::Yes, Trans::No, d.Cin, t.T, d.Cout, U, d.Cin, dM, t.T, dV, t.T);
     launch_wino(t, "wino_input_backward", {t.groups, size_t(d.Cin)}, dV, d.Cin, t.th, t.tw, t.T);
-    launch_wino(t, "wino_input_gather", {size_t(d.W), size_t(d.H), size_t(d.N) * d.Cin}, dV, *dx, d.Cin, d.H, d.W,
-                t.th, t.tw, d.N, mode);
+    launch_wino(t, "wino_input_gather", {t.groups, size_t(d.Cin)}, dV, *dx, d.Cin, d.H, d.W, t.th, t.tw, t.T);
+    if (mode == 1)  // reflect: the mirror rows and columns add their share
+      launch_wino(t, "wino_input_gather_reflect", {size_t(std::max(d.W, d.H)), 4, size_t(d.N) * d.Cin}, dV, *dx,
+                  d.Cin, d.H, d.W, t.th, t.tw, d.N);
   }
 }
 
