@@ -325,3 +325,20 @@ TEST_CASE("conv2d bad shapes give clear errors") {
   e = error_of([&] { nn::conv2d_forward(Tensor::zeros({2, 4, 4}), w3, Tensor(), Padding::Zero); });
   CHECK(e.find("[N,Cin,H,W]") != std::string::npos);
 }
+
+TEST_CASE("conv algorithm names: parse, Auto's resolution, and a clear error for a bad name") {
+  CHECK(nn::parse_conv_algo("winograd4") == nn::ConvAlgo::Winograd4);
+  CHECK(error_of([] { nn::parse_conv_algo("fft"); }).find("unknown conv algorithm 'fft'") != std::string::npos);
+  // An explicit choice is kept; one whose tiles exceed the limit falls back to im2col.
+  CHECK(nn::resolve_conv_algo(nn::ConvAlgo::Winograd2, 8, 8, 16, 16) == nn::ConvAlgo::Winograd2);
+  {
+    ScratchLimit limit(1000);
+    CHECK(nn::resolve_conv_algo(nn::ConvAlgo::Winograd4, 8, 8, 16, 16) == nn::ConvAlgo::Im2col);
+  }
+  setenv("STYLERF_CONV_ALGO", "im2col", 1);
+  CHECK(nn::resolve_conv_algo(nn::ConvAlgo::Auto, 8, 8, 16, 16) == nn::ConvAlgo::Im2col);
+  setenv("STYLERF_CONV_ALGO", "bogus", 1);
+  CHECK(error_of([] { nn::resolve_conv_algo(nn::ConvAlgo::Auto, 8, 8, 16, 16); }).find("STYLERF_CONV_ALGO") !=
+        std::string::npos);
+  unsetenv("STYLERF_CONV_ALGO");
+}

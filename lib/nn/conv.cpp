@@ -10,8 +10,9 @@
 // when one image's col would exceed the scratch limit (256 MiB, or STYLERF_CONV_SCRATCH_BYTES, never more
 // than the device's max allocation) the image is processed in chunks of whole output rows; the GEMMs take
 // offsets and leading dimensions into the full tensors. The scratch is a pooled temporary of each call.
-// 3x3 convs run Winograd unless asked otherwise (conv_algo.hpp, conv_winograd.cpp). Those chunk loops are shared with the strided
-// conv (detail::conv_chunked_forward / _backward); this file supplies its im2col / col2im kernels.
+// Those chunk loops are shared with the strided conv (detail::conv_chunked_forward / _backward); this file
+// supplies its im2col / col2im kernels. 3x3 convs run Winograd unless asked otherwise (conv_algo.hpp,
+// conv_winograd.cpp): this file's im2col path is then the fallback and the reference.
 #include <algorithm>
 #include <cstdlib>
 #include <string>
