@@ -155,6 +155,16 @@ inline void store_lanes(v8 v, __global float* p, int valid) {
   for (int k = 0; k < valid; ++k) p[k] = tmp[k];
 }
 
+// out[.][j] = fn(in[.][j]) for each of the ncols columns: the first half of a 2-D transform (fn maps a
+// column of n_in values to one of n_out; the rows then go through fn directly).
+#define TRANSFORM_COLUMNS(fn, in, n_in, out, n_out, ncols) \
+  for (int j_ = 0; j_ < (ncols); ++j_) {                   \
+    v8 c_[WINO_A], r_[WINO_A];                              \
+    for (int i_ = 0; i_ < (n_in); ++i_) c_[i_] = in[i_][j_]; \
+    fn(c_, r_);                                             \
+    for (int i_ = 0; i_ < (n_out); ++i_) out[i_][j_] = r_[i_]; \
+  }
+
 // ---- filters ---------------------------------------------------------------------------------
 // U[xi][co][ci] = (G g G^T)[xi], g = w[co][ci] (3x3); a work-item transforms 8 consecutive input
 // channels (lanes) of one filter. Global: (ceil(Cin / 8), Cout).
@@ -163,18 +173,13 @@ __kernel void wino_filter_transform(__global const float* w, __global float* U, 
   const int ci0 = cg * VEC, valid = min(VEC, Cin - ci0);
   if (valid <= 0 || co >= Cout) return;
   __global const float* g = w + ((long)co * Cin + ci0) * 9;
-  v8 taps[9];
+  v8 g3[3][3], u[WINO_A], gg[WINO_A][3];
   for (int r = 0; r < 9; ++r) {
     float tmp[VEC];
     for (int k = 0; k < VEC; ++k) tmp[k] = k < valid ? g[k * 9 + r] : 0.0f;
-    taps[r] = vload8(0, tmp);
+    g3[r / 3][r % 3] = vload8(0, tmp);
   }
-  v8 col[3], u[WINO_A], gg[WINO_A][3];
-  for (int j = 0; j < 3; ++j) {  // G g, column by column
-    for (int i = 0; i < 3; ++i) col[i] = taps[i * 3 + j];
-    g_1d(col, u);
-    for (int i = 0; i < WINO_A; ++i) gg[i][j] = u[i];
-  }
+  TRANSFORM_COLUMNS(g_1d, g3, 3, gg, WINO_A, 3)  // G g
   const long plane = (long)Cout * Cin;
   __global float* out = U + (long)co * Cin + ci0;
   for (int i = 0; i < WINO_A; ++i) {  // (G g) G^T, row by row
@@ -191,14 +196,10 @@ __kernel void wino_filter_backward(__global const float* dU, __global float* dw,
   if (valid <= 0 || co >= Cout) return;
   const long plane = (long)Cout * Cin;
   __global const float* p = dU + (long)co * Cin + ci0;
-  v8 u[WINO_A][WINO_A], col[WINO_A], g[3], gu[3][WINO_A];
+  v8 u[WINO_A][WINO_A], g[3], gu[3][WINO_A];
   for (int i = 0; i < WINO_A; ++i)
     for (int j = 0; j < WINO_A; ++j) u[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
-  for (int j = 0; j < WINO_A; ++j) {  // G^T dU, column by column
-    for (int i = 0; i < WINO_A; ++i) col[i] = u[i][j];
-    g_adj_1d(col, g);
-    for (int r = 0; r < 3; ++r) gu[r][j] = g[r];
-  }
+  TRANSFORM_COLUMNS(g_adj_1d, u, WINO_A, gu, 3, WINO_A)  // G^T dU
   float taps[9][VEC];
   for (int r = 0; r < 3; ++r) {  // (G^T dU) G, row by row
     g_adj_1d(gu[r], g);
@@ -239,13 +240,8 @@ __kernel void wino_input_transform(__global const float* x, __global float* V, i
     }
     for (int j = 0; j < WINO_A; ++j) d[i][j] = lanes(seg, j);
   }
-  v8 col[WINO_A], tmp[WINO_A][WINO_A];
-  for (int j = 0; j < WINO_A; ++j) {  // B^T d, column by column
-    v8 r[WINO_A];
-    for (int i = 0; i < WINO_A; ++i) col[i] = d[i][j];
-    bt_1d(col, r);
-    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = r[i];
-  }
+  v8 tmp[WINO_A][WINO_A];
+  TRANSFORM_COLUMNS(bt_1d, d, WINO_A, tmp, WINO_A, WINO_A)  // B^T d
   const long plane = (long)C * T;
   __global float* out = V + (long)c * T + t0;
   for (int i = 0; i < WINO_A; ++i) {  // (B^T d) B, row by row
@@ -263,15 +259,10 @@ __kernel void wino_input_backward(__global float* dV, int C, int th, int tw, int
   TILE_GROUP_SETUP
   const long plane = (long)C * T;
   __global float* p = dV + (long)c * T + t0;
-  v8 v[WINO_A][WINO_A], tmp[WINO_A][WINO_A], col[WINO_A];
+  v8 v[WINO_A][WINO_A], tmp[WINO_A][WINO_A];
   for (int i = 0; i < WINO_A; ++i)
     for (int j = 0; j < WINO_A; ++j) v[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
-  for (int j = 0; j < WINO_A; ++j) {
-    v8 r[WINO_A];
-    for (int i = 0; i < WINO_A; ++i) col[i] = v[i][j];
-    b_adj_1d(col, r);
-    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = r[i];
-  }
+  TRANSFORM_COLUMNS(b_adj_1d, v, WINO_A, tmp, WINO_A, WINO_A)  // B dV
   for (int i = 0; i < WINO_A; ++i) {
     v8 r[WINO_A];
     b_adj_1d(tmp[i], r);
@@ -393,15 +384,10 @@ __kernel void wino_output_transform(__global const float* M, __global const floa
   TILE_GROUP_SETUP
   const long plane = (long)Cout * T;
   __global const float* p = M + (long)co * T + t0;
-  v8 v[WINO_A][WINO_A], tmp[WINO_M][WINO_A], col[WINO_A];
+  v8 v[WINO_A][WINO_A], tmp[WINO_M][WINO_A];
   for (int i = 0; i < WINO_A; ++i)
     for (int j = 0; j < WINO_A; ++j) v[i][j] = load_lanes(p + (i * WINO_A + j) * plane, valid);
-  for (int j = 0; j < WINO_A; ++j) {  // A^T M, column by column
-    v8 o[WINO_M];
-    for (int i = 0; i < WINO_A; ++i) col[i] = v[i][j];
-    at_1d(col, o);
-    for (int i = 0; i < WINO_M; ++i) tmp[i][j] = o[i];
-  }
+  TRANSFORM_COLUMNS(at_1d, v, WINO_A, tmp, WINO_M, WINO_A)  // A^T M
   const float b = has_bias ? bias[co] : 0.0f;
   __global float* img = y + ((long)n * Cout + co) * H * W;
   const int x0 = tx0 * WINO_M;
@@ -442,13 +428,8 @@ __kernel void wino_output_backward(__global const float* dy, __global float* dM,
     }
     for (int j = 0; j < WINO_M; ++j) d[i][j] = lanes(row, j);
   }
-  v8 tmp[WINO_A][WINO_M], col[WINO_M];
-  for (int j = 0; j < WINO_M; ++j) {  // A dY, column by column
-    v8 v[WINO_A];
-    for (int i = 0; i < WINO_M; ++i) col[i] = d[i][j];
-    a_adj_1d(col, v);
-    for (int i = 0; i < WINO_A; ++i) tmp[i][j] = v[i];
-  }
+  v8 tmp[WINO_A][WINO_M];
+  TRANSFORM_COLUMNS(a_adj_1d, d, WINO_M, tmp, WINO_A, WINO_M)  // A dY
   const long plane = (long)Cout * T;
   __global float* out = dM + (long)co * T + t0;
   for (int i = 0; i < WINO_A; ++i) {  // (A dY) A^T, row by row
