@@ -106,8 +106,15 @@ GemmEngine engine_from_environment_or_db() {
       throw Error(std::string("STYLERF_GEMM_ENGINE: ") + err.what());
     }
   }
+  // On a CPU device the host's BLAS works on the very memory the kernels use, and runs the decoder's
+  // GEMMs about twice as fast as the best OpenCL kernel there (bench gemm); it comes before any
+  // recommendation among the OpenCL engines.
+  if (host_blas_usable()) return GemmEngine::HostBlas;
   if (const DeviceTuning* t = current_device_tuning(); t && !t->recommended_engine.empty()) {
     GemmEngine e = parse_gemm_engine(t->recommended_engine);
+    // A database written by a build with a CBLAS may recommend host-blas to one without: the best
+    // OpenCL engine on CPUs is our own kernel.
+    if (e == GemmEngine::HostBlas) return GemmEngine::Own;
     if (e != GemmEngine::Auto) return e;
   }
   // Without a recommendation: CLBlast ships tunings for common GPUs but none for CPU drivers, where
@@ -136,14 +143,16 @@ const char* gemm_engine_name(GemmEngine e) {
     case GemmEngine::ClblastDefault: return "clblast-default";
     case GemmEngine::ClblastTuned: return "clblast-tuned";
     case GemmEngine::Own: return "own";
+    case GemmEngine::HostBlas: return "host-blas";
   }
   return "?";
 }
 
 GemmEngine parse_gemm_engine(const std::string& name) {
-  for (GemmEngine e : {GemmEngine::Auto, GemmEngine::ClblastDefault, GemmEngine::ClblastTuned, GemmEngine::Own})
+  for (GemmEngine e : {GemmEngine::Auto, GemmEngine::ClblastDefault, GemmEngine::ClblastTuned, GemmEngine::Own,
+                       GemmEngine::HostBlas})
     if (name == gemm_engine_name(e)) return e;
-  throw Error("unknown GEMM engine '" + name + "' (auto, clblast-default, clblast-tuned, own)");
+  throw Error("unknown GEMM engine '" + name + "' (auto, clblast-default, clblast-tuned, own, host-blas)");
 }
 
 void set_default_gemm_engine(GemmEngine e) { g_default = e; }
@@ -183,34 +192,40 @@ std::string clblast_tuning_status() {
   return clblast_state().status;
 }
 
-void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
-          size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, GemmEngine engine) {
-  if (M < 0 || N < 0 || K < 0)
-    throw Error("gemm: negative size M=" + std::to_string(M) + " N=" + std::to_string(N) + " K=" + std::to_string(K));
+void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
+                          size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
+                          size_t c_offset, int ldc, size_t c_stride, int batch, GemmEngine engine) {
+  if (M < 0 || N < 0 || K < 0 || batch < 0)
+    throw Error("gemm: negative size M=" + std::to_string(M) + " N=" + std::to_string(N) + " K=" + std::to_string(K) +
+                " batch=" + std::to_string(batch));
   // Row-major leading dimensions must cover a stored row; CLBlast checks this too, the own kernel relies on it.
   const int a_cols = ta == Trans::No ? K : M, b_cols = tb == Trans::No ? N : K;
   if (lda < std::max(1, a_cols) || ldb < std::max(1, b_cols) || ldc < std::max(1, N))
     throw Error("gemm: leading dimension too small (lda=" + std::to_string(lda) + " ldb=" + std::to_string(ldb) +
                 " ldc=" + std::to_string(ldc) + " for M=" + std::to_string(M) + " N=" + std::to_string(N) +
                 " K=" + std::to_string(K) + ")");
-  if (M == 0 || N == 0) return;
-  if (K == 0) {
-    // C = beta * C (BLAS semantics). CLBlast rejects K = 0, so every engine takes the own kernel's path.
-    gemm_own_with(own_gemm_params(), ta, tb, M, N, 0, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc);
+  if (M == 0 || N == 0 || batch == 0) return;
+  const GemmEngine e = resolve_gemm_engine(engine);
+  if (e == GemmEngine::HostBlas) {  // CBLAS gives K = 0 its BLAS meaning, C = beta * C
+    host_blas_gemm_batched(ta, tb, M, N, K, alpha, A, a_offset, lda, a_stride, B, b_offset, ldb, b_stride, beta, C,
+                           c_offset, ldc, c_stride, batch);
     return;
   }
-  switch (resolve_gemm_engine(engine)) {
-    case GemmEngine::Own:
-      gemm_own_with(own_gemm_params(), ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset,
-                    ldc);
-      return;
-    case GemmEngine::ClblastDefault:
-      clblast_gemm(ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, false);
-      return;
-    default:
-      clblast_gemm(ta, tb, M, N, K, alpha, A, a_offset, lda, B, b_offset, ldb, beta, C, c_offset, ldc, true);
-      return;
+  for (int i = 0; i < batch; ++i) {
+    const size_t ao = a_offset + i * a_stride, bo = b_offset + i * b_stride, co = c_offset + i * c_stride;
+    if (K == 0 || e == GemmEngine::Own) {
+      // K = 0 means C = beta * C (BLAS semantics). CLBlast rejects it, so every engine takes the own kernel's path.
+      gemm_own_with(own_gemm_params(), ta, tb, M, N, K, alpha, A, ao, lda, B, bo, ldb, beta, C, co, ldc);
+    } else {
+      clblast_gemm(ta, tb, M, N, K, alpha, A, ao, lda, B, bo, ldb, beta, C, co, ldc, e != GemmEngine::ClblastDefault);
+    }
   }
+}
+
+void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
+          size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, GemmEngine engine) {
+  gemm_strided_batched(ta, tb, M, N, K, alpha, A, a_offset, lda, 0, B, b_offset, ldb, 0, beta, C, c_offset, ldc, 0, 1,
+                       engine);
 }
 
 void matmul(const Tensor& A, Trans ta, const Tensor& B, Trans tb, Tensor& C, float alpha, float beta,

@@ -3,10 +3,13 @@
 // with op(X) = X or X^T, leading dimensions in elements and buffer offsets in elements.
 //
 // Engines: CLBlast with its built-in defaults, CLBlast with our per-device tuned parameters
-// (tuning/clblast.json, applied once per process with clblast::OverrideParameters), and our own
-// register-tiled kernel (kernels/gemm.cl). `Auto` resolves, in order: set_default_gemm_engine(), the
-// STYLERF_GEMM_ENGINE environment variable, the tuning database's recommendation for the device, and
-// finally `own` on CPU devices (CLBlast has no tuning for them) and tuned CLBlast elsewhere.
+// (tuning/clblast.json, applied once per process with clblast::OverrideParameters), our own
+// register-tiled kernel (kernels/gemm.cl), and, on CPU devices only, the host's CBLAS over the mapped
+// buffers (host/gemm_host_blas.cpp). `Auto` resolves, in order: set_default_gemm_engine(), the
+// STYLERF_GEMM_ENGINE environment variable, host-blas where it can run (a CPU device and a build with a
+// CBLAS), the tuning database's recommendation for the device, and finally `own` on CPU devices (CLBlast
+// has no tuning for them) and tuned CLBlast elsewhere. A recommendation of host-blas that this build or
+// device cannot run falls back to `own`.
 //
 // CLBlast's parameters are process-global per device. This module keeps CLBlast's built-in defaults
 // (read with RetrieveParameters before anything is overridden) and re-applies whichever set a call's
@@ -24,10 +27,11 @@
 namespace stylerf::host {
 
 enum class Trans { No, Yes };
-enum class GemmEngine { Auto, ClblastDefault, ClblastTuned, Own };
+enum class GemmEngine { Auto, ClblastDefault, ClblastTuned, Own, HostBlas };
 
 const char* gemm_engine_name(GemmEngine e);
-GemmEngine parse_gemm_engine(const std::string& name);  // "auto", "clblast-default", "clblast-tuned", "own"
+// "auto", "clblast-default", "clblast-tuned", "own", "host-blas"
+GemmEngine parse_gemm_engine(const std::string& name);
 
 // Engine used when a call passes GemmEngine::Auto (default Auto => device recommendation).
 void set_default_gemm_engine(GemmEngine e);
@@ -36,6 +40,16 @@ GemmEngine default_gemm_engine();
 void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
           size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc,
           GemmEngine engine = GemmEngine::Auto);
+
+// The same GEMM on `batch` operand sets, the i-th at X_offset + i * X_stride elements of each buffer. The
+// host-blas engine maps the buffers once for the whole batch; the OpenCL engines enqueue one GEMM each.
+void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
+                          size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
+                          size_t c_offset, int ldc, size_t c_stride, int batch, GemmEngine engine = GemmEngine::Auto);
+
+// host-blas: whether this build links a CBLAS, and whether it can run here (linked, and a CPU device).
+bool host_blas_linked();
+bool host_blas_usable();
 
 // Tensor convenience: C = alpha * op(A) op(B) + beta * C on 2-D tensors (shapes checked).
 void matmul(const Tensor& A, Trans ta, const Tensor& B, Trans tb, Tensor& C, float alpha = 1.0f, float beta = 0.0f,
@@ -48,6 +62,10 @@ GemmEngine resolve_gemm_engine(GemmEngine e);
 void gemm_own_with(const OwnGemmParams& params, Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A,
                    size_t a_offset, int lda, cl_mem B, size_t b_offset, int ldb, float beta, cl_mem C,
                    size_t c_offset, int ldc);
+// The host-blas engine itself (gemm_strided_batched() with engine HostBlas, minus the argument checks).
+void host_blas_gemm_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
+                            size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
+                            size_t c_offset, int ldc, size_t c_stride, int batch);
 // The own kernel's parameters for the runtime's device: the tuning database's, else built-in defaults.
 OwnGemmParams own_gemm_params();
 // Overrides own_gemm_params() for this process (used by `stylerf tune` while searching).

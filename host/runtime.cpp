@@ -283,6 +283,13 @@ void Runtime::record(const std::string& kernel_name, cl_event event) {
   if (pending_events_.size() > 4096) timings();  // bound the number of live events
 }
 
+void Runtime::record_host(const std::string& name, double ms) {
+  auto& t = totals_[name];
+  t.kernel = name;
+  t.launches += 1;
+  t.total_ms += ms;
+}
+
 std::vector<KernelTiming> Runtime::timings() {
   if (!pending_events_.empty()) {
     finish();

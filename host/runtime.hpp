@@ -72,6 +72,8 @@ class Runtime {
   void set_profiling(bool on) { profiling_ = on; }
   bool profiling() const { return profiling_; }
   void record(const std::string& kernel_name, cl_event event);
+  // Work done on the host between commands (the host-BLAS GEMM engine): added to the totals as is.
+  void record_host(const std::string& name, double ms);
   std::vector<KernelTiming> timings();
   void reset_timings();
   std::string timing_report();

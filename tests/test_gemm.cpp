@@ -32,6 +32,7 @@ struct Case {
   int pad_a = 0, pad_b = 0, pad_c = 0;  // extra columns beyond the stored row (leading dimension slack)
   size_t off_a = 0, off_b = 0, off_c = 0;
   float alpha = 1.0f, beta = 0.0f;
+  int batch = 0;  // 0: one GEMM through gemm(); n >= 1: gemm_strided_batched() on n operand sets
 };
 
 std::string describe(const Case& c) {
@@ -39,13 +40,17 @@ std::string describe(const Case& c) {
          " N=" + std::to_string(c.N) + " K=" + std::to_string(c.K) + " lda+" + std::to_string(c.pad_a) + " ldb+" +
          std::to_string(c.pad_b) + " ldc+" + std::to_string(c.pad_c) + " off " + std::to_string(c.off_a) + "/" +
          std::to_string(c.off_b) + "/" + std::to_string(c.off_c) + " alpha=" + std::to_string(c.alpha) +
-         " beta=" + std::to_string(c.beta);
+         " beta=" + std::to_string(c.beta) + (c.batch ? " batch=" + std::to_string(c.batch) : "");
 }
 
+// One operand: `count` matrices of rows x cols with leading dimension ld, the first at off, each next
+// one stride elements on (rows * ld plus a gap of 3, so a batch stride is not just the matrix size).
 struct Stored {
   int rows, cols, ld;
   size_t off;
-  size_t size() const { return off + static_cast<size_t>(rows) * ld; }
+  int count = 1;
+  size_t stride() const { return static_cast<size_t>(rows) * ld + 3; }
+  size_t size() const { return off + count * stride(); }
 };
 
 // Runs one case with one engine (or explicit own parameters) and compares with the double reference.
@@ -55,27 +60,31 @@ void run_case(const Case& c, GemmEngine engine, const OwnGemmParams* own = nullp
               float scale_b = 1.0f, std::optional<float> c_fill = std::nullopt) {
   const Stored sa{c.ta == Trans::No ? c.M : c.K, c.ta == Trans::No ? c.K : c.M, 0, c.off_a};
   const Stored sb{c.tb == Trans::No ? c.K : c.N, c.tb == Trans::No ? c.N : c.K, 0, c.off_b};
-  Stored A = sa, B = sb, C{c.M, c.N, c.N + c.pad_c, c.off_c};
+  const int count = std::max(1, c.batch);
+  Stored A = sa, B = sb, C{c.M, c.N, c.N + c.pad_c, c.off_c, count};
   A.ld = std::max(1, A.cols + c.pad_a);
   B.ld = std::max(1, B.cols + c.pad_b);
+  A.count = B.count = count;
   auto ha = random_normal(A.size(), 11 + c.M, scale_a);
   auto hb = random_normal(B.size(), 23 + c.N, scale_b);
   auto hc = random_normal(C.size(), 37 + c.K);
   if (c_fill)
     for (auto& v : hc) v = *c_fill;
-  auto at = [&](const std::vector<float>& v, const Stored& s, bool trans, int i, int k) {
-    return static_cast<double>(trans ? v[s.off + static_cast<size_t>(k) * s.ld + i] : v[s.off + static_cast<size_t>(i) * s.ld + k]);
+  auto at = [&](const std::vector<float>& v, const Stored& s, int n, bool trans, int i, int k) {
+    const size_t base = s.off + n * s.stride();
+    return static_cast<double>(trans ? v[base + static_cast<size_t>(k) * s.ld + i] : v[base + static_cast<size_t>(i) * s.ld + k]);
   };
   std::vector<double> want(hc.begin(), hc.end()), bound(hc.size(), 0.0);
+  for (int n = 0; n < count; ++n)
   for (int i = 0; i < c.M; ++i)
     for (int j = 0; j < c.N; ++j) {
       double s = 0.0, sabs = 0.0;
       for (int k = 0; k < c.K; ++k) {
-        const double p = at(ha, A, c.ta == Trans::Yes, i, k) * at(hb, B, c.tb == Trans::Yes, k, j);
+        const double p = at(ha, A, n, c.ta == Trans::Yes, i, k) * at(hb, B, n, c.tb == Trans::Yes, k, j);
         s += p;
         sabs += std::fabs(p);
       }
-      const size_t ci = c.off_c + static_cast<size_t>(i) * C.ld + j;
+      const size_t ci = c.off_c + n * C.stride() + static_cast<size_t>(i) * C.ld + j;
       const double old = c.beta == 0.0f ? 0.0 : c.beta * static_cast<double>(hc[ci]);
       want[ci] = c.alpha * s + old;
       bound[ci] = 4.0 * (c.K + 2) * std::ldexp(1.0, -24) * (std::fabs(c.alpha) * sabs + std::fabs(old)) + 1e-30;
@@ -86,6 +95,9 @@ void run_case(const Case& c, GemmEngine engine, const OwnGemmParams* own = nullp
   if (own)
     gemm_own_with(*own, c.ta, c.tb, c.M, c.N, c.K, c.alpha, ta.mem(), c.off_a, A.ld, tb.mem(), c.off_b, B.ld, c.beta,
                   tc.mem(), c.off_c, C.ld);
+  else if (c.batch)
+    gemm_strided_batched(c.ta, c.tb, c.M, c.N, c.K, c.alpha, ta.mem(), c.off_a, A.ld, A.stride(), tb.mem(), c.off_b,
+                         B.ld, B.stride(), c.beta, tc.mem(), c.off_c, C.ld, C.stride(), c.batch, engine);
   else
     gemm(c.ta, c.tb, c.M, c.N, c.K, c.alpha, ta.mem(), c.off_a, A.ld, tb.mem(), c.off_b, B.ld, c.beta, tc.mem(),
          c.off_c, C.ld, engine);
@@ -111,11 +123,18 @@ void run_case(const Case& c, GemmEngine engine, const OwnGemmParams* own = nullp
 
 const Trans kTrans[2] = {Trans::No, Trans::Yes};
 
+// Every engine this build and device can run: host-blas needs a CBLAS in the build and a CPU device.
+std::vector<GemmEngine> engines() {
+  std::vector<GemmEngine> e{GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault};
+  if (host_blas_usable()) e.push_back(GemmEngine::HostBlas);
+  return e;
+}
+
 }  // namespace
 
 TEST_CASE("every engine matches the reference for all transpose cases and odd sizes") {
   const int sizes[][3] = {{1, 1, 1}, {7, 33, 65}, {65, 7, 33}, {33, 129, 7}, {129, 65, 17}, {3, 70, 40}};
-  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault})
+  for (GemmEngine e : engines())
     for (Trans ta : kTrans)
       for (Trans tb : kTrans)
         for (const auto& s : sizes) {
@@ -127,12 +146,37 @@ TEST_CASE("every engine matches the reference for all transpose cases and odd si
 }
 
 TEST_CASE("offsets, leading dimensions, alpha and beta") {
-  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault})
+  for (GemmEngine e : engines())
     for (Trans ta : kTrans)
       for (Trans tb : kTrans) {
         Case c{ta, tb, 19, 37, 23, 3, 5, 2, 7, 13, 5, -1.5f, 0.75f};
         run_case(c, e);
       }
+}
+
+TEST_CASE("strided batches: every engine, batches below and above the thread count, tall and wide C") {
+  // host-blas splits a batch smaller than its thread count into blocks of C rows (tall C) or columns
+  // (wide C), and a larger batch into whole GEMMs per thread: all three shapes of work are covered.
+  const int shapes[][3] = {{70, 9, 13}, {9, 70, 13}, {33, 35, 1}};
+  for (GemmEngine e : engines())
+    for (int batch : {1, 2, 3, 36})
+      for (const auto& s : shapes)
+        for (Trans ta : kTrans)
+          for (Trans tb : kTrans) {
+            Case c{ta, tb, s[0], s[1], s[2], 1, 2, 3, 4, 5, 6, 0.5f, batch % 2 ? -1.0f : 0.0f};
+            c.batch = batch;
+            run_case(c, e);
+          }
+}
+
+TEST_CASE("gemm_strided_batched: batch 0 leaves C alone, a negative batch is an error") {
+  Tensor a = Tensor::full({4}, 1.0f), c = Tensor::full({4}, 7.0f);
+  gemm_strided_batched(Trans::No, Trans::No, 2, 2, 1, 1.0f, a.mem(), 0, 1, 2, a.mem(), 0, 2, 2, 0.0f, c.mem(), 0, 2, 4,
+                       0);
+  for (float v : c.to_host()) CHECK(v == 7.0f);
+  CHECK_THROWS_AS(gemm_strided_batched(Trans::No, Trans::No, 2, 2, 1, 1.0f, a.mem(), 0, 1, 2, a.mem(), 0, 2, 2, 0.0f,
+                                       c.mem(), 0, 2, 4, -1),
+                  Error);
 }
 
 TEST_CASE("own kernel: every tile shape the tuner may pick, K chunking and work-group sizes") {
@@ -147,21 +191,24 @@ TEST_CASE("own kernel: every tile shape the tuner may pick, K chunking and work-
 }
 
 TEST_CASE("K = 0 gives C = beta * C for every engine") {
-  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned, GemmEngine::ClblastDefault}) {
+  for (GemmEngine e : engines()) {
     run_case(Case{Trans::No, Trans::No, 9, 17, 0, 0, 0, 1, 0, 0, 2, 2.0f, 0.5f}, e);
     run_case(Case{Trans::No, Trans::Yes, 9, 17, 0, 0, 0, 0, 0, 0, 0, 2.0f, 0.0f}, e);
   }
 }
 
-TEST_CASE("beta = 0 ignores NaN in C (the own engine, which Auto uses on CPUs)") {
-  for (Trans ta : kTrans)
-    for (Trans tb : kTrans)
-      run_case(Case{ta, tb, 13, 21, 9}, GemmEngine::Own, nullptr, 1.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
+TEST_CASE("beta = 0 ignores NaN in C (the CPU engines: own, and host-blas where it runs)") {
+  std::vector<GemmEngine> cpu{GemmEngine::Own};
+  if (host_blas_usable()) cpu.push_back(GemmEngine::HostBlas);
+  for (GemmEngine e : cpu)
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans)
+        run_case(Case{ta, tb, 13, 21, 9}, e, nullptr, 1.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
 }
 
 TEST_CASE("huge and tiny magnitudes stay finite and accurate") {
   // |a b| ~ 1e36 summed over K = 40 stays below FLT_MAX (3.4e38); tiny: |a b| ~ 1e-30, far from denormals.
-  for (GemmEngine e : {GemmEngine::Own, GemmEngine::ClblastTuned})
+  for (GemmEngine e : engines())
     for (Trans tb : kTrans) {
       run_case(Case{Trans::No, tb, 17, 33, 40}, e, nullptr, 1e18f, 1e18f);
       run_case(Case{Trans::No, tb, 17, 33, 40}, e, nullptr, 1e-15f, 1e-15f);
@@ -179,6 +226,18 @@ TEST_CASE("matmul checks shapes") {
 
 TEST_CASE("engine names and resolution") {
   CHECK(parse_gemm_engine("own") == GemmEngine::Own);
+  CHECK(parse_gemm_engine("host-blas") == GemmEngine::HostBlas);
+  CHECK(std::string(gemm_engine_name(GemmEngine::HostBlas)) == "host-blas");
+  // host-blas is usable exactly when the build links a CBLAS and the device is a CPU; elsewhere a call
+  // naming it is an error that says why, never a silent switch.
+  const bool cpu = Runtime::instance().device().type & CL_DEVICE_TYPE_CPU;
+  CHECK(host_blas_usable() == (host_blas_linked() && cpu));
+  if (!host_blas_usable()) {
+    Tensor a = Tensor::full({4}, 1.0f), c = Tensor::zeros({4});
+    CHECK_THROWS_AS(gemm(Trans::No, Trans::No, 2, 2, 2, 1.0f, a.mem(), 0, 2, a.mem(), 0, 2, 0.0f, c.mem(), 0, 2,
+                         GemmEngine::HostBlas),
+                    Error);
+  }
   CHECK_THROWS_AS(parse_gemm_engine("fast"), Error);
   CHECK(resolve_gemm_engine(GemmEngine::Auto) != GemmEngine::Auto);
   set_default_gemm_engine(GemmEngine::ClblastDefault);

@@ -353,13 +353,15 @@ int run_tune(int argc, char** argv) {
   use_device_tuning(entry);
   const double tuned = flops / time_engine(bufs, 1, GemmEngine::ClblastTuned) * 1e-9;
   const double deflt = flops / time_engine(bufs, 1, GemmEngine::ClblastDefault) * 1e-9;
-  std::cout << "  own " << fmt(own_gflops) << ", clblast-tuned " << fmt(tuned) << ", clblast-default " << fmt(deflt)
-            << " GFLOP/s\n";
-  entry.recommended_engine = own_gflops >= std::max(tuned, deflt) ? "own"
-                             : tuned >= deflt                     ? "clblast-tuned"
-                                                                  : "clblast-default";
-  entry.notes["measured_gflops"] = "own " + fmt(own_gflops) + ", clblast-tuned " + fmt(tuned) + ", clblast-default " +
-                                   fmt(deflt) + " (decoder GEMMs at " + std::to_string(shapes[0].N) + " pixels, " +
+  // host-blas runs only on CPU devices of builds with a CBLAS; elsewhere it is not a candidate.
+  const double hblas = host_blas_usable() ? flops / time_engine(bufs, 1, GemmEngine::HostBlas) * 1e-9 : 0.0;
+  std::string measured = "own " + fmt(own_gflops) + ", clblast-tuned " + fmt(tuned) + ", clblast-default " + fmt(deflt);
+  if (host_blas_usable()) measured += ", host-blas " + fmt(hblas);
+  std::cout << "  " << measured << " GFLOP/s\n";
+  const std::pair<double, const char*> candidates[] = {
+      {own_gflops, "own"}, {tuned, "clblast-tuned"}, {deflt, "clblast-default"}, {hblas, "host-blas"}};
+  entry.recommended_engine = std::max_element(std::begin(candidates), std::end(candidates))->second;
+  entry.notes["measured_gflops"] = measured + " (decoder GEMMs at " + std::to_string(shapes[0].N) + " pixels, " +
                                    now_utc() + ")";
   entry.notes["driver"] = dev.driver;
   std::cout << "  recommended engine: " << entry.recommended_engine << "\n";

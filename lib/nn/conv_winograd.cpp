@@ -60,9 +60,8 @@ host::Tensor input_transform(const Tiles& t, const ConvDims& d, const host::Tens
 void batched_gemm(const Tiles& t, Trans ta, Trans tb, int M, int N, int K, const host::Tensor& A, int lda,
                   const host::Tensor& B, int ldb, host::Tensor& C, int ldc) {
   const size_t a_plane = size_t(M) * K, b_plane = size_t(K) * N, c_plane = size_t(M) * N;
-  for (int xi = 0; xi < t.alpha * t.alpha; ++xi)
-    host::gemm(ta, tb, M, N, K, 1.0f, A.mem(), xi * a_plane, lda, B.mem(), xi * b_plane, ldb, 0.0f, C.mem(),
-               xi * c_plane, ldc);
+  host::gemm_strided_batched(ta, tb, M, N, K, 1.0f, A.mem(), 0, lda, a_plane, B.mem(), 0, ldb, b_plane, 0.0f, C.mem(), 0,
+                             ldc, c_plane, t.alpha * t.alpha);
 }
 
 }  // namespace
