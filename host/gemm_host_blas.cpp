@@ -7,8 +7,8 @@
 // engine reports itself unavailable and Auto never picks it.
 #include <algorithm>
 #include <chrono>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "host/error.hpp"
