@@ -49,7 +49,7 @@ int run_train_features(int argc, char** argv) {
       "tv", po::value(&tv), "feature TV weight (default: 10 Blender, 80 LLFF)")(
       "lr-grid", po::value(&lr_grid), "feature grid learning rate (default 0.02)")(
       "lr-basis", po::value(&lr_basis), "basis matrix (and background feature) learning rate (default 1e-2)")(
-      "lr-decoder", po::value(&lr_decoder), "decoder learning rate (default 1e-4 fast, 5e-4 paper)")(
+      "lr-decoder", po::value(&lr_decoder), "decoder learning rate (default 2e-4 fast, 5e-4 paper)")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(

