@@ -9,7 +9,9 @@
 //    recomputed), different images give different keys;
 //  - hard style images: 1x1 grey, 16-bit PNG, CMYK JPEG (tests/data/styles) give finite codes and images;
 //    a text file named .png is an error naming the file; a style folder skips it;
-//  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image.
+//  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image;
+//  - supersampled content: the mean of the n x n sub-ray renders (c, opacities, depth, region mask), one
+//    ray per block centre at n = 1, and out-of-range n refused.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -196,6 +198,61 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
   CHECK(worst_single < 1e-4);
   const auto plain = m.render_camera_content(sc, cam);
   testing::expect_error([&] { m.stylize_camera_regions(plain, a, b, cam.width, cam.height); }, "without a region");
+}
+
+TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  // The reference: render_content on the rays of each sub-position, summed in double.
+  auto reference = [&](int n) {
+    int w = 0, h = 0;
+    model::block_rays(sc, cam, m.stride(), w, h);
+    const size_t R = size_t(w) * h;
+    std::vector<double> c(R * 32, 0.0), k(R, 0.0), a(R, 0.0), d(R, 0.0);
+    for (int sy = 0; sy < n; ++sy)
+      for (int sx = 0; sx < n; ++sx) {
+        const auto rays = model::block_rays(sc, cam, m.stride(), w, h, (sx + 0.5f) / n, (sy + 0.5f) / n);
+        const auto part = m.render_content(Tensor::from_host(rays.origins, {int64_t(R), 3}),
+                                           Tensor::from_host(rays.directions, {int64_t(R), 3}), false, 0, nullptr);
+        const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host(),
+                   pd = part.depth.to_host();
+        for (size_t i = 0; i < c.size(); ++i) c[i] += pc[i] / (n * n);
+        for (size_t i = 0; i < R; ++i) k[i] += pk[i] / (n * n), a[i] += pa[i] / (n * n), d[i] += pd[i] / (n * n);
+      }
+    return std::vector<std::vector<double>>{c, k, a, d};
+  };
+  auto worst_rel = [](const std::vector<float>& got, const std::vector<double>& want) {
+    double scale = 1e-12, worst = 0;
+    for (double v : want) scale = std::max(scale, std::abs(v));
+    for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
+    return got.size() == want.size() ? worst / scale : 1e9;
+  };
+  const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
+  const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
+  for (int n : {1, 2, 3}) {
+    CAPTURE(n);
+    const auto cc = m.render_camera_content(sc, cam, 333, &everything, n);  // chunks cut across rows
+    const auto ref = reference(n);
+    CHECK(worst_rel(cc.content.c.to_host(), ref[0]) < 1e-6);
+    CHECK(worst_rel(cc.content.kept_acc.to_host(), ref[1]) < 1e-6);
+    CHECK(worst_rel(cc.content.acc.to_host(), ref[2]) < 1e-6);
+    CHECK(worst_rel(cc.content.depth.to_host(), ref[3]) < 1e-6);
+    // Everything inside the region: 1 wherever anything was kept, whatever the sub-rays' share.
+    const auto kept = cc.content.kept_acc.to_host();
+    for (size_t i = 0; i < kept.size(); ++i)
+      if (kept[i] > 1e-3f) CHECK(cc.region_mask[i] == doctest::Approx(1.0).epsilon(1e-4));
+  }
+  // Sub-rays see different things: at n = 2 the map is not the centre rays' map (else the test above
+  // would pass for a supersampling that ignored its offsets).
+  const auto one = m.render_camera_content(sc, cam, 4096, nullptr, 1).content.acc.to_host();
+  const auto two = m.render_camera_content(sc, cam, 4096, nullptr, 2).content.acc.to_host();
+  double moved = 0;
+  for (size_t i = 0; i < one.size(); ++i) moved = std::max(moved, double(std::abs(one[i] - two[i])));
+  CHECK(moved > 1e-3);
+  testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, -1); }, "supersample must be in 1..8");
+  testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 0); }, "supersample must be in 1..8");
+  testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 9); }, "supersample must be in 1..8");
 }
 
 TEST_CASE("background compositing uses the rendered opacity") {

@@ -56,6 +56,8 @@ int run_consistency(int argc, char** argv) {
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
       "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
+      "supersample", po::value(&p.supersample)->default_value(1),
+      "stylerf: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -102,7 +104,8 @@ int run_consistency(int argc, char** argv) {
   if (method == "stylerf") {
     stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
     stylerf::style::StyleEncoder enc(styled->dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
-    frames = eval::stylerf_frames(*styled, scene, path.cams, enc.encode(style_path).code, scene.effects.background);
+    frames = eval::stylerf_frames(*styled, scene, path.cams, enc.encode(style_path).code, scene.effects.background,
+                                   p.chunk, p.supersample);
   } else {
     frames = eval::rgb_frames(*density, scene, path.cams, p.chunk);
     if (method == "adain") {

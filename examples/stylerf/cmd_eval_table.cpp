@@ -169,6 +169,8 @@ int run_eval_table(int argc, char** argv) {
                                                           "side-by-side video frame rate")(
       "output,o", po::value(&out), "output directory")("chunk", po::value(&p.chunk)->default_value(8192),
                                                         "rays per renderer call")(
+      "supersample", po::value(&p.supersample)->default_value(1),
+      "StyleRF: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -278,7 +280,8 @@ int run_eval_table(int argc, char** argv) {
       if (si == 0) first_adain = a;
       for (size_t mi = 0; mi < models.size(); ++mi) {
         const auto f =
-            eval::stylerf_frames(*models[mi], scene, path.cams, encoders[mi]->encode(st).code, scene.effects.background);
+            eval::stylerf_frames(*models[mi], scene, path.cams, encoders[mi]->encode(st).code, scene.effects.background,
+                                p.chunk, p.supersample);
         style_rows[mi].styles.push_back(st);
         style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));
         std::cout << "    " << style_rows[mi].name << ": " << score_line(style_rows[mi].scores.back()) << "\n";
@@ -327,6 +330,8 @@ int run_eval_table(int argc, char** argv) {
      << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
      << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
      << (lpips ? lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
+     << ". StyleRF content: " << p.supersample << "x" << p.supersample
+     << (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)")
      << ". Means over styles and frame pairs. Plot colours: ";
   for (size_t i = 0; i < (results.empty() ? 0 : results.front().methods.size()); ++i)
     md << (i ? ", " : "") << results.front().methods[i].name << " " << eval::plot_colour_name(int(i));
@@ -356,6 +361,7 @@ int run_eval_table(int argc, char** argv) {
   const double total = seconds_since(t_all);
   md << "\n(" << fmt(total, 0) << " s in all)\n";
   nlohmann::json doc = {{"frames", p.frames},         {"path_frames", p.path_frames}, {"depth_tolerance", p.depth_tolerance},
+                        {"supersample", p.supersample},
                         {"lpips", lpips ? lpips_net : std::string("none")}, {"seconds", total},          {"scenes", nlohmann::json::array()}};
   for (const auto& r : results) doc["scenes"].push_back(r.json);
   host::write_file_atomic((fs::path(out) / "table.md").string(), md.str());

@@ -82,10 +82,10 @@ std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<
 
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
-                                      bool over_background, int chunk) {
+                                      bool over_background, int chunk, int supersample) {
   std::vector<io::Image> out;
   for (const auto& cam : cams) {
-    const auto cc = m.render_camera_content(scene, cam, chunk);
+    const auto cc = m.render_camera_content(scene, cam, chunk, nullptr, supersample);
     auto rgb = m.stylize_camera(cc, code, cam.width, cam.height);
     if (over_background) m.over_background(rgb, cc, cam.width, cam.height);
     out.push_back(planar_image(rgb, cam.width, cam.height));

@@ -38,9 +38,10 @@ std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<
                                     const io::Image& style_image);
 
 // over_background: composite over the scene's background by the rendered opacity (as `stylize` does).
+// supersample: content rays per feature-map block and axis (StyleModel::render_camera_content).
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
-                                      bool over_background, int chunk = 4096);
+                                      bool over_background, int chunk = 4096, int supersample = 1);
 
 // Interleaved [h][w][3] -> planar image (no clamping).
 io::Image planar_image(const std::vector<float>& interleaved, int width, int height);

@@ -55,7 +55,8 @@ FeatureModel FeatureModel::create(const Geometry& geo, const FeatureFieldConfig&
 
 // Rays through the centres of the stride x stride blocks of the full camera (NDC from the full camera, so
 // the ray space is exactly the one training used, whatever the rounding of the map's size).
-scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h) {
+scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h, float fx,
+                       float fy) {
   w = (cam.width + stride - 1) / stride;
   h = (cam.height + stride - 1) / stride;
   scene::Rays r;
@@ -66,7 +67,7 @@ scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int 
       const size_t i = size_t(y) * w + x;
       float* o = &r.origins[3 * i];
       float* d = &r.directions[3 * i];
-      scene::pixel_ray(cam, stride * (x + 0.5f), stride * (y + 0.5f), o, d);
+      scene::pixel_ray(cam, stride * (x + fx), stride * (y + fy), o, d);
       if (scene.effects.ndc) scene::to_ndc(cam, scene.ndc_near, o, d);
     }
   return r;

@@ -69,8 +69,10 @@ class FeatureModel : public nn::Module {
 };
 
 // Rays through the centres of the stride x stride blocks of `cam` (w = ceil(W/s), h = ceil(H/s) of them,
-// row-major), in the scene's ray space; NDC uses the full camera, exactly as training rays do.
-scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h);
+// row-major), in the scene's ray space; NDC uses the full camera, exactly as training rays do. (fx, fy) in
+// [0, 1) moves every ray to that fraction of its block (0.5, 0.5: the centre; supersampling uses others).
+scene::Rays block_rays(const scene::Scene& scene, const scene::Camera& cam, int stride, int& w, int& h,
+                       float fx = 0.5f, float fy = 0.5f);
 
 // The camera for a feature map rendered at 1/stride of its resolution: ceil(W/s) x ceil(H/s) pixels whose
 // centres sit at the centres of the full-resolution s x s blocks (feature (j + 0.5) <-> pixel s (j + 0.5)).

@@ -122,43 +122,66 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
 }
 
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
-                                                            int chunk, const RegionHead* region) const {
+                                                            int chunk, const RegionHead* region, int supersample) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
+  if (supersample < 1 || supersample > kMaxSupersample)
+    throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
+                std::to_string(supersample));
   int w = 0, h = 0;
-  const scene::Rays rays = block_rays(scene, cam, stride(), w, h);
+  block_rays(scene, cam, stride(), w, h);  // the map's size
   const int64_t n = int64_t(w) * h;
-  std::vector<float> c(size_t(n) * style::Sict::kEmbed);
-  std::vector<float> kept_acc(static_cast<size_t>(n)), acc(static_cast<size_t>(n)), depth(static_cast<size_t>(n));
+  const int E = style::Sict::kEmbed;
+  // Sums over the sub-rays of each block; divided by their count at the end.
+  std::vector<double> c(size_t(n) * E, 0.0), kept_acc(size_t(n), 0.0), acc(size_t(n), 0.0), depth(size_t(n), 0.0);
+  std::vector<double> inside(region ? size_t(n) : 0, 0.0);
   CameraContent out;
   out.width = w;
   out.height = h;
-  if (region) out.region_mask.assign(static_cast<size_t>(n), 0.0f);
-  for (int64_t b = 0; b < n; b += chunk) {
-    const int64_t R = std::min<int64_t>(chunk, n - b);
-    std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
-    std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
-    const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
-    const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
-    const Content part = render_content(origins, dirs, false, 0, nullptr);
-    const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
-    const auto pd = part.depth.to_host();
-    std::copy(pc.begin(), pc.end(), c.begin() + b * style::Sict::kEmbed);
-    std::copy(pk.begin(), pk.end(), kept_acc.begin() + b);
-    std::copy(pa.begin(), pa.end(), acc.begin() + b);
-    std::copy(pd.begin(), pd.end(), depth.begin() + b);
-    out.content.samples += part.samples;
-    out.content.kept += part.kept;
-    if (region) {
-      // The same rays, the same kept samples (no jitter), the indicator as the value.
-      const auto inside = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
-      for (int64_t r = 0; r < R; ++r)
-        out.region_mask[size_t(b + r)] = pk[size_t(r)] > 1e-6f ? std::clamp(inside[size_t(r)] / pk[size_t(r)], 0.0f, 1.0f) : 0.0f;
+  for (int sy = 0; sy < supersample; ++sy)
+    for (int sx = 0; sx < supersample; ++sx) {
+      const float fx = (sx + 0.5f) / float(supersample), fy = (sy + 0.5f) / float(supersample);
+      const scene::Rays rays = block_rays(scene, cam, stride(), w, h, fx, fy);
+      for (int64_t b = 0; b < n; b += chunk) {
+        const int64_t R = std::min<int64_t>(chunk, n - b);
+        std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
+        std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
+        const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
+        const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
+        const Content part = render_content(origins, dirs, false, 0, nullptr);
+        const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+        const auto pd = part.depth.to_host();
+        for (int64_t i = 0; i < R * E; ++i) c[size_t(b * E + i)] += pc[size_t(i)];
+        for (int64_t r = 0; r < R; ++r) {
+          kept_acc[size_t(b + r)] += pk[size_t(r)];
+          acc[size_t(b + r)] += pa[size_t(r)];
+          depth[size_t(b + r)] += pd[size_t(r)];
+        }
+        out.content.samples += part.samples;
+        out.content.kept += part.kept;
+        if (region) {
+          // The same rays, the same kept samples (no jitter), the indicator as the value.
+          const auto in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+          for (int64_t r = 0; r < R; ++r) inside[size_t(b + r)] += in[size_t(r)];
+        }
+      }
+    }
+  const double inv = 1.0 / (double(supersample) * supersample);
+  auto mean_of = [&](const std::vector<double>& sum) {
+    std::vector<float> m(sum.size());
+    for (size_t i = 0; i < sum.size(); ++i) m[i] = float(sum[i] * inv);
+    return m;
+  };
+  if (region) {
+    out.region_mask.assign(static_cast<size_t>(n), 0.0f);
+    for (int64_t r = 0; r < n; ++r) {
+      const double k = kept_acc[size_t(r)] * inv;  // mean kept weight; 1e-6 as for one ray
+      out.region_mask[size_t(r)] = k > 1e-6 ? float(std::clamp(inside[size_t(r)] / kept_acc[size_t(r)], 0.0, 1.0)) : 0.0f;
     }
   }
-  out.content.c = Tensor::from_host(c, {n, style::Sict::kEmbed}, "camera content");
-  out.content.kept_acc = Tensor::from_host(kept_acc, {n}, "camera kept opacity");
-  out.content.acc = Tensor::from_host(acc, {n}, "camera opacity");
-  out.content.depth = Tensor::from_host(depth, {n}, "camera depth");
+  out.content.c = Tensor::from_host(mean_of(c), {n, E}, "camera content");
+  out.content.kept_acc = Tensor::from_host(mean_of(kept_acc), {n}, "camera kept opacity");
+  out.content.acc = Tensor::from_host(mean_of(acc), {n}, "camera opacity");
+  out.content.depth = Tensor::from_host(mean_of(depth), {n}, "camera depth");
   return out;
 }
 

@@ -23,6 +23,7 @@ namespace stylerf::model {
 
 enum StyleGroup { kGroupStylizer = 0, kGroupStyleDecoder = 1 };
 constexpr float kStyleWeightThreshold = 1e-3f;  // samples below this weight never reach SICT
+constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render_camera_content)
 
 // The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
 class SictHead : public SampleHead {
@@ -96,8 +97,16 @@ class StyleModel : public nn::Module {
     std::vector<float> region_mask;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
+  // supersample n > 1: n x n rays per block, spread evenly over it, and their content averaged (c, w_r,
+  // acc, depth; the region mask as inside weight over kept weight of the block). Training renders one ray
+  // per block centre, a point sample of the map; the average is its area integral, which moves smoothly as
+  // the camera moves (fine geometry such as fern's leaves otherwise flickers in and out of the block
+  // centres). DST is affine in (c, w_r) and SICT runs per point, so averaging content is averaging what
+  // each sub-ray's map would have been before the decoder. Costs up to n^2 x the content render; matters
+  // for the fast profile, whose one ray per block stands for 16 pixels (README: what n = 2 buys on the
+  // consistency table and costs a frame).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
-                                      const RegionHead* region = nullptr) const;
+                                      const RegionHead* region = nullptr, int supersample = 1) const;
   // RGB interleaved [H*W*3] in [0,1] (clamped) of a camera's content under a style code, cut to the
   // camera's size.
   std::vector<float> stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w, int cam_h) const;
