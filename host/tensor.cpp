@@ -30,10 +30,11 @@ Buffer::Buffer(size_t bytes, const std::string& what, const std::string& detail)
 
 Buffer::~Buffer() {
   if (!mem_) return;
-  if (Runtime::initialised())
-    Runtime::instance().release(mem_, bytes_);
-  else
-    clReleaseMemObject(mem_);  // runtime already gone (process exit)
+  // A buffer that outlives the runtime belongs to a static cache (e.g. the grid scatter's scratch)
+  // destroyed at process exit, after Runtime::shutdown(): it is left to the OS. Releasing it would call the
+  // driver from a static destructor, after the driver's own thread-locals and statics may be gone
+  // (Oclgrind's runtime wrote to its freed per-thread call stack there: "corrupted double-linked list").
+  if (Runtime::initialised()) Runtime::instance().release(mem_, bytes_);
 }
 
 namespace {

@@ -74,15 +74,16 @@ typedef struct {
 // Align-corners coordinate -> lower tap index in [0, n-2] and fraction in [0,1] (p = +1 gives n-2, 1),
 // the three axes at once. Only for p inside [-1,1]^3 (callers check inside_box or clamp): then f >= 0 and
 // truncation is floor (PoCL's floor() is a dozen branchy instructions per call).
-ALWAYS_INLINE PointCell point_cell(const VMLayout* L, float3 p) {
+// This and cell_taps fill an out-parameter rather than return the struct: a struct return is an sret
+// pointer, which clang marks noalias, and inlining it leaves llvm.experimental.noalias.scope.decl calls
+// that Oclgrind's interpreter cannot run (scripts/oclgrind.sh); once inlined, the code is the same.
+ALWAYS_INLINE void point_cell(const VMLayout* L, float3 p, PointCell* c) {
   const int4 n = (int4)(L->res[0], L->res[1], L->res[2], 2);
   const float4 f = ((float4)(p, -1.0f) + 1.0f) * 0.5f * convert_float4(n - 1);
   const int4 i = min(convert_int4(f), n - 2);
   const float4 fr = clamp(f - convert_float4(i), 0.0f, 1.0f);
-  PointCell c;
-  c.i[0] = i.x; c.i[1] = i.y; c.i[2] = i.z;
-  c.f[0] = fr.x; c.f[1] = fr.y; c.f[2] = fr.z;
-  return c;
+  c->i[0] = i.x; c->i[1] = i.y; c->i[2] = i.z;
+  c->f[0] = fr.x; c->f[1] = fr.y; c->f[2] = fr.z;
 }
 
 // Taps of one mode: 4 plane taps and 2 line taps (element offsets of rank 0) and their weights.
@@ -94,26 +95,25 @@ typedef struct {
   int R;
 } ModeTaps;
 
-ALWAYS_INLINE ModeTaps cell_taps(const VMLayout* L, const PointCell* c, int m) {
-  ModeTaps T;
+ALWAYS_INLINE void cell_taps(const VMLayout* L, const PointCell* c, int m, ModeTaps* T) {
   const int u = mode_u(m), v = mode_v(m), w = mode_w(m);
   const int nu = L->res[u], R = RANK_OF(L, m);
   const float fu = c->f[u], fv = c->f[v], fw = c->f[w];
   const int base = L->plane_off[m] + (c->i[v] * nu + c->i[u]) * R;
-  T.pt[0] = base;               T.pw[0] = (1.0f - fu) * (1.0f - fv);
-  T.pt[1] = base + R;           T.pw[1] = fu * (1.0f - fv);
-  T.pt[2] = base + nu * R;      T.pw[2] = (1.0f - fu) * fv;
-  T.pt[3] = base + nu * R + R;  T.pw[3] = fu * fv;
-  T.lt[0] = L->line_off[m] + c->i[w] * R; T.lw[0] = 1.0f - fw;
-  T.lt[1] = T.lt[0] + R;                  T.lw[1] = fw;
-  T.R = R;
-  return T;
+  T->pt[0] = base;               T->pw[0] = (1.0f - fu) * (1.0f - fv);
+  T->pt[1] = base + R;           T->pw[1] = fu * (1.0f - fv);
+  T->pt[2] = base + nu * R;      T->pw[2] = (1.0f - fu) * fv;
+  T->pt[3] = base + nu * R + R;  T->pw[3] = fu * fv;
+  T->lt[0] = L->line_off[m] + c->i[w] * R; T->lw[0] = 1.0f - fw;
+  T->lt[1] = T->lt[0] + R;                 T->lw[1] = fw;
+  T->R = R;
 }
 
 // Taps of mode m at point p (resampling evaluates one mode at a time).
-inline ModeTaps mode_taps(const VMLayout* L, int m, float3 p) {
-  const PointCell c = point_cell(L, p);
-  return cell_taps(L, &c, m);
+inline void mode_taps(const VMLayout* L, int m, float3 p, ModeTaps* T) {
+  PointCell c;
+  point_cell(L, p, &c);
+  cell_taps(L, &c, m, T);
 }
 
 // Bilinear plane value and linear line value for ranks [r, r+8), [r, r+4) and r.
@@ -171,8 +171,12 @@ ALWAYS_INLINE float mode_dot(const global float* g, const ModeTaps* T) {
 }
 
 ALWAYS_INLINE float density_at(const global float* g, const VMLayout* L, float3 p) {
-  const PointCell c = point_cell(L, p);
-  const ModeTaps T0 = cell_taps(L, &c, 0), T1 = cell_taps(L, &c, 1), T2 = cell_taps(L, &c, 2);
+  PointCell c;
+  point_cell(L, p, &c);
+  ModeTaps T0, T1, T2;
+  cell_taps(L, &c, 0, &T0);
+  cell_taps(L, &c, 1, &T1);
+  cell_taps(L, &c, 2, &T2);
   return mode_dot(g, &T0) + mode_dot(g, &T1) + mode_dot(g, &T2);
 }
 
@@ -212,8 +216,12 @@ kernel void vm_features_forward(global const float* pts, global const float* gri
     for (int k = 0; k < L.nfeat; ++k) out[k] = 0.0f;
     return;
   }
-  const PointCell c = point_cell(&L, p);
-  const ModeTaps T0 = cell_taps(&L, &c, 0), T1 = cell_taps(&L, &c, 1), T2 = cell_taps(&L, &c, 2);
+  PointCell c;
+  point_cell(&L, p, &c);
+  ModeTaps T0, T1, T2;
+  cell_taps(&L, &c, 0, &T0);
+  cell_taps(&L, &c, 1, &T1);
+  cell_taps(&L, &c, 2, &T2);
   mode_features(grid, &T0, out + L.feat_off[0]);
   mode_features(grid, &T1, out + L.feat_off[1]);
   mode_features(grid, &T2, out + L.feat_off[2]);
@@ -224,16 +232,19 @@ kernel void vm_features_forward(global const float* pts, global const float* gri
 // g_r * line_m[r] * pw[k], tap k of the line g_r * plane_m[r] * lw[k]. Taps of zero weight are skipped
 // (they change nothing, and skipping keeps a non-finite neighbour from spreading NaN).
 
-// OpenCL 1.2 has no float atomics: compare-and-swap on the int bits.
+// OpenCL 1.2 has no float atomics: compare-and-swap on the int bits. Every access to the cell is atomic:
+// the first CAS guesses 0 (a cell still at zero takes one CAS) and each retry uses the bits the failed CAS
+// saw. (A plain load of the cell before the CAS races with other work-items' CASes: harmless on hardware,
+// but a data race in OpenCL's memory model, which Oclgrind reports. Only GPUs use this path: CPU devices
+// take the privatised scatter.)
 inline void atomic_add_f(volatile global float* addr, float val) {
-  union {
-    unsigned int u;
-    float f;
-  } old, nxt;
-  do {
-    old.f = *addr;
-    nxt.f = old.f + val;
-  } while (atomic_cmpxchg((volatile global unsigned int*)addr, old.u, nxt.u) != old.u);
+  volatile global unsigned int* bits = (volatile global unsigned int*)addr;
+  unsigned int seen = 0u;
+  for (;;) {
+    const unsigned int expect = seen;
+    seen = atomic_cmpxchg(bits, expect, as_uint(as_float(expect) + val));
+    if (seen == expect) return;
+  }
 }
 
 // dst[0..n) += a * w for n = 8, 4, 1 (one tap of one rank chunk). The 8-wide add is two 4-wide
@@ -316,9 +327,13 @@ ALWAYS_INLINE void scatter_point(const global float* restrict grid, global float
     g0 = dsig[i] * density_act_grad(sigma[i], act);
     if (g0 == 0.0f) return;
   }
-  const PointCell c = point_cell(L, p);
+  PointCell c;
+  point_cell(L, p, &c);
   // The modes written out (not a loop) so that each call sees a literal mode index and rank.
-  const ModeTaps T0 = cell_taps(L, &c, 0), T1 = cell_taps(L, &c, 1), T2 = cell_taps(L, &c, 2);
+  ModeTaps T0, T1, T2;
+  cell_taps(L, &c, 0, &T0);
+  cell_taps(L, &c, 1, &T1);
+  cell_taps(L, &c, 2, &T2);
   if (use_atomic) {
     scatter_mode_atomic(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
     scatter_mode_atomic(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
@@ -510,7 +525,8 @@ kernel void vm_resample(global const float* old_grid, global float* new_grid, in
       float3 p = (float3)(0.0f);
       float pu = new_to_old(iu, N.res[u], lo[u], hi[u]), pv = new_to_old(iv, N.res[v], lo[v], hi[v]);
       p = u == 0 ? (float3)(pu, v == 1 ? pv : 0.0f, v == 2 ? pv : 0.0f) : (float3)(0.0f, pu, pv);
-      const ModeTaps T = mode_taps(&O, m, p);
+      ModeTaps T;
+      mode_taps(&O, m, p, &T);
       global float* dst = new_grid + N.plane_off[m] + c * T.R;
       for (int r = 0; r < T.R; ++r) dst[r] = plane1(old_grid, &T, r);
       return;
@@ -523,7 +539,8 @@ kernel void vm_resample(global const float* old_grid, global float* new_grid, in
     if (c < cells) {
       const float pw = new_to_old(c, N.res[w], lo[w], hi[w]);
       const float3 p = w == 0 ? (float3)(pw, 0.0f, 0.0f) : (w == 1 ? (float3)(0.0f, pw, 0.0f) : (float3)(0.0f, 0.0f, pw));
-      const ModeTaps T = mode_taps(&O, m, p);
+      ModeTaps T;
+      mode_taps(&O, m, p, &T);
       global float* dst = new_grid + N.line_off[m] + c * T.R;
       for (int r = 0; r < T.R; ++r) dst[r] = line1(old_grid, &T, r);
       return;

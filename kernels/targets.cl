@@ -56,16 +56,16 @@ kernel void targets_gather(global const float* maps, global const int* view, glo
   }
 }
 
-// OpenCL 1.2 has no float atomics: compare-and-swap on the bits.
+// OpenCL 1.2 has no float atomics: compare-and-swap on the bits, every access atomic (no plain load of the
+// cell racing with other work-items' CASes: see atomic_add_f in grid.cl).
 inline void atomic_add_float(volatile global float* addr, float value) {
-  union {
-    uint u;
-    float f;
-  } seen, want;
-  do {
-    seen.f = *addr;
-    want.f = seen.f + value;
-  } while (atomic_cmpxchg((volatile global uint*)addr, seen.u, want.u) != seen.u);
+  volatile global uint* bits = (volatile global uint*)addr;
+  uint seen = 0u;
+  for (;;) {
+    const uint expect = seen;
+    seen = atomic_cmpxchg(bits, expect, as_uint(as_float(expect) + value));
+    if (seen == expect) return;
+  }
 }
 
 inline void scatter_tap(global float* dst, const global float* g, float w, int C) {

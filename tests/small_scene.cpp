@@ -8,6 +8,7 @@
 #include "lib/scene/make_scene.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/density_trainer.hpp"
+#include "tests/testing.hpp"
 
 namespace stylerf::testing {
 
@@ -48,6 +49,12 @@ const model::Geometry& small_geometry() {
     cfg.schedule.upsample_at = {50};
     cfg.schedule.mask_at = {50};
     cfg.batch = 1024;
+    if (small_run()) {  // the same schedule (upsample and mask included) at a quarter of the work
+      cfg.schedule.iters = 40;
+      cfg.schedule.upsample_at = {25};
+      cfg.schedule.mask_at = {25};
+      cfg.batch = 512;
+    }
     train::DensityTrainer t(small_scene(), cfg);
     while (!t.done()) t.step();
     return t.model().geo;

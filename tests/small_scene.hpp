@@ -11,7 +11,7 @@ namespace stylerf::testing {
 
 std::filesystem::path small_work_dir();           // temp folder, removed and recreated once per process
 const scene::Scene& small_scene();                 // <small_work_dir>/scene
-const model::Geometry& small_geometry();          // relu density, 80 iterations, opaque early
+const model::Geometry& small_geometry();          // relu density, 80 iterations (40 when small_run()), opaque early
 
 // Checkpoint files over small_geometry() for the command-line suites, written once per process: an
 // untrained feature stage (rank 8, fast profile) and a style stage over it (untrained stylizer, running

@@ -38,6 +38,8 @@ std::string data_file(const std::string& rel) {
 }
 
 const char* kContent = "scenes/llff/fern/images_8/image000.png";
+// Longer side of the images run through the network: 64, or 32 under STYLERF_TEST_SMALL (the simulator).
+const int kSize = testing::small_run() ? 32 : 64;
 const char* kStyle = "styles/fns_wave.jpg";
 
 // Style distance at relu1_1..relu4_1: mean over layers and channels of (mean_a - mean_b)^2 + (std_a - std_b)^2,
@@ -74,10 +76,10 @@ double style_distance(const nn::VggFeatures& a, const nn::VggFeatures& b) {
 }  // namespace
 
 TEST_CASE("adain: a small run gives finite output in [0,1] of the content's size") {
-  io::Image out = style::adain_files(model(), data_file(kContent), data_file(kStyle), 1.0f, 64);
-  // fern images_8 is 504x378: longer side 64, other side 48 (multiple of 8).
-  CHECK(out.width == 64);
-  CHECK(out.height == 48);
+  io::Image out = style::adain_files(model(), data_file(kContent), data_file(kStyle), 1.0f, kSize);
+  // fern images_8 is 504x378: longer side 64, other side 48 (multiple of 8); 32 and 24 when small.
+  CHECK(out.width == kSize);
+  CHECK(out.height == kSize * 3 / 4);
   REQUIRE(testing::all_finite(out.data));
   CHECK(*std::min_element(out.data.begin(), out.data.end()) >= 0.0f);
   CHECK(*std::max_element(out.data.begin(), out.data.end()) <= 1.0f);
@@ -90,8 +92,8 @@ TEST_CASE("adain: a small run gives finite output in [0,1] of the content's size
 }
 
 TEST_CASE("adain: alpha = 0 reproduces dec(enc(content)); alpha = 1 moves the style statistics") {
-  Tensor c = io::to_tensor(style::load_image_for_adain(data_file(kContent), 64));
-  Tensor s = io::to_tensor(style::load_image_for_adain(data_file(kStyle), 64));
+  Tensor c = io::to_tensor(style::load_image_for_adain(data_file(kContent), kSize));
+  Tensor s = io::to_tensor(style::load_image_for_adain(data_file(kStyle), kSize));
   auto& m = model();
   Tensor recon = m.decoder.forward(m.encoder.forward(c, 4, false)[3]);
   Tensor a0 = style::adain_stylize(m, c, s, 0.0f);
@@ -121,11 +123,11 @@ TEST_CASE("adain: missing or unreadable images and missing weights give errors n
     return "";
   };
   std::string missing = "/nonexistent/content.png";
-  CHECK(error_of([&] { style::adain_files(model(), missing, data_file(kStyle), 1.0f, 64); }).find(missing) !=
+  CHECK(error_of([&] { style::adain_files(model(), missing, data_file(kStyle), 1.0f, kSize); }).find(missing) !=
         std::string::npos);
   std::string bad = (fs::temp_directory_path() / ("stylerf_test_adain_" + std::to_string(::getpid()) + ".jpg")).string();
   std::ofstream(bad) << "not a jpeg";
-  std::string msg = error_of([&] { style::adain_files(model(), data_file(kContent), bad, 1.0f, 64); });
+  std::string msg = error_of([&] { style::adain_files(model(), data_file(kContent), bad, 1.0f, kSize); });
   fs::remove(bad);
   CHECK(msg.find(bad) != std::string::npos);
 

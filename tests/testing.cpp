@@ -105,6 +105,11 @@ void expect_error(const std::function<void()>& f, const std::string& needle) {
                 "expected an Error mentioning '" << needle << "', got: " << (msg.empty() ? "no error" : msg));
 }
 
+bool small_run() {
+  const char* s = std::getenv("STYLERF_TEST_SMALL");
+  return s && std::string(s) == "1";
+}
+
 std::string shared_data_dir() {
   if (const char* d = std::getenv("STYLERF_TEST_DATA"); d && std::filesystem::exists(d)) return d;
   return "";

@@ -37,6 +37,10 @@ std::string error_of(const std::function<void()>& f);
 // Checks (doctest CHECK) that f() throws a host::Error whose message contains `needle`.
 void expect_error(const std::function<void()>& f, const std::string& needle);
 
+// True under STYLERF_TEST_SMALL=1 (scripts/oclgrind.sh: a simulated device ~1000x slower than PoCL). The
+// heavy suites then run the same cases with the same checks at smaller sizes; normal runs are unchanged.
+bool small_run();
+
 // Directory of ../shared/data, or "" if absent (tests needing it say so and fail loudly, not skip).
 std::string shared_data_dir();
 
