@@ -24,7 +24,10 @@
 # finished within a 300 s limit (one case each was cut; both likely fit the 600 s default). Not yet finished
 # under the new sizes (each clean until its limit): test_feature_targets, test_style_model, test_stylize,
 # test_hardening, test_lpips, test_train_features, test_eval_cli, test_stylize_cli, and test_train_density
-# with its final skips: measure them, then shrink or skip what is still too slow.
+# with its final skips: measure them, then shrink or skip what is still too slow. Later runs at a 900 s limit
+# (two suites at a time): test_stylize clean in its first 7 cases (region masks 403 s, supersampling 166 s,
+# style encoder 329 s), cut in the 8th; test_feature_targets clean in 4 (the targets cache 832 s), cut in
+# the 5th; test_lpips skips its two official-value cases (printed).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
