@@ -114,6 +114,8 @@ TEST_CASE("stylize: bad input gets a clear error") {
     CHECK(r.output.find(needle) != std::string::npos);
   };
   expect("stylize --ckpt '" + ck.features + "' --style '" + style + "' -o '" + out + "'", "not a trained stylizer");
+  expect("stylize --ckpt '" + ck.style + "' --style '" + style + "' --supersample 9 -o '" + out + "'",
+         "--supersample must be an integer in [1, 8]");
   // Another scene: same format, other name.
   const std::string other = (testing::small_work_dir() / "other_scene").string();
   {

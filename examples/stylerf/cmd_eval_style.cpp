@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <iostream>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "lib/scene/scene_meta.hpp"
@@ -39,8 +40,7 @@ int run_eval_style(int argc, char** argv) {
     return vm.count("help") ? 0 : 2;
   }
   if (views < 0) throw Error("--views must be >= 0");
-  if (supersample < 1 || supersample > stylerf::model::kMaxSupersample)
-    throw Error("--supersample must be in [1, " + std::to_string(stylerf::model::kMaxSupersample) + "]");
+  stylerf::cli::check_int_range("--supersample", supersample, 1, stylerf::model::kMaxSupersample);
   if (!images.empty()) std::filesystem::create_directories(images);
   stylerf::cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "style");

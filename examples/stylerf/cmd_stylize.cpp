@@ -16,6 +16,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
@@ -164,8 +165,7 @@ int run_stylize(int argc, char** argv) {
   if (max_views < 0) throw Error("--max-views must be >= 0");
   if (size < 0 || size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
   if (chunk < 1) throw Error("--chunk must be >= 1");
-  if (supersample < 1 || supersample > model::kMaxSupersample)
-    throw Error("--supersample must be in [1, " + std::to_string(model::kMaxSupersample) + "]");
+  stylerf::cli::check_int_range("--supersample", supersample, 1, model::kMaxSupersample);
   if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
   if (out.empty()) throw Error("-o DIR is required");
   const bool regions = !region_spec.empty();

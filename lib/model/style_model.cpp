@@ -127,8 +127,8 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
                 std::to_string(supersample));
-  int w = 0, h = 0;
-  block_rays(scene, cam, stride(), w, h);  // the map's size
+  const scene::Camera map_cam = strided_camera(cam, stride());  // the map's size
+  int w = map_cam.width, h = map_cam.height;
   const int64_t n = int64_t(w) * h;
   const int E = style::Sict::kEmbed;
   // Sums over the sub-rays of each block; divided by their count at the end.
