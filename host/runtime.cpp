@@ -103,7 +103,17 @@ Runtime::Runtime(const DeviceInfo& device) : device_(device) {
 #endif
   check(err, "clCreateCommandQueue", device_.name);
   if (const char* p = std::getenv("STYLERF_PROFILE"); p && std::string(p) == "1") profiling_ = true;
-  pool_cap_bytes_ = std::min<size_t>(device_.global_mem_bytes / 4, size_t(1) << 30);
+  // A quarter of the device's memory: a stage-3 fern step frees ~2 GiB of per-sample tensors (x, q/k/v,
+  // their gradients) that the next step asks for again; under a 1 GiB cap they went back to the driver, and
+  // re-faulting their pages cost ~20% of the step on PoCL. STYLERF_POOL_MIB overrides (0: no pooling).
+  pool_cap_bytes_ = device_.global_mem_bytes / 4;
+  if (const char* c = std::getenv("STYLERF_POOL_MIB"); c && *c) {
+    char* end = nullptr;
+    const unsigned long long mib = std::strtoull(c, &end, 10);
+    if (end == c || *end != '\0')
+      throw Error(std::string("STYLERF_POOL_MIB='") + c + "' is not a whole number of MiB (the buffer pool's cap)");
+    pool_cap_bytes_ = size_t(mib) << 20;
+  }
 }
 
 Runtime::~Runtime() {
@@ -241,10 +251,13 @@ cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
     return m;
   };
   const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
-  if (auto it = pool_.find(cls); it != pool_.end() && !it->second.empty()) {
+  // The smallest pooled buffer of this class or up to a quarter larger: per-sample tensors change size a
+  // little from step to step (the kept samples of a patch) and would otherwise rarely find their class.
+  for (auto it = pool_.lower_bound(cls); it != pool_.end() && it->first <= cls + cls / 4; ++it) {
+    if (it->second.empty()) continue;
     cl_mem m = it->second.back();
     it->second.pop_back();
-    pooled_bytes_ -= cls;
+    pooled_bytes_ -= it->first;
     return count(m);
   }
   cl_int err = CL_SUCCESS;
@@ -260,7 +273,10 @@ cl_mem Runtime::allocate(size_t bytes, const std::string& what) {
 void Runtime::release(cl_mem mem, size_t bytes) {
   if (!mem) return;
   live_bytes_ -= std::min(live_bytes_, bytes);
-  const size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
+  // Keyed by the buffer's own size: allocate() may have handed out a larger one than `bytes` asks for.
+  size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
+  size_t actual = 0;
+  if (clGetMemObjectInfo(mem, CL_MEM_SIZE, sizeof actual, &actual, nullptr) == CL_SUCCESS && actual >= cls) cls = actual;
   if (pooled_bytes_ + cls > pool_cap_bytes_) {
     clReleaseMemObject(mem);
     return;

@@ -52,8 +52,9 @@ class Runtime {
   // Allocates a device buffer. Throws an Error naming `what`, the bytes asked for and the device's
   // limits when the request exceeds them or the driver refuses it.
   cl_mem allocate(size_t bytes, const std::string& what);
-  // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap) and handed out again
-  // for requests of the same rounded size: a fresh buffer costs first-touch page faults on a CPU device and
+  // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap: a quarter of the
+  // device's memory, or STYLERF_POOL_MIB) and handed out again for requests of the same rounded size or up
+  // to a quarter smaller: a fresh buffer costs first-touch page faults on a CPU device and
   // an allocation on a GPU, and training loops allocate the same shapes every step. The in-order queue
   // makes reuse safe: commands using the old owner finish before commands of the new owner start.
   void release(cl_mem mem, size_t bytes);

@@ -101,3 +101,35 @@ TEST_CASE("freed buffers are pooled and reused for the same size class") {
   rt.trim_buffer_pool();
   CHECK(rt.pooled_bytes() == 0);
 }
+
+TEST_CASE("the pool hands a slightly larger buffer to a smaller request, and files it back by its own size") {
+  auto& rt = Runtime::instance();
+  rt.trim_buffer_pool();
+  // Classes above 64 KiB step by 1/16 of the power of two: 4 MiB and 3.5 MiB lie in neighbouring classes.
+  const int64_t big = int64_t(1) << 20, smaller = big - big / 8;  // floats: 4 MiB, 3.5 MiB
+  cl_mem first = nullptr;
+  {
+    Tensor a({big}, "pool test");
+    first = a.mem();
+  }
+  CHECK(rt.pooled_bytes() == size_t(4) << 20);
+  {
+    Tensor b({smaller}, "pool test");  // within a quarter: reuses the 4 MiB buffer
+    CHECK(b.mem() == first);
+    CHECK(rt.pooled_bytes() == 0);
+    b.fill(1.0f);
+    CHECK(b.to_host()[size_t(smaller - 1)] == 1.0f);
+  }
+  // Filed back under 4 MiB (its real size), so a 4 MiB request finds it again.
+  CHECK(rt.pooled_bytes() == size_t(4) << 20);
+  {
+    Tensor c({big}, "pool test");
+    CHECK(c.mem() == first);
+  }
+  {
+    Tensor d({big / 2}, "pool test");  // half the size: past a quarter, so a new buffer
+    CHECK(d.mem() != first);
+  }
+  rt.trim_buffer_pool();
+  CHECK(rt.pooled_bytes() == 0);
+}

@@ -222,6 +222,27 @@ TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoi
   testing::expect_error([&] { train::style_losses(f, Tensor(), f, &none, {}, nullptr); }, "keeps no position");
 }
 
+TEST_CASE("style losses: the per-tap terms are each tap's weighted loss and sum to the style loss") {
+  nn::VggFeatures out, style;
+  const int channels[] = {3, 5, 7, 9};
+  for (int t = 0; t < nn::VggFeatures::kCount; ++t) {
+    const int C = channels[t], H = 8 >> t, W = 12 >> t;
+    out[size_t(t)] = Tensor::from_host(testing::random_normal(size_t(C) * H * W, 200 + t), {1, C, H, W});
+    style[size_t(t)] = Tensor::from_host(testing::random_normal(size_t(C) * 2 * H * W, 300 + t), {1, C, 2 * H, W});
+  }
+  const train::StyleLossWeights w{1.0f, 20.0f};
+  const auto v = train::style_losses(out, out[3], style, nullptr, w, nullptr);
+  double sum = 0;
+  for (int t = 0; t < nn::VggFeatures::kCount; ++t) {
+    const double expect = 20.0 * nn::style_loss_forward(out[size_t(t)], style[size_t(t)]).to_host()[0];
+    CHECK(v.style_tap[size_t(t)] == doctest::Approx(expect).epsilon(1e-6));
+    CHECK(v.style_tap[size_t(t)] > 0.0);
+    sum += v.style_tap[size_t(t)];
+  }
+  CHECK(v.style == doctest::Approx(sum).epsilon(1e-12));
+  CHECK(v.content == 0.0);  // out[3] against itself
+}
+
 TEST_CASE("bad inputs name the file or folder and what is wrong") {
   testing::expect_error([] { train::StyleSet::from_dir("/nonexistent/styles", 0); }, "/nonexistent/styles");
   testing::expect_error([] { train::StyleSet::from_dir(style_dir(), 4); }, "leaves none to train on");

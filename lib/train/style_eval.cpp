@@ -76,6 +76,10 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
       r.ours_style += lo.style / count;
       r.adain_content += la.content / count;
       r.adain_style += la.style / count;
+      for (size_t t = 0; t < r.ours_style_tap.size(); ++t) {
+        r.ours_style_tap[t] += lo.style_tap[t] / count;
+        r.adain_style_tap[t] += la.style_tap[t] / count;
+      }
       if (!opt.image_dir.empty() && vi == 0) {
         io::Image sheet;
         sheet.width = 3 * We;

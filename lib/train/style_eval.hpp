@@ -22,6 +22,7 @@ OpacityMask content_opacity_mask(const model::StyleModel::CameraContent& cc, int
 struct StyleEvalRow {
   std::string style;
   double ours_content = 0, ours_style = 0, adain_content = 0, adain_style = 0;  // means over the views
+  std::array<double, nn::VggFeatures::kCount> ours_style_tap{}, adain_style_tap{};  // the style terms per VGG tap
 };
 struct StyleEvalOptions {
   int views = 5;            // test views, evenly spaced (0: all)

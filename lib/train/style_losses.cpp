@@ -82,7 +82,8 @@ StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41
   }
   for (int t = 0; t < K; ++t) {
     const Tensor a = sel(out[t], t);
-    v.style += w.style * scalar(nn::style_loss_forward(a, style[t]));
+    v.style_tap[size_t(t)] = w.style * scalar(nn::style_loss_forward(a, style[t]));
+    v.style += v.style_tap[size_t(t)];
     if (grads) {
       Tensor g = unsel(nn::style_loss_backward(a, style[t], w.style), out[t], t);
       if ((*grads)[t].defined()) {

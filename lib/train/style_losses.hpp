@@ -34,6 +34,7 @@ struct StyleLossWeights {
 };
 struct StyleLossValues {
   double content = 0, style = 0;  // weighted
+  std::array<double, nn::VggFeatures::kCount> style_tap{};  // style's terms per tap (relu1_1 .. relu4_1), weighted
   double total() const { return content + style; }
 };
 // out: taps of the stylised image; content41: relu4_1 of the true image; style: taps of the style image.
