@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -143,5 +144,9 @@ TEST_CASE("stylize: bad input gets a clear error") {
          "unknown kind 'cube'");
   expect("stylize --ckpt '" + ck.style + "' --style '" + style + "' --style-inside '" + style + "' -o '" + out + "'",
          "need --region");
+  // The buffer pool's cap from the environment: a typo is an error naming the variable, not a silent default.
+  setenv("STYLERF_POOL_MIB", "4GB", 1);
+  expect("stylize --ckpt '" + ck.style + "' --style '" + style + "' -o '" + out + "'", "STYLERF_POOL_MIB='4GB'");
+  unsetenv("STYLERF_POOL_MIB");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }
