@@ -53,10 +53,10 @@ class Runtime {
   // limits when the request exceeds them or the driver refuses it.
   cl_mem allocate(size_t bytes, const std::string& what);
   // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap: a quarter of the
-  // device's memory, or STYLERF_POOL_MIB) and handed out again for requests of the same rounded size or up
-  // to a quarter smaller: a fresh buffer costs first-touch page faults on a CPU device and
-  // an allocation on a GPU, and training loops allocate the same shapes every step. The in-order queue
-  // makes reuse safe: commands using the old owner finish before commands of the new owner start.
+  // memory of a CPU device, 1 GiB elsewhere, or STYLERF_POOL_MIB) and handed out again for requests of
+  // the same rounded size or up to a quarter smaller: a fresh buffer costs first-touch page faults on a
+  // CPU device and an allocation on a GPU, and training loops allocate about the same shapes every step.
+  // The in-order queue makes reuse safe: commands using the old owner finish before those of the new one.
   void release(cl_mem mem, size_t bytes);
   void trim_buffer_pool();  // frees every cached buffer
   size_t pooled_bytes() const { return pooled_bytes_; }
