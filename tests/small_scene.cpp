@@ -49,11 +49,11 @@ const model::Geometry& small_geometry() {
     cfg.schedule.upsample_at = {50};
     cfg.schedule.mask_at = {50};
     cfg.batch = 1024;
-    if (small_run()) {  // the same schedule (upsample and mask included) at a quarter of the work
-      cfg.schedule.iters = 40;
-      cfg.schedule.upsample_at = {25};
-      cfg.schedule.mask_at = {25};
-      cfg.batch = 512;
+    if (small_run()) {  // the same schedule (upsample and mask included) at a sixteenth of the work
+      cfg.schedule.iters = 20;
+      cfg.schedule.upsample_at = {12};
+      cfg.schedule.mask_at = {12};
+      cfg.batch = 256;
     }
     train::DensityTrainer t(small_scene(), cfg);
     while (!t.done()) t.step();

@@ -91,11 +91,16 @@ scene::Scene memory_scene(int w, int h, int views, uint64_t seed) {
   return s;
 }
 
+// 40 px, 8 training views; 24 px and 4 training views under STYLERF_TEST_SMALL (the simulator): the cache
+// case runs the encoder over every view once per subcase and again in most of them.
+const int kSceneSize = testing::small_run() ? 24 : 40;
+const int kSceneTrainViews = testing::small_run() ? 4 : 8;
+
 const scene::Scene& generated_scene() {
   static scene::Scene s = [] {
     scene::MakeSceneOptions mo;
-    mo.size = 40;
-    mo.views = 10;  // 8 train
+    mo.size = kSceneSize;
+    mo.views = kSceneTrainViews == 8 ? 10 : 6;  // views 0 and 5 go to val and test, the rest to train
     const std::string dir = (work_dir() / "scene").string();
     scene::make_scene(dir, mo);
     return scene::load_scene(dir);
@@ -260,7 +265,8 @@ TEST_CASE("content hash: stable, order- and boundary-sensitive") {
 
 TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, mismatched or of another shape") {
   const scene::Scene& sc = generated_scene();
-  REQUIRE(sc.train.size() == 8);
+  const int S = kSceneSize, V = kSceneTrainViews, last = V - 1;
+  REQUIRE(sc.train.size() == size_t(V));
   features::TargetCacheOptions opts;
   opts.dir = (work_dir() / "cache").string();
   fs::remove_all(opts.dir);  // doctest reruns the case once per subcase: start each run with no cache
@@ -269,8 +275,8 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
 
   const FeatureTargets first = features::load_or_compute_targets(sc, vgg(), opts);
   CHECK_FALSE(first.from_cache);
-  CHECK(first.maps.shape() == host::Shape{8, 10, 10, 256});
-  CHECK(first.image_width == 40);
+  CHECK(first.maps.shape() == host::Shape{V, S / 4, S / 4, 256});
+  CHECK(first.image_width == S);
   CHECK(log.str().find("views/s") != std::string::npos);
   const std::string path = features::target_cache_path(opts.dir, first.key);
   REQUIRE(fs::exists(path));
@@ -278,8 +284,8 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
   CHECK(std::distance(fs::directory_iterator(opts.dir), fs::directory_iterator()) == 1);
   const std::vector<float> want = first.maps.to_host();
   // Spot-check that the stored maps are the targets of the views, in order.
-  const std::vector<float> v5 = features::compute_view_targets(vgg(), sc.train[5].rgb, 40, 40);
-  CHECK(std::equal(v5.begin(), v5.end(), want.begin() + std::ptrdiff_t(5 * v5.size())));
+  const std::vector<float> vl = features::compute_view_targets(vgg(), sc.train[size_t(last)].rgb, S, S);
+  CHECK(std::equal(vl.begin(), vl.end(), want.begin() + std::ptrdiff_t(last * vl.size())));
 
   log.str("");
   const FeatureTargets again = features::load_or_compute_targets(sc, vgg(), opts);
@@ -298,6 +304,9 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
     CHECK(features::load_or_compute_targets(sc, vgg(), opts).from_cache);
   }
   SUBCASE("a file holding another key, another shape, or malformed metadata is recomputed") {
+    const std::vector<int64_t> other_shape{V / 2, 2 * (S / 4), S / 4, 256};  // [4, 20, 10, 256] at 40 px
+    const std::string other_text = "have shape [" + std::to_string(V / 2) + ", " + std::to_string(2 * (S / 4)) + ", " +
+                                   std::to_string(S / 4) + ", 256]";
     for (int variant = 0; variant < 3; ++variant) {
       CAPTURE(variant);
       io::Checkpoint ck = io::load_checkpoint(path, "feature-targets");
@@ -306,14 +315,14 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
       } else if (variant == 2) {
         ck.meta["key"] = 42;  // not a string: a json type error, still just "recompute"
       } else {
-        ck.tensors["targets"].shape = {4, 20, 10, 256};
-        ck.meta["shape"] = {4, 20, 10, 256};
+        ck.tensors["targets"].shape = other_shape;  // as many values, another shape
+        ck.meta["shape"] = other_shape;
       }
       io::save_checkpoint(path, ck);
       log.str("");
       const FeatureTargets t = features::load_or_compute_targets(sc, vgg(), opts);
       CHECK_FALSE(t.from_cache);
-      const char* why[] = {"holds key '0123456789abcdef'", "have shape [4, 20, 10, 256]", "recomputing"};
+      const std::string why[] = {"holds key '0123456789abcdef'", other_text, "recomputing"};
       CHECK(log.str().find(why[variant]) != std::string::npos);
       CHECK(t.maps.to_host() == want);
     }
@@ -550,14 +559,15 @@ TEST_CASE("targets gathered at sampled rays, end to end on the generated scene")
 }
 
 TEST_CASE("PatchSampler: patches larger than the image, 4-aligned corners, rays per pixel or per 4x4 block") {
-  const scene::Scene& sc = generated_scene();  // 40 x 40
+  const scene::Scene& sc = generated_scene();  // S x S: 40, or 24 under STYLERF_TEST_SMALL
+  const int S = kSceneSize;
   features::PatchSampler big(sc, 3, 256);
-  CHECK(big.width() == 40);
-  CHECK(big.height() == 40);
+  CHECK(big.width() == S);
+  CHECK(big.height() == S);
   const features::Patch whole = big.next();
   CHECK(whole.x0 == 0);
   CHECK(whole.y0 == 0);
-  CHECK(whole.rgb_tensor().shape() == host::Shape{1, 3, 40, 40});
+  CHECK(whole.rgb_tensor().shape() == host::Shape{1, 3, S, S});
   const scene::Rays cam = scene::camera_rays(sc, sc.train[size_t(whole.view)].camera);
   CHECK(whole.rays.origins == cam.origins);
   CHECK(whole.rays.directions == cam.directions);
@@ -571,12 +581,12 @@ TEST_CASE("PatchSampler: patches larger than the image, 4-aligned corners, rays 
     CHECK(p.width == 16);
     CHECK(p.x0 % 4 == 0);
     CHECK(p.y0 % 4 == 0);
-    CHECK(p.x0 + 16 <= 40);
-    CHECK(p.y0 + 16 <= 40);
+    CHECK(p.x0 + 16 <= S);
+    CHECK(p.y0 + 16 <= S);
     moved |= p.x0 != 0 || p.y0 != 0;
     const scene::View& v = sc.train[size_t(p.view)];
     for (int c = 0; c < 3; ++c)
-      CHECK(p.rgb[(size_t(c) * 16 + 5) * 16 + 7] == v.rgb[(size_t(p.y0 + 5) * 40 + p.x0 + 7) * 3 + size_t(c)]);
+      CHECK(p.rgb[(size_t(c) * 16 + 5) * 16 + 7] == v.rgb[(size_t(p.y0 + 5) * S + p.x0 + 7) * 3 + size_t(c)]);
     const int n = 16 / p.stride;
     REQUIRE(p.rays.size() == size_t(n) * n);
     CHECK(p.rays.rgb.size() == (p.stride == 1 ? 3 * size_t(n) * n : 0));
