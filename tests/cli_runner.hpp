@@ -2,6 +2,7 @@
 // end. The suite must be compiled with STYLERF_CLI (CMakeLists.txt sets it for those suites).
 #pragma once
 #include <fstream>
+#include <iostream>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -24,6 +25,15 @@ inline CliRun run_cli(const std::string& args) {
   CliRun r;
   r.output.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  // Under Oclgrind (scripts/oclgrind.sh) the tool runs on the simulator too (its LD_PRELOAD is inherited)
+  // and reports to the tool's stderr, captured above: pass an output holding a report on to this process's
+  // stderr, where the script counts reports.
+  for (const char* report : {"Invalid read", "Invalid write", "data race", "Uninitialised", "Uninitialized",
+                             "OpenCL runtime error", "OCLGRIND FATAL", "divergence"})
+    if (r.output.find(report) != std::string::npos) {
+      std::cerr << "---- stylerf " << args << " (exit " << r.code << "):\n" << r.output << std::endl;
+      break;
+    }
   return r;
 }
 

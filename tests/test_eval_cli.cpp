@@ -25,12 +25,6 @@ std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_F
 
 testing::CliRun run(const std::string& args) { return testing::run_cli(args); }
 
-// Under STYLERF_TEST_SMALL (the simulator, ~1000x slower): a density stage of 20 steps of 256 rays, and
-// consistency runs over 8 frames (the least --frames takes) of 32x32 (AlexNet's LPIPS needs 31x31).
-const bool kSmall = testing::small_run();
-const int kFrames = kSmall ? 8 : 16;  // eval consistency's frames (16: its default)
-const std::string kSmallArgs = kSmall ? " --frames 8 --size 32" : "";
-
 struct Checkpoints {
   std::string density, style;
 };
@@ -41,8 +35,9 @@ const Checkpoints& checkpoints() {
     const scene::Scene& sc = testing::small_scene();
     Checkpoints out;
     out.density = (testing::small_work_dir() / "eval_density.ckpt").string();
-    const std::string schedule = kSmall ? "--iters 20 --batch 256 --upsample-at 12 --mask-at 12"
-                                        : "--iters 60 --upsample-at 40 --mask-at 40";
+    // 60 steps of the default 4096 rays; under STYLERF_TEST_SMALL (the simulator) 20 steps of 256.
+    const std::string schedule = testing::small_run() ? "--iters 20 --batch 256 --upsample-at 12 --mask-at 12"
+                                                      : "--iters 60 --upsample-at 40 --mask-at 40";
     const auto r = run("train-density --scene '" + sc.root + "' " + schedule +
                        " --init-voxels 24^3 --final-voxels 32^3 --density-rank 8,8,8 --app-rank 8,8,8 --eval-views 1 "
                        "--force -o '" + out.density + "'");
@@ -60,8 +55,8 @@ const Checkpoints& checkpoints() {
 using testing::read_json;
 
 void check_score(const nlohmann::json& score, bool lpips) {
-  CHECK(score["short"]["pairs"].size() == size_t(kFrames - 1));  // 16 frames: t = 1..15 into t-1
-  CHECK(score["long"]["pairs"].size() == size_t(kFrames - 7));   // t = 7..15 into t-7
+  CHECK(score["short"]["pairs"].size() == 15);  // 16 frames: t = 1..15 into t-1
+  CHECK(score["long"]["pairs"].size() == 9);    // t = 7..15 into t-7
   for (const char* r : {"short", "long"}) {
     REQUIRE(score[r]["rmse"].is_number());
     const double rmse = score[r]["rmse"];
@@ -84,16 +79,16 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
   const auto& ck = checkpoints();
   const fs::path dir = testing::small_work_dir() / "eval_cli";
   fs::create_directories(dir);
-  auto r = run("eval consistency --ckpt '" + ck.density + "' --method rgb" + kSmallArgs + " --json '" +
-               (dir / "rgb.json").string() + "' -o '" + (dir / "rgb").string() + "'");
+  auto r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --json '" + (dir / "rgb.json").string() +
+               "' -o '" + (dir / "rgb").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto rgb = read_json(dir / "rgb.json");
   check_score(rgb["score"], true);
-  CHECK(fs::exists(dir / "rgb" / ("frame_" + std::to_string(1000 + kFrames - 1).substr(1) + ".png")));
+  CHECK(fs::exists(dir / "rgb" / "frame_015.png"));
   CHECK(rgb["seconds"]["total"].is_number());
 
   // The AlexNet trunk: another LPIPS, the same RMSE.
-  r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net alex" + kSmallArgs + " --json '" +
+  r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net alex --json '" +
           (dir / "rgb_alex.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto alex = read_json(dir / "rgb_alex.json");
@@ -102,21 +97,19 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
   CHECK(alex["score"]["short"]["lpips"] != rgb["score"]["short"]["lpips"]);
 
   r = run("eval consistency --ckpt '" + ck.density + "' --method adain --style '" + fixture("cmyk.jpg") +
-          "' --no-lpips" + kSmallArgs + " --json '" + (dir / "adain.json").string() + "'");
+          "' --no-lpips --json '" + (dir / "adain.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto adain = read_json(dir / "adain.json");
   check_score(adain["score"], false);
   // The same geometry decides what is compared, whatever the method.
   CHECK(adain["score"]["short"]["valid_fraction"] == rgb["score"]["short"]["valid_fraction"]);
 
-  const int sr_frames = kSmall ? 8 : 10;
   r = run("eval consistency --ckpt '" + ck.style + "' --method stylerf --style '" + fixture("rgb16.png") +
-          "' --no-lpips --frames " + std::to_string(sr_frames) + (kSmall ? " --size 32" : "") + " --json '" +
-          (dir / "stylerf.json").string() + "'");
+          "' --no-lpips --frames 10 --json '" + (dir / "stylerf.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto sr = read_json(dir / "stylerf.json");
-  CHECK(sr["score"]["short"]["pairs"].size() == size_t(sr_frames - 1));
-  CHECK(sr["score"]["long"]["pairs"].size() == size_t(sr_frames - 7));
+  CHECK(sr["score"]["short"]["pairs"].size() == 9);
+  CHECK(sr["score"]["long"]["pairs"].size() == 3);
 }
 
 TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {

@@ -34,7 +34,7 @@ train::FeatureTrainConfig small_config(model::DecoderProfile profile, int iters)
   auto cfg = train::default_feature_config(small_scene(), profile);
   cfg.field.rank = {8, 8, 8};
   cfg.iters = iters;
-  cfg.batch = testing::small_run() ? 256 : 1024;  // STYLERF_TEST_SMALL: the simulator
+  cfg.batch = 1024;
   cfg.patch = 48;
   cfg.seed = 2;
   return cfg;
