@@ -203,6 +203,33 @@ TEST_CASE("the 2D warm start and the ablation switches train") {
   }
 }
 
+TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr_decay_ratio") {
+  // Adam's first step moves each weight by about lr (m / sqrt(v) = +-1), so the largest move of the first
+  // step, taken at progress 1, is the decayed lr; the same trainer without decay moves by the full lr.
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto first_move = [&](float ratio, double progress) {
+    auto cfg = small_config(10);
+    cfg.lr_decay_ratio = ratio;
+    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    const auto w0 = t.model().dst.fc_w.value.to_host();
+    t.set_schedule_progress(progress);
+    REQUIRE_FALSE(t.step().skipped);
+    const auto w1 = t.model().dst.fc_w.value.to_host();
+    double m = 0;
+    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    return m;
+  };
+  const double full = first_move(1.0f, 1.0), decayed = first_move(0.01f, 1.0), half = first_move(0.01f, 0.5);
+  const float lr = small_config(1).lr_stylizer;
+  CHECK(full == doctest::Approx(lr).epsilon(0.05));
+  CHECK(decayed == doctest::Approx(0.01 * lr).epsilon(0.05));
+  CHECK(half == doctest::Approx(0.1 * lr).epsilon(0.05));  // 0.01^0.5
+  // The ratio survives the checkpoint's config.
+  auto cfg = small_config(1);
+  cfg.lr_decay_ratio = 0.25f;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decay_ratio == 0.25f);
+}
+
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {
   const auto none = train::opacity_mask(std::vector<float>(16, 0.0f), 4, 4, 16, 16);
   CHECK(none.empty());

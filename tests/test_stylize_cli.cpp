@@ -148,5 +148,11 @@ TEST_CASE("stylize: bad input gets a clear error") {
   setenv("STYLERF_POOL_MIB", "4GB", 1);
   expect("stylize --ckpt '" + ck.style + "' --style '" + style + "' -o '" + out + "'", "STYLERF_POOL_MIB='4GB'");
   unsetenv("STYLERF_POOL_MIB");
+  // train-style's schedule knobs are checked before any checkpoint is read.
+  const std::string train = "train-style --features '" + ck.features + "' --styles '" + empty_dir.string() + "' -o '" +
+                            out + "' ";
+  expect(train + "--lr-decay 0", "--lr-decay must be in (0, 1]");
+  expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
+  expect(train + "--lr-decoder -1", "--lr-stylizer and --lr-decoder must be positive");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

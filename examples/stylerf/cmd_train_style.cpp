@@ -31,7 +31,7 @@ int run_train_style(int argc, char** argv) {
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0;
   int patch = 256;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -50,6 +50,9 @@ int run_train_style(int argc, char** argv) {
       "first N steps in 2D on stage 2's cached relu3_1 targets (no rendering; fast profile)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
+      "lr-decay", po::value(&lr_decay)->default_value(1.0f),
+      "both learning rates at the end of the run over their start, exponential in the run's progress (its "
+      "time with --minutes); 1: constant, the paper's")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
@@ -75,6 +78,8 @@ int run_train_style(int argc, char** argv) {
     throw Error("--warm-start, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   for (float lr : {lr_stylizer, lr_decoder})
     if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
+  if (!(lr_decay > 0 && lr_decay <= 1))
+    throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
@@ -110,6 +115,7 @@ int run_train_style(int argc, char** argv) {
     cfg.patch = patch;
     cfg.lr_stylizer = lr_stylizer;
     cfg.lr_decoder = lr_decoder;
+    cfg.lr_decay_ratio = lr_decay;
     cfg.warm_start = warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
@@ -124,7 +130,9 @@ int run_train_style(int argc, char** argv) {
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder << "; grids frozen; "
+            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
+            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << "; grids frozen; "
             << m.param_count() / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first" : "")
             << std::endl;

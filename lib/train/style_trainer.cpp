@@ -260,7 +260,9 @@ StyleStepStats StyleTrainer::step() {
     if (!std::isfinite(st.content + st.style))
       throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
                   "); try lower learning rates or another --seed");
-    const float lr_scale = std::pow(cfg_.lr_decay_ratio, float(k - 1) / float(std::max(1, cfg_.iters)));
+    const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
+                                                    : double(k - 1) / double(std::max(1, cfg_.iters));
+    const float lr_scale = float(std::pow(double(cfg_.lr_decay_ratio), progress));
     adam_.step(model_.params(), lr_scale);
   }
   iteration_ = k;
@@ -344,6 +346,7 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
   };
   if (trainer.iteration() == 0 && opt.eval_every > 0) holdout(0);
   while (!trainer.done()) {
+    if (opt.time_budget_s > 0) trainer.set_schedule_progress(sum.seconds / opt.time_budget_s);
     const StyleStepStats st = trainer.step();
     ++sum.iterations;
     sum.seconds += st.seconds;

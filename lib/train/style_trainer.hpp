@@ -89,6 +89,9 @@ class StyleTrainer {
   int iteration() const { return iteration_; }
   bool done() const { return iteration_ >= cfg_.iters; }
   void set_total_iters(int iters) { cfg_.iters = iters; }
+  // Where the run stands in [0, 1] for the lr decay; a time-budgeted run passes its elapsed fraction (its
+  // step count is only an estimate, refitted as it goes). Unset (< 0): iteration / iters.
+  void set_schedule_progress(double f) { schedule_progress_ = f; }
   const StyleTrainConfig& config() const { return cfg_; }
   const StyleSet& styles() const { return styles_; }
   model::StyleModel& model() { return model_; }
@@ -112,6 +115,7 @@ class StyleTrainer {
   nn::Adam adam_;
   nn::VggEncoder vgg_;
   features::FeatureTargets targets_;  // warm start only
+  double schedule_progress_ = -1;
   std::unique_ptr<features::PatchSampler> patches_;
   std::mt19937_64 rng_;
   int iteration_ = 0;
