@@ -26,9 +26,9 @@
 # Where it stands (runs of 2026-11-24/25, 2-core CPU, no Oclgrind report in any of them): 25 suites clean in
 # earlier runs; clean to the end at the sizes and skips below: test_vgg (8 cases), test_adain (3),
 # test_feature_targets (13), test_hardening (6), test_lpips (16, 4 skipped), test_train_density (586 s,
-# 2 skipped), test_train_features (599 s, 2 skipped; both beside a training run). Not yet run to the end with the final skips (each
-# clean as far as it got): test_stylize, test_style_model, test_eval_cli, test_stylize_cli. Shrink rather
-# than skip where a case can keep its meaning.
+# 2 skipped) and test_train_features (599 s, 2 skipped), those two beside a training run. Not yet run to the
+# end with the final skips (each clean as far as it got): test_stylize, test_style_model, test_eval_cli,
+# test_stylize_cli. Shrink rather than skip where a case can keep its meaning.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
