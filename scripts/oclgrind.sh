@@ -44,6 +44,9 @@ else
 fi
 [ -n "$suites" ] || { echo "no CTest suites found in $BUILD_DIR (build it first)"; exit 1; }
 export STYLERF_CL_OPTIONS="-Drestrict=" STYLERF_TEST_SMALL=1
+# The command-line suites' stylerf children run on the simulator too (they inherit its LD_PRELOAD): their
+# captured output, reports included, is passed on to the suite's log (tests/cli_runner.hpp).
+export STYLERF_TEST_FORWARD_CLI_OUTPUT=1
 export STYLERF_CONV_ALGO=${STYLERF_CONV_ALGO:-im2col}  # convs a test does not pin (see the header)
 export STYLERF_TEST_DATA=${STYLERF_TEST_DATA:-$PWD/../shared/data}
 export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$HOME/.cache/stylerf/pocl}
@@ -52,23 +55,14 @@ OCLGRIND=(oclgrind --data-races --check-api)  # 128 MiB of global memory, its de
 # Doctest cases left out under Oclgrind, each with its reason (printed). Keep this list short: shrink a
 # case under STYLERF_TEST_SMALL instead where its meaning survives that.
 # (doctest filters: comma-separated, wildcards; a name with a comma is matched by its start and a *.)
-declare -A EXCLUDE=(
-  [test_eval_cli]="eval consistency*,eval table*"
-  [test_lpips]="lpips: the official values*,lpips alex: the official values*,lpips: masked distance,lpips alex: masked distance"
-  [test_style_model]="style training moves*,the 2D warm start*"
-  [test_stylize]="style encoder: hard images*"
-  [test_stylize_cli]="stylize: a path*"
-  [test_train_density]="refit_schedule*,time-budgeted run*"
-  [test_train_features]="feature stage (fast profile)*,feature stage (paper profile)*"
-)
-declare -A EXCLUDE_WHY=(
-  [test_eval_cli]="eval consistency's four runs (LPIPS through VGG-16 and AlexNet, per-frame AdaIN, StyleRF frames) and the paper's table over two scenes, three methods and two styles: each over 10 min simulated even at 8 frames of 32x32; their library calls run in test_consistency, test_lpips, test_adain and test_stylize, and this suite's lpips, bench and refusal cases still run the command line"
-  [test_lpips]="six fixed 256x256 pairs of ../shared/reference/lpips through VGG-16 and AlexNet (hours simulated); the masked cases need their 96x48 images (noise 32 px from the mask; smaller ones fail their bounds) and ~12 distances each (over 10 min simulated), and apply the mask on the host: the same kernels run in the other cases, against double-precision references"
-  [test_style_model]="~300 kernels a rendered step while the trainer holds ~100-170 MiB of device memory (decoder, its Adam state, VGG): ~0.4 s a launch under the race detector, over 1000 s a case; SICT, DST, the style losses, VGG and decoder backward and Adam run in this suite's other cases, test_sict_dst, test_loss, test_vgg and test_module_adam"
-  [test_stylize]="encodes style images at the fixed 256x256 (style::kStyleImageSize) five times (~10 GB of race-detector shadow, over 10 min); VGG runs in test_vgg and test_feature_targets, DST's style branch in test_style_model"
-  [test_stylize_cli]="five stylize runs whose per-view losses put each style through VGG at the fixed 256x256 and decode ~40 views (a 5x5 mix sheet among them): hours simulated; their kernels run in test_stylize, test_style_model, test_adain and test_vgg"
-  [test_train_density]="refit_schedule trains its own model 151 steps for an event to fire (the suite's shared 150-step model already takes ~340 s simulated), and the time-budgeted case checks wall-clock step rates; the same training kernels run in the smoke, checkpoint and NaN-guard cases"
-  [test_train_features]="the two training runs: 120 fast-profile steps of up to ~250 kernels with ~100 MiB of decoder, Adam state and VGG on the device (~0.3 s a launch under the race detector; even the 30 steps that pass its bounds at larger learning rates take ~30 min), and 6 paper-profile steps over full-resolution 256-channel features (~7 GB of race-detector shadow, over 15 min); the trainer's kernels (feature grid, targets, TV, decoder and VGG backward) run in this suite's other cases, test_grid, test_feature_targets and test_vgg"
+declare -A EXCLUDE=(  # [suite]="filters|reason"
+  [test_eval_cli]="eval consistency*,eval table*|eval consistency's four runs (LPIPS through VGG-16 and AlexNet, per-frame AdaIN, StyleRF frames) and the paper's table over two scenes, three methods and two styles: each over 10 min simulated even at 8 frames of 32x32; their library calls run in test_consistency, test_lpips, test_adain and test_stylize, and this suite's lpips, bench and refusal cases still run the command line"
+  [test_lpips]="lpips: the official values*,lpips alex: the official values*,lpips: masked distance,lpips alex: masked distance|six fixed 256x256 pairs of ../shared/reference/lpips through VGG-16 and AlexNet (hours simulated); the masked cases need their 96x48 images (noise 32 px from the mask; smaller ones fail their bounds) and ~12 distances each (over 10 min simulated), and apply the mask on the host: the same kernels run in the other cases, against double-precision references"
+  [test_style_model]="style training moves*,the 2D warm start*|~300 kernels a rendered step while the trainer holds ~100-170 MiB of device memory (decoder, its Adam state, VGG): ~0.4 s a launch under the race detector, over 1000 s a case; SICT, DST, the style losses, VGG and decoder backward and Adam run in this suite's other cases, test_sict_dst, test_loss, test_vgg and test_module_adam"
+  [test_stylize]="style encoder: hard images*|encodes style images at the fixed 256x256 (style::kStyleImageSize) five times (~10 GB of race-detector shadow, over 10 min); VGG runs in test_vgg and test_feature_targets, DST's style branch in test_style_model"
+  [test_stylize_cli]="stylize: a path*|five stylize runs whose per-view losses put each style through VGG at the fixed 256x256 and decode ~40 views (a 5x5 mix sheet among them): hours simulated; their kernels run in test_stylize, test_style_model, test_adain and test_vgg"
+  [test_train_density]="refit_schedule*,time-budgeted run*|refit_schedule trains its own model 151 steps for an event to fire (the suite's shared 150-step model already takes ~340 s simulated), and the time-budgeted case checks wall-clock step rates; the same training kernels run in the smoke, checkpoint and NaN-guard cases"
+  [test_train_features]="feature stage (fast profile)*,feature stage (paper profile)*|the two training runs: 120 fast-profile steps of up to ~250 kernels with ~100 MiB of decoder, Adam state and VGG on the device (~0.3 s a launch under the race detector; even the 30 steps that pass its bounds at larger learning rates take ~30 min), and 6 paper-profile steps over full-resolution 256-channel features (~7 GB of race-detector shadow, over 15 min); the trainer's kernels (feature grid, targets, TV, decoder and VGG backward) run in this suite's other cases, test_grid, test_feature_targets and test_vgg"
 )
 # API errors a suite provokes on purpose (--check-api reports them too): a regex over the report's block.
 declare -A EXPECTED_API_ERROR=(
@@ -95,8 +89,9 @@ for s in $suites; do
   else
     cmd=("$BUILD_DIR/$s" --duration=true)  # per-case seconds in the log, for choosing what to shrink
     if [ -n "${EXCLUDE[$s]:-}" ]; then
-      cmd+=("--test-case-exclude=${EXCLUDE[$s]}")
-      echo "$s: skipping under Oclgrind: ${EXCLUDE[$s]} (${EXCLUDE_WHY[$s]})"
+      skipped=${EXCLUDE[$s]%%|*}
+      cmd+=("--test-case-exclude=$skipped")
+      echo "$s: skipping under Oclgrind: $skipped (${EXCLUDE[$s]#*|})"
     fi
   fi
   # A fresh TMPDIR a suite, removed after it: the suites' scratch folders (tests/small_scene.cpp and the
@@ -117,7 +112,7 @@ for s in $suites; do
   else
     line="$s: clean in ${secs}s"
   fi
-  [ -n "${EXCLUDE[$s]:-}" ] && line="$line; skipped: ${EXCLUDE[$s]}"
+  [ -n "${EXCLUDE[$s]:-}" ] && line="$line; skipped: ${EXCLUDE[$s]%%|*}"
   echo "$line"
   summary+=("$line")
 done
