@@ -3,7 +3,8 @@
 //    compositing (1e-4 of the map's scale), and transparent rays render exactly 0 both ways;
 //  - style training: losses finite, the stylizer and the decoder move, the feature field does not, SICT's
 //    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start and
-//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train;
+//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; with a weight
+//    average, the checkpoint holds the average (double reference) and resumes from the last iterate;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -228,6 +229,40 @@ TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr
   auto cfg = small_config(1);
   cfg.lr_decay_ratio = 0.25f;
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decay_ratio == 0.25f);
+}
+
+TEST_CASE("the weight average: checkpoints hold the average as the model and resume from the last iterate") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(3);
+  cfg.ema_decay = 0.5f;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  std::vector<double> avg;  // DST's fc weights averaged in double, with the ramp min(0.5, (1 + t) / (10 + t))
+  int updates = 0;
+  while (!t.done()) {
+    if (t.step().skipped) continue;
+    const auto w = t.model().dst.fc_w.value.to_host();
+    const double d = std::min(0.5, double(1 + updates) / double(10 + updates));
+    if (updates == 0)
+      avg = testing::to_double(w);
+    else
+      for (size_t i = 0; i < w.size(); ++i) avg[i] = d * avg[i] + (1 - d) * w[i];
+    ++updates;
+  }
+  REQUIRE(updates >= 2);
+  const auto last = t.model().dst.fc_w.value.to_host();
+  const std::string path = (testing::small_work_dir() / "style_ema.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  CHECK(t.model().dst.fc_w.value.to_host() == last);  // saving swapped the average back out
+  const auto ck = io::load_checkpoint(path, "style");
+  const auto loaded = model::StyleModel::load(ck);
+  const double scale = max_abs(last);
+  testing::check_close(loaded.dst.fc_w.value.to_host(), avg, 1e-5, 1e-6 * scale, "checkpoint model = average");
+  CHECK(loaded.dst.fc_w.value.to_host() != last);
+  train::StyleTrainer r(testing::small_scene(), ck, nullptr);
+  CHECK(r.config().ema_decay == 0.5f);
+  CHECK(r.model().dst.fc_w.value.to_host() == last);
+  r.set_total_iters(4);
+  CHECK(std::isfinite(r.step().style));
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

@@ -31,7 +31,7 @@ int run_train_style(int argc, char** argv) {
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0;
   int patch = 256;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, ema = 0.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -53,6 +53,9 @@ int run_train_style(int argc, char** argv) {
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes); 1: constant, the paper's")(
+      "ema", po::value(&ema)->default_value(0.0f),
+      "D in (0, 1): held-out losses and the checkpoint use an exponential moving average of the weights over "
+      "~1/(1-D) steps (the last iterate is kept for --resume); 0: off, the paper's")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
@@ -80,6 +83,7 @@ int run_train_style(int argc, char** argv) {
     if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
+  if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
@@ -116,6 +120,7 @@ int run_train_style(int argc, char** argv) {
     cfg.lr_stylizer = lr_stylizer;
     cfg.lr_decoder = lr_decoder;
     cfg.lr_decay_ratio = lr_decay;
+    cfg.ema_decay = ema;
     cfg.warm_start = warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
@@ -132,6 +137,7 @@ int run_train_style(int argc, char** argv) {
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
             << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
             << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
             << "; grids frozen; "
             << m.param_count() / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first" : "")

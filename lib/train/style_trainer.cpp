@@ -35,6 +35,7 @@ json StyleTrainConfig::to_json() const {
           {"beta1", beta1},
           {"beta2", beta2},
           {"lr_decay_ratio", lr_decay_ratio},
+          {"ema_decay", ema_decay},
           {"content_weight", weights.content},
           {"style_weight", weights.style},
           {"warm_start", warm_start},
@@ -55,6 +56,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.beta1 = j.at("beta1").get<float>();
   c.beta2 = j.at("beta2").get<float>();
   c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
+  c.ema_decay = j.value("ema_decay", 0.0f);  // absent from checkpoints written before the option existed
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
@@ -113,10 +115,12 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, 
   model_ = model::StyleModel::load(ck);
   init(log);
   adam_.load(ck, "", model_.params());
+  ema_.load(ck, "", model_.params());
 }
 
 void StyleTrainer::init(std::ostream* log) {
   adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
+  ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
   if (cfg_.warm_start > iteration_) {
     features::TargetCacheOptions to;
@@ -264,6 +268,7 @@ StyleStepStats StyleTrainer::step() {
                                                     : double(k - 1) / double(std::max(1, cfg_.iters));
     const float lr_scale = float(std::pow(double(cfg_.lr_decay_ratio), progress));
     adam_.step(model_.params(), lr_scale);
+    ema_.update(model_.params());
   }
   iteration_ = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {
@@ -279,6 +284,7 @@ StyleStepStats StyleTrainer::step() {
 HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
   HoldoutLoss h;
   if (styles_.holdout.empty()) return h;
+  const nn::AveragedWeightsScope averaged(ema_, model_.params());
   const int s = model_.stride();
   const int W = scene_->width(), H = scene_->height();
   const features::Patch p = patches_->at(0, ((W - patches_->width()) / 2) / 4 * 4, ((H - patches_->height()) / 2) / 4 * 4, s);
@@ -318,7 +324,11 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
                 "; checkpoint " + path + " not written");
   io::Checkpoint ck;
   ck.kind = "style";
-  model_.save(ck);
+  {
+    const nn::AveragedWeightsScope averaged(ema_, model_.params());  // the model users get: the average
+    model_.save(ck);
+  }
+  ema_.save(ck, "", model_.params());  // the last iterate, to resume training from
   ck.meta["scene"] = scene_meta;
   ck.meta["styles"] = styles_.to_json();
   ck.meta["trainer"] = {{"config", cfg_.to_json()}, {"iteration", iteration_}};

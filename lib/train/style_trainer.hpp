@@ -12,6 +12,9 @@
 //  - SICT's running statistics start from the statistics of the kept samples of a few training patches
 //    (measured before the first step) instead of (0, 1): at momentum 1e-4 they would need ~10k steps to
 //    leave their initial values, and inference uses nothing else;
+//  - ema_decay > 0 (off by default, as in the paper): an exponential moving average of the trained weights
+//    is what the held-out evaluation measures and what checkpoints hold as the model (the last iterate is
+//    kept beside it for --resume); one style a step makes the last iterate noisy;
 //  - warm_start > 0: the first steps are 2D steps on stage 2's cached relu3_1 targets of the training views
 //    (each target pixel a "point" of weight 1; no rendering), then rendered steps fine-tune. Fast profile
 //    only (the targets are at relu3_1's resolution, the fast profile's map resolution).
@@ -29,6 +32,7 @@
 #include "lib/style/style_image.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
+#include "lib/nn/weight_average.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/style_losses.hpp"
 
@@ -43,6 +47,7 @@ struct StyleTrainConfig {
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start
+  float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int warm_start = 0;           // 2D steps first (fast profile)
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
@@ -96,7 +101,7 @@ class StyleTrainer {
   const StyleSet& styles() const { return styles_; }
   model::StyleModel& model() { return model_; }
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
-  // max_styles of them), SICT in inference mode.
+  // max_styles of them), SICT in inference mode; with ema_decay > 0, of the averaged weights.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
   void save(const std::string& path, const nlohmann::json& scene_meta);
 
@@ -113,6 +118,7 @@ class StyleTrainer {
   StyleSet styles_;
   model::StyleModel model_;
   nn::Adam adam_;
+  nn::WeightAverage ema_;
   nn::VggEncoder vgg_;
   features::FeatureTargets targets_;  // warm start only
   double schedule_progress_ = -1;
