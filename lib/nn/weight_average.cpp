@@ -1,7 +1,6 @@
 #include "lib/nn/weight_average.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <utility>
 
 #include "host/error.hpp"
@@ -49,7 +48,7 @@ Tensor WeightAverage::average(const std::string& name) const {
 
 void WeightAverage::save(io::Checkpoint& ck, const std::string& prefix, const std::vector<Param*>& params) const {
   if (!enabled()) return;
-  ck.meta[prefix + "ema"] = {{"decay", decay_}, {"updates", updates_}};
+  ck.meta[prefix + "ema"] = {{"updates", updates_}};  // the decay is its owner's config
   for (const Param* p : params) ck.put(prefix + "ema.raw." + p->name, p->value);
 }
 

@@ -31,7 +31,6 @@ class WeightAverage {
   explicit WeightAverage(float decay);  // decay in [0, 1); 0: off (update and swap do nothing)
 
   bool enabled() const { return decay_ > 0; }
-  float decay() const { return decay_; }
   int updates() const { return updates_; }
   // The decay the next update() uses.
   float next_decay() const;
