@@ -2,7 +2,8 @@
 //  - the deferred-vs-per-point proof: DST on the rendered map equals DST on every kept sample followed by
 //    compositing (1e-4 of the map's scale), and transparent rays render exactly 0 both ways;
 //  - style training: losses finite, the stylizer and the decoder move, the feature field does not, SICT's
-//    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start and
+//    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start (on
+//    VGG maps or on rendered maps, whose mean features and opacities are checked against the field) and
 //    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; with a weight
 //    average, the checkpoint holds the average (double reference) and resumes from the last iterate;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
@@ -171,17 +172,70 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   CHECK(std::isfinite(r.step().style));
 }
 
-TEST_CASE("the 2D warm start and the ablation switches train") {
+TEST_CASE("rendered warm-start maps hold each ray's mean feature and its opacity, as the field renders them") {
+  const auto f = small_features(model::DecoderProfile::Fast);
+  const auto& sc = testing::small_scene();
+  const train::RenderedWarmMaps r = train::render_warm_maps(f, sc, nullptr);
+  REQUIRE(r.maps.views() == int(sc.train.size()));
+  const int C = features::kTargetChannels;
+  std::vector<float> bg(size_t(C), 0.0f);
+  if (f.field.background.value.defined()) bg = f.field.background.value.to_host();
+  const auto maps = r.maps.maps.to_host();
+  int opaque = 0, empty = 0;
+  for (int v : {0, int(sc.train.size()) - 1}) {
+    const auto fm = f.render_feature_map(sc, sc.train[size_t(v)].camera);
+    REQUIRE(fm.height == r.maps.map_height());
+    REQUIRE(fm.width == r.maps.map_width());
+    const auto value = fm.features.to_host();  // [C, h, w]
+    const int64_t n = int64_t(fm.height) * fm.width;
+    for (int64_t p = 0; p < n; ++p) {
+      const float a = fm.acc[size_t(p)];
+      REQUIRE(r.opacity(v, int(p / fm.width), int(p % fm.width)) == a);
+      const float* mean = &maps[size_t((v * n + p) * C)];
+      if (a > train::kWarmMapMinOpacity) {
+        ++opaque;
+        for (int c = 0; c < C; ++c) {
+          const double want = value[size_t(c * n + p)];
+          REQUIRE(std::fabs(double(mean[c]) * a + (1.0 - a) * bg[size_t(c)] - want) <= 1e-5 * (1.0 + std::fabs(want)));
+        }
+      } else {
+        ++empty;
+        for (int c = 0; c < C; ++c) REQUIRE(mean[c] == 0.0f);  // nothing there: no division by ~0
+      }
+    }
+    CHECK(r.opacity(v, -3, -3) == fm.acc[0]);  // clamped at the borders
+  }
+  CHECK(opaque > 0);
+  MESSAGE(opaque << " opaque and " << empty << " empty map pixels checked");
+  testing::expect_error([&] { train::render_warm_maps(small_features(model::DecoderProfile::Paper), sc, nullptr); },
+                        "fast profile");
+  testing::expect_error([] { train::parse_warm_maps("photos"); }, "must be vgg or rendered, got 'photos'");
+}
+
+TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches train") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  {
+  for (const auto maps : {train::WarmMaps::Vgg, train::WarmMaps::Rendered}) {
+    CAPTURE(train::warm_maps_name(maps));
     auto cfg = small_config(3);
     cfg.warm_start = 2;
+    cfg.warm_maps = maps;
     train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    const auto s1 = t.step(), s2 = t.step(), s3 = t.step();
+    const auto dst0 = t.model().dst.fc_w.value.to_host(), dec0 = t.model().features.decoder.layers().back().w.value.to_host();
+    const auto s1 = t.step(), s2 = t.step();
+    CHECK(t.model().dst.fc_w.value.to_host() != dst0);  // the warm steps train the stylizer...
+    CHECK(t.model().features.decoder.layers().back().w.value.to_host() != dec0);  // ...and the decoder
+    const auto s3 = t.step();
     CHECK(s1.warm);
     CHECK(s2.warm);
     CHECK_FALSE(s3.warm);
-    CHECK(std::isfinite(s1.style + s2.style));
+    CHECK(std::isfinite(s1.style + s2.style + s1.content + s2.content));
+    CHECK(t.model().first_nonfinite().empty());
+    CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).warm_maps == maps);  // kept in the checkpoint
+  }
+  {
+    auto j = small_config(1).to_json();
+    j.erase("warm_maps");  // a checkpoint written before the option existed
+    CHECK(train::StyleTrainConfig::from_json(j).warm_maps == train::WarmMaps::Vgg);
   }
   testing::expect_error(
       [&] {

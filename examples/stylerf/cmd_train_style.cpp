@@ -27,7 +27,8 @@ using stylerf::host::Error;
 int run_train_style(int argc, char** argv) {
   namespace train = stylerf::train;
   namespace model = stylerf::model;
-  std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias";
+  std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
+              warm_maps_name = "vgg";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0;
   int patch = 256;
   double minutes = 0;
@@ -47,7 +48,10 @@ int run_train_style(int argc, char** argv) {
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
       "warm-start", po::value(&warm)->default_value(0),
-      "first N steps in 2D on stage 2's cached relu3_1 targets (no rendering; fast profile)")(
+      "first N steps in 2D on a map per training view (no rendering; fast profile)")(
+      "warm-maps", po::value(&warm_maps_name)->default_value("vgg"),
+      "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
+      "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
@@ -86,6 +90,7 @@ int run_train_style(int argc, char** argv) {
   if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
+  const auto warm_maps = train::parse_warm_maps(warm_maps_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
 
@@ -122,6 +127,7 @@ int run_train_style(int argc, char** argv) {
     cfg.lr_decay_ratio = lr_decay;
     cfg.ema_decay = ema;
     cfg.warm_start = warm;
+    cfg.warm_maps = warm_maps;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
@@ -140,7 +146,9 @@ int run_train_style(int argc, char** argv) {
             << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
             << "; grids frozen; "
             << m.param_count() / 1e6 << "M trained parameters"
-            << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first" : "")
+            << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
+                                         train::warm_maps_name(cfg.warm_maps) + " maps)"
+                                   : "")
             << std::endl;
 
   train::StyleRunOptions ro;

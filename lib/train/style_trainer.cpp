@@ -39,6 +39,7 @@ json StyleTrainConfig::to_json() const {
           {"content_weight", weights.content},
           {"style_weight", weights.style},
           {"warm_start", warm_start},
+          {"warm_maps", warm_maps_name(warm_maps)},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -60,6 +61,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
+  c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -89,6 +91,15 @@ StyleSet StyleSet::from_json(const json& j) {
 
 namespace {
 std::string stem(const std::string& p) { return std::filesystem::path(p).stem().string(); }
+
+// rows [R, C] each times its own factor. On the host: the warm start's maps are a few thousand rows.
+Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
+  const int64_t R = rows.dim(0), C = rows.dim(1);
+  auto v = rows.to_host();
+  for (int64_t r = 0; r < R; ++r)
+    for (int64_t c = 0; c < C; ++c) v[size_t(r * C + c)] *= factor[size_t(r)];
+  return Tensor::from_host(v, {R, C}, "scaled rows");
+}
 }  // namespace
 
 // ---- trainer ----------------------------------------------------------------------------------------------
@@ -123,9 +134,13 @@ void StyleTrainer::init(std::ostream* log) {
   ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
   if (cfg_.warm_start > iteration_) {
-    features::TargetCacheOptions to;
-    to.log = log;
-    targets_ = features::load_or_compute_targets(*scene_, vgg_, to);
+    if (cfg_.warm_maps == WarmMaps::Rendered) {
+      rendered_maps_ = render_warm_maps(model_.features, *scene_, log);
+    } else {
+      features::TargetCacheOptions to;
+      to.log = log;
+      targets_ = features::load_or_compute_targets(*scene_, vgg_, to);
+    }
   }
   const uint64_t s = cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration_);
   patches_ = std::make_unique<features::PatchSampler>(*scene_, s + 1, cfg_.patch);
@@ -210,36 +225,49 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   (void)k;
   StyleStepStats st;
   st.warm = true;
+  const bool rendered = cfg_.warm_maps == WarmMaps::Rendered;
   const features::Patch p = patches_->next(4);
   const int h = p.height / 4, w = p.width / 4;
   const int64_t R = int64_t(h) * w;
-  // The cached relu3_1 of the patch's pixels: block centres (4j + 2) sit exactly on the map's pixel centres.
+  // The map pixels of the patch's blocks: block centres (4j + 2) sit exactly on the map's pixel centres.
   std::vector<int32_t> view(size_t(R), p.view);
-  std::vector<float> xy(size_t(2 * R));
+  std::vector<float> xy(size_t(2 * R)), acc(size_t(R), 1.0f);
   for (int i = 0; i < h; ++i)
     for (int j = 0; j < w; ++j) {
       xy[size_t(2 * (i * w + j))] = float(p.x0 + 4 * j + 2);
       xy[size_t(2 * (i * w + j) + 1)] = float(p.y0 + 4 * i + 2);
+      if (rendered) acc[size_t(i * w + j)] = rendered_maps_.opacity(p.view, p.y0 / 4 + i, p.x0 / 4 + j);
     }
-  const Tensor x = features::gather_targets(targets_.maps, Tensor::from_host(view, {R}), Tensor::from_host(xy, {R, 2}));
+  const Tensor x = features::gather_targets(rendered ? rendered_maps_.maps.maps : targets_.maps,
+                                            Tensor::from_host(view, {R}), Tensor::from_host(xy, {R, 2}));
+  const Tensor acc_t = Tensor::from_host(acc, {R}, "warm-start opacity");
   style::Sict::Context sc;
-  const Tensor c = model_.sict.forward(x, true, &sc);
-  Tensor ones({R}, "warm-start opacity");
-  ones.fill(1.0f);
+  Tensor c = model_.sict.forward(x, true, &sc);
+  if (rendered) c = scale_rows(c, acc);  // c = acc * SICT(mean feature), as the kept samples' sum
   style::Dst::ApplyContext actx;
-  const Tensor y = model_.dst.apply(c, ones, code, &actx);
-  nn::ConvStack::Ctx dctx;
-  const Tensor rgb = model_.features.decoder.forward(nn::rows_to_image(y, h, w), &dctx);
+  const Tensor y = model_.dst.apply(c, acc_t, code, &actx);
+  OpacityMask mask;
+  const bool masked = rendered && model_.features.geo.has_background;
+  if (masked) {
+    mask = opacity_mask(acc, h, w, p.height, p.width);
+    if (mask.empty()) {
+      st.skipped = true;
+      return st;
+    }
+  }
+  model::StyleModel::Context mctx;  // only its decoder part is used
+  const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &mctx)
+                              : model_.features.decoder.forward(nn::rows_to_image(y, h, w), &mctx.decoder);
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
-  const StyleLossValues lv = style_losses(out, truth[3], style_taps, nullptr, cfg_.weights, &grads);
+  const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const Tensor dy = nn::rows_to_image_backward(model_.features.decoder.backward(dctx, drgb, true));
+  const Tensor dy = nn::rows_to_image_backward(model_.features.decoder.backward(mctx.decoder, drgb, true));
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
-  model_.sict.backward(sc, g.dc, false);
+  model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
   // The running statistics are left alone: they describe 3D samples, which these 2D maps only resemble.
   st.content = lv.content;
   st.style = lv.style;

@@ -15,9 +15,10 @@
 //  - ema_decay > 0 (off by default, as in the paper): an exponential moving average of the trained weights
 //    is what the held-out evaluation measures and what checkpoints hold as the model (the last iterate is
 //    kept beside it for --resume); one style a step makes the last iterate noisy;
-//  - warm_start > 0: the first steps are 2D steps on stage 2's cached relu3_1 targets of the training views
-//    (each target pixel a "point" of weight 1; no rendering), then rendered steps fine-tune. Fast profile
-//    only (the targets are at relu3_1's resolution, the fast profile's map resolution).
+//  - warm_start > 0: the first steps are 2D steps on a map per training view (no rendering), then rendered
+//    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
+//    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
+//    only (the maps are at relu3_1's resolution, the fast profile's map resolution).
 #pragma once
 #include <iosfwd>
 #include <memory>
@@ -35,6 +36,7 @@
 #include "lib/nn/weight_average.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/style_losses.hpp"
+#include "lib/train/warm_maps.hpp"
 
 namespace stylerf::train {
 
@@ -50,6 +52,7 @@ struct StyleTrainConfig {
   float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int warm_start = 0;           // 2D steps first (fast profile)
+  WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
   int finite_check_every = 50;
@@ -120,7 +123,8 @@ class StyleTrainer {
   nn::Adam adam_;
   nn::WeightAverage ema_;
   nn::VggEncoder vgg_;
-  features::FeatureTargets targets_;  // warm start only
+  features::FeatureTargets targets_;  // warm start on VGG maps only
+  RenderedWarmMaps rendered_maps_;    // warm start on rendered maps only
   double schedule_progress_ = -1;
   std::unique_ptr<features::PatchSampler> patches_;
   std::mt19937_64 rng_;
