@@ -234,9 +234,40 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
   }
   {
     auto j = small_config(1).to_json();
-    j.erase("warm_maps");  // a checkpoint written before the option existed
+    j.erase("warm_maps");  // a checkpoint written before the options existed
+    j.erase("decoder_warm");
     CHECK(train::StyleTrainConfig::from_json(j).warm_maps == train::WarmMaps::Vgg);
+    CHECK(train::StyleTrainConfig::from_json(j).decoder_warm == 0);
   }
+  {
+    // The decoder warm-up comes first and trains the decoder alone; the 2D warm start follows.
+    auto cfg = small_config(4);
+    cfg.decoder_warm = 2;
+    cfg.warm_start = 1;
+    CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).decoder_warm == 2);
+    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    const auto sict0 = t.model().sict.qkv_w.value.to_host(), dst0 = t.model().dst.fc_w.value.to_host();
+    const auto dec0 = t.model().features.decoder.layers().front().w.value.to_host();
+    const auto s1 = t.step(), s2 = t.step();
+    CHECK(s1.decoder_warm);
+    CHECK(s2.decoder_warm);
+    CHECK(std::isfinite(s1.content + s2.content));
+    CHECK(s1.content > 0);
+    CHECK(t.model().features.decoder.layers().front().w.value.to_host() != dec0);
+    CHECK(t.model().sict.qkv_w.value.to_host() == sict0);  // no gradient reached the stylizer
+    CHECK(t.model().dst.fc_w.value.to_host() == dst0);
+    const auto s3 = t.step(), s4 = t.step();
+    CHECK((s3.warm && !s3.decoder_warm));
+    CHECK((!s4.warm && !s4.decoder_warm));
+    CHECK(t.model().dst.fc_w.value.to_host() != dst0);
+  }
+  testing::expect_error(
+      [&] {
+        auto cfg = small_config(1);
+        cfg.decoder_warm = 1;
+        train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
+      },
+      "need the fast profile");
   testing::expect_error(
       [&] {
         auto cfg = small_config(1);

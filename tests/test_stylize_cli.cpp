@@ -155,6 +155,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
   expect(train + "--ema 1", "--ema must be in [0, 1)");
   expect(train + "--ema -0.1", "--ema must be in [0, 1)");
+  expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
   expect(train + "--lr-decoder -1", "--lr-stylizer and --lr-decoder must be positive");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written

@@ -29,7 +29,8 @@ int run_train_style(int argc, char** argv) {
   namespace model = stylerf::model;
   std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name = "vgg";
-  int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0;
+  int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
+      decoder_warm = 0;
   int patch = 256;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, ema = 0.0f;
@@ -49,6 +50,9 @@ int run_train_style(int argc, char** argv) {
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
       "warm-start", po::value(&warm)->default_value(0),
       "first N steps in 2D on a map per training view (no rendering; fast profile)")(
+      "decoder-warm", po::value(&decoder_warm)->default_value(0),
+      "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
+      "profile)")(
       "warm-maps", po::value(&warm_maps_name)->default_value("vgg"),
       "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
@@ -81,8 +85,8 @@ int run_train_style(int argc, char** argv) {
     throw Error("--minutes must be a positive number of minutes");
   if (minutes > 0 && iters > 0) throw Error("--minutes and --iters exclude each other");
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
-  if (warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
-    throw Error("--warm-start, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
+  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
+    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   for (float lr : {lr_stylizer, lr_decoder})
     if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
   if (!(lr_decay > 0 && lr_decay <= 1))
@@ -128,6 +132,7 @@ int run_train_style(int argc, char** argv) {
     cfg.ema_decay = ema;
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
+    cfg.decoder_warm = decoder_warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
@@ -149,6 +154,7 @@ int run_train_style(int argc, char** argv) {
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")
+            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "")
             << std::endl;
 
   train::StyleRunOptions ro;

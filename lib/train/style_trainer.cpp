@@ -39,6 +39,7 @@ json StyleTrainConfig::to_json() const {
           {"content_weight", weights.content},
           {"style_weight", weights.style},
           {"warm_start", warm_start},
+          {"decoder_warm", decoder_warm},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
@@ -61,6 +62,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
+  c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
@@ -106,8 +108,8 @@ Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
 StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles,
                            const StyleTrainConfig& cfg, std::ostream* log)
     : scene_(&scene), cfg_(cfg), styles_(std::move(styles)) {
-  if (cfg_.warm_start > 0 && features.profile != model::DecoderProfile::Fast)
-    throw Error("train-style: --warm-start needs the fast profile (the cached relu3_1 targets are at its map "
+  if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
+    throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed);
   init(log);
@@ -133,7 +135,7 @@ void StyleTrainer::init(std::ostream* log) {
   adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
   ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
-  if (cfg_.warm_start > iteration_) {
+  if (cfg_.warm_start > 0 && cfg_.decoder_warm + cfg_.warm_start > iteration_) {
     if (cfg_.warm_maps == WarmMaps::Rendered) {
       rendered_maps_ = render_warm_maps(model_.features, *scene_, log);
     } else {
@@ -241,8 +243,12 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const Tensor x = features::gather_targets(rendered ? rendered_maps_.maps.maps : targets_.maps,
                                             Tensor::from_host(view, {R}), Tensor::from_host(xy, {R, 2}));
   const Tensor acc_t = Tensor::from_host(acc, {R}, "warm-start opacity");
+  // Rendered maps are normalised with the running statistics, those of 3D samples (what inference uses):
+  // the normalisation is affine, so normalising a ray's mean feature equals averaging its samples'
+  // normalised features, and only the attention is approximated. The batch statistics of a map of means
+  // are not the samples' (averaging along a ray lowers the variance). VGG maps keep their batch statistics.
   style::Sict::Context sc;
-  Tensor c = model_.sict.forward(x, true, &sc);
+  Tensor c = model_.sict.forward(x, !rendered, &sc);
   if (rendered) c = scale_rows(c, acc);  // c = acc * SICT(mean feature), as the kept samples' sum
   style::Dst::ApplyContext actx;
   const Tensor y = model_.dst.apply(c, acc_t, code, &actx);
@@ -275,6 +281,29 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   return st;
 }
 
+StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps) {
+  StyleStepStats st;
+  st.decoder_warm = true;
+  constexpr float kFeatureWeight = 0.1f;  // stage 2's patch loss
+  nn::ConvStack::Ctx dctx;
+  const Tensor rgb = model_.features.decoder.forward(style_taps[2], &dctx);
+  host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
+  const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
+  const double pix = nn::mse_forward(rgb, style_image).to_host()[0];
+  const double f3 = nn::mse_forward(out[2], style_taps[2]).to_host()[0];
+  const double f4 = nn::mse_forward(out[3], style_taps[3]).to_host()[0];
+  nn::VggFeatures grads;
+  grads[2] = nn::mse_backward(out[2], style_taps[2], kFeatureWeight);
+  grads[3] = nn::mse_backward(out[3], style_taps[3], kFeatureWeight);
+  Tensor drgb = vgg_.backward(grads);
+  vgg_.release();
+  nn::axpby(1.0f, nn::mse_backward(rgb, style_image, 1.0f), 1.0f, drgb);
+  model_.features.decoder.backward(dctx, drgb, false);
+  st.content = pix + kFeatureWeight * (f3 + f4);
+  st.rays = rgb.numel() / 3;
+  return st;
+}
+
 StyleStepStats StyleTrainer::step() {
   const auto t0 = std::chrono::steady_clock::now();
   const int k = iteration_ + 1;
@@ -286,7 +315,9 @@ StyleStepStats StyleTrainer::step() {
   model_.zero_grad();
   style::Dst::StyleContext sctx;
   const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), &sctx);
-  StyleStepStats st = (k <= cfg_.warm_start) ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
+  StyleStepStats st = k <= cfg_.decoder_warm                    ? decoder_warm_step(simg, taps)
+                      : k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx)
+                                                                 : rendered_step(k, taps, code, sctx);
   st.style_name = stem(path);
   if (!st.skipped) {
     if (!std::isfinite(st.content + st.style))
@@ -399,7 +430,8 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
     if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
       const double per_it = win_s / win_n;
       std::ostringstream l;
-      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "");
+      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
+        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "

@@ -15,7 +15,11 @@
 //  - ema_decay > 0 (off by default, as in the paper): an exponential moving average of the trained weights
 //    is what the held-out evaluation measures and what checkpoints hold as the model (the last iterate is
 //    kept beside it for --resume); one style a step makes the last iterate noisy;
-//  - warm_start > 0: the first steps are 2D steps on a map per training view (no rendering), then rendered
+//  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
+//    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
+//    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
+//    that never drew one renders blurred, and the style loss is mostly about fine texture (README);
+//  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
 //    only (the maps are at relu3_1's resolution, the fast profile's map resolution).
@@ -51,7 +55,8 @@ struct StyleTrainConfig {
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start
   float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
-  int warm_start = 0;           // 2D steps first (fast profile)
+  int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
+  int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
@@ -75,6 +80,7 @@ using style::load_style_image;  // lib/style/style_image.hpp
 struct StyleStepStats {
   int iteration = 0;
   bool warm = false;      // a 2D warm-start step
+  bool decoder_warm = false;  // a decoder warm-up step (content = its inversion loss, style 0)
   bool skipped = false;   // the patch had no opaque position (nothing to learn from)
   double content = 0, style = 0, seconds = 0;
   int64_t rays = 0, kept = 0;
@@ -115,6 +121,7 @@ class StyleTrainer {
                                style::Dst::StyleContext& sctx);
   StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
+  StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <iomanip>
 #include <ostream>
+#include <sstream>
 
 #include "host/error.hpp"
 
@@ -70,8 +71,10 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     }
     if (log) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      *log << "\r  warm-start maps: rendered " << v + 1 << "/" << V << " training views (" << std::fixed
-           << std::setprecision(1) << s << " s)" << std::flush;
+      std::ostringstream line;  // formatted apart: the caller's stream keeps its own precision
+      line << "\r  warm-start maps: rendered " << v + 1 << "/" << V << " training views (" << std::fixed
+           << std::setprecision(1) << s << " s)";
+      *log << line.str() << std::flush;
     }
   }
   if (log) *log << std::endl;
