@@ -313,11 +313,14 @@ StyleStepStats StyleTrainer::step() {
   const Tensor simg = load_style_image(path, cfg_.style_size, cfg_.style_crop, &rng_);
   const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
   model_.zero_grad();
-  style::Dst::StyleContext sctx;
-  const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), &sctx);
-  StyleStepStats st = k <= cfg_.decoder_warm                    ? decoder_warm_step(simg, taps)
-                      : k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx)
-                                                                 : rendered_step(k, taps, code, sctx);
+  StyleStepStats st;
+  if (k <= cfg_.decoder_warm) {
+    st = decoder_warm_step(simg, taps);  // the style branch is not used
+  } else {
+    style::Dst::StyleContext sctx;
+    const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), &sctx);
+    st = k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
+  }
   st.style_name = stem(path);
   if (!st.skipped) {
     if (!std::isfinite(st.content + st.style))
