@@ -261,20 +261,14 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
     CHECK((!s4.warm && !s4.decoder_warm));
     CHECK(t.model().dst.fc_w.value.to_host() != dst0);
   }
-  testing::expect_error(
-      [&] {
-        auto cfg = small_config(1);
-        cfg.decoder_warm = 1;
-        train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
-      },
-      "need the fast profile");
-  testing::expect_error(
-      [&] {
-        auto cfg = small_config(1);
-        cfg.warm_start = 1;
-        train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
-      },
-      "fast profile");
+  for (int train::StyleTrainConfig::*warm : {&train::StyleTrainConfig::decoder_warm, &train::StyleTrainConfig::warm_start})
+    testing::expect_error(
+        [&] {
+          auto cfg = small_config(1);
+          cfg.*warm = 1;
+          train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
+        },
+        "need the fast profile");
   for (auto [mode, bias] : {std::pair{style::SictMode::VanillaIn, true}, std::pair{style::SictMode::None, true},
                             std::pair{style::SictMode::VolumeAdaptive, false}}) {
     auto cfg = small_config(2);
