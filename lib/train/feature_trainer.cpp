@@ -9,6 +9,7 @@
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
 #include "lib/train/progress.hpp"
+#include "lib/train/reconstruction_loss.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/nn/layout.hpp"
@@ -209,19 +210,11 @@ FeatureStepStats FeatureTrainer::patch_step(int k) {
 
   // VGG of the true patch first (no activations kept), then of the decoded one (kept for backward).
   const nn::VggFeatures ft = vgg_.forward(gt, 4, false);
-  const nn::VggFeatures fo = vgg_.forward(rgb, 4, true);
-  const Tensor pix = nn::mse_forward(rgb, gt);
-  const Tensor c3 = nn::mse_forward(fo[2], ft[2]), c4 = nn::mse_forward(fo[3], ft[3]);
-  nn::VggFeatures grads;
-  grads[2] = nn::mse_backward(fo[2], ft[2], cfg_.content_weight);
-  grads[3] = nn::mse_backward(fo[3], ft[3], cfg_.content_weight);
-  Tensor drgb = vgg_.backward(grads);
-  vgg_.release();
-  nn::axpby(1.0f, nn::mse_backward(rgb, gt, 1.0f), 1.0f, drgb);
-  Tensor dmap = model_.decoder.backward(dctx, drgb, true);
+  const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, gt, ft, cfg_.content_weight);
+  Tensor dmap = model_.decoder.backward(dctx, loss.drgb, true);
   model_.field.render_backward(model_.geo, fctx, nn::rows_to_image_backward(dmap), Tensor());
-  st.pixel_mse = read_scalar(pix);
-  st.content = cfg_.content_weight * (read_scalar(c3) + read_scalar(c4));
+  st.pixel_mse = loss.pixel_mse;
+  st.content = cfg_.content_weight * loss.feature_mse;
   st.samples = r.samples;
   st.kept = r.kept;
   st.rays = R;

@@ -15,6 +15,7 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/train/progress.hpp"
+#include "lib/train/reconstruction_loss.hpp"
 
 namespace stylerf::train {
 
@@ -288,18 +289,9 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   nn::ConvStack::Ctx dctx;
   const Tensor rgb = model_.features.decoder.forward(style_taps[2], &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
-  const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
-  const double pix = nn::mse_forward(rgb, style_image).to_host()[0];
-  const double f3 = nn::mse_forward(out[2], style_taps[2]).to_host()[0];
-  const double f4 = nn::mse_forward(out[3], style_taps[3]).to_host()[0];
-  nn::VggFeatures grads;
-  grads[2] = nn::mse_backward(out[2], style_taps[2], kFeatureWeight);
-  grads[3] = nn::mse_backward(out[3], style_taps[3], kFeatureWeight);
-  Tensor drgb = vgg_.backward(grads);
-  vgg_.release();
-  nn::axpby(1.0f, nn::mse_backward(rgb, style_image, 1.0f), 1.0f, drgb);
-  model_.features.decoder.backward(dctx, drgb, false);
-  st.content = pix + kFeatureWeight * (f3 + f4);
+  const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight);
+  model_.features.decoder.backward(dctx, loss.drgb, false);
+  st.content = loss.pixel_mse + kFeatureWeight * loss.feature_mse;
   st.rays = rgb.numel() / 3;
   return st;
 }
