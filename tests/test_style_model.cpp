@@ -310,6 +310,33 @@ TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decay_ratio == 0.25f);
 }
 
+TEST_CASE("the decoder warm-up steps the decoder at lr_decoder_warm, the steps after it at lr_decoder") {
+  // Adam's first move of a weight is about lr (m / sqrt(v) = +-1) and its second at most ~1.001 lr, so the
+  // largest decoder move of each step tells the rate it was taken at.
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(2);
+  cfg.decoder_warm = 1;
+  cfg.warm_start = 1;
+  cfg.lr_decoder_warm = 20 * cfg.lr_decoder;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto largest_move = [&] {
+    const auto w0 = t.model().features.decoder.layers().front().w.value.to_host();
+    REQUIRE_FALSE(t.step().skipped);
+    const auto w1 = t.model().features.decoder.layers().front().w.value.to_host();
+    double m = 0;
+    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    return m;
+  };
+  const double warm = largest_move(), after = largest_move();
+  CHECK(warm == doctest::Approx(cfg.lr_decoder_warm).epsilon(0.05));
+  CHECK(after <= 1.01 * cfg.lr_decoder);
+  CHECK(after > 0.2 * cfg.lr_decoder);
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decoder_warm == cfg.lr_decoder_warm);
+  auto j = cfg.to_json();
+  j.erase("lr_decoder_warm");  // a checkpoint written before the option existed: the warm-up used lr_decoder
+  CHECK(train::StyleTrainConfig::from_json(j).lr_decoder_warm == 0.0f);
+}
+
 TEST_CASE("the weight average: checkpoints hold the average as the model and resume from the last iterate") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
   auto cfg = small_config(3);

@@ -158,5 +158,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
   expect(train + "--lr-decoder -1", "--lr-stylizer and --lr-decoder must be positive");
+  expect(train + "--decoder-warm 5 --lr-decoder-warm 0", "--lr-decoder-warm must be a positive number");
+  expect(train + "--lr-decoder-warm 1e-4", "--lr-decoder-warm needs --decoder-warm N > 0");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

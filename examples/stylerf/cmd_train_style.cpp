@@ -33,7 +33,7 @@ int run_train_style(int argc, char** argv) {
       decoder_warm = 0;
   int patch = 256;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, ema = 0.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, lr_decay = 1.0f, ema = 0.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -58,6 +58,8 @@ int run_train_style(int argc, char** argv) {
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
+      "lr-decoder-warm", po::value(&lr_decoder_warm),
+      "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes); 1: constant, the paper's")(
@@ -89,6 +91,9 @@ int run_train_style(int argc, char** argv) {
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   for (float lr : {lr_stylizer, lr_decoder})
     if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
+  if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
+    throw Error("--lr-decoder-warm must be a positive number");
+  if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
   if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
@@ -133,6 +138,7 @@ int run_train_style(int argc, char** argv) {
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
     cfg.decoder_warm = decoder_warm;
+    cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
@@ -154,8 +160,9 @@ int run_train_style(int argc, char** argv) {
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")
-            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "")
-            << std::endl;
+            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "");
+  if (cfg.decoder_warm > 0 && cfg.lr_decoder_warm > 0) std::cout << " (decoder lr " << cfg.lr_decoder_warm << ")";
+  std::cout << std::endl;
 
   train::StyleRunOptions ro;
   ro.log = &std::cout;

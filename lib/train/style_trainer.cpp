@@ -41,6 +41,7 @@ json StyleTrainConfig::to_json() const {
           {"style_weight", weights.style},
           {"warm_start", warm_start},
           {"decoder_warm", decoder_warm},
+          {"lr_decoder_warm", lr_decoder_warm},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
@@ -64,6 +65,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
   c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
+  c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
@@ -296,6 +298,11 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   return st;
 }
 
+void StyleTrainer::set_decoder_lr(float lr) {
+  for (nn::AdamGroup& g : adam_.groups())
+    if (g.name == "decoder") g.lr = lr;
+}
+
 StyleStepStats StyleTrainer::step() {
   const auto t0 = std::chrono::steady_clock::now();
   const int k = iteration_ + 1;
@@ -321,6 +328,7 @@ StyleStepStats StyleTrainer::step() {
     const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
                                                     : double(k - 1) / double(std::max(1, cfg_.iters));
     const float lr_scale = float(std::pow(double(cfg_.lr_decay_ratio), progress));
+    set_decoder_lr(k <= cfg_.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder);
     adam_.step(model_.params(), lr_scale);
     ema_.update(model_.params());
   }

@@ -18,7 +18,9 @@
 //  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
-//    that never drew one renders blurred, and the style loss is mostly about fine texture (README);
+//    that never drew one renders blurred, and the style loss is mostly about fine texture (README).
+//    lr_decoder_warm may set its own rate: a fast one for the inversion, then the paper's slow fine-tuning
+//    rate, so the decoder stays an inverter of relu3_1 and the stylizer, not the decoder, learns the style;
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
@@ -56,6 +58,7 @@ struct StyleTrainConfig {
   float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
+  float lr_decoder_warm = 0.0f; // the decoder's lr during those steps (0: lr_decoder)
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
@@ -122,6 +125,7 @@ class StyleTrainer {
   StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
+  void set_decoder_lr(float lr);  // the decoder group's Adam rate (the warm-up may have its own)
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
