@@ -19,8 +19,8 @@
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
 //    that never drew one renders blurred, and the style loss is mostly about fine texture (README).
-//    lr_decoder_warm may set its own rate: a fast one for the inversion, then the paper's slow fine-tuning
-//    rate, so the decoder stays an inverter of relu3_1 and the stylizer, not the decoder, learns the style;
+//    lr_decoder_warm may set its own rate, e.g. a fast inversion then the paper's slow fine-tuning, meant to
+//    keep the decoder an inverter of relu3_1 (on fern that measured worse than a fast decoder: README);
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
