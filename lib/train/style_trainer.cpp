@@ -328,7 +328,7 @@ StyleStepStats StyleTrainer::step() {
     const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
                                                     : double(k - 1) / double(std::max(1, cfg_.iters));
     const float lr_scale = float(std::pow(double(cfg_.lr_decay_ratio), progress));
-    set_decoder_lr(k <= cfg_.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder);
+    set_decoder_lr(st.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder);
     adam_.step(model_.params(), lr_scale);
     ema_.update(model_.params());
   }
