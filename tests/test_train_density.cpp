@@ -231,15 +231,21 @@ TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run
   INFO("ran " << sum.iterations << " steps; " << sch.describe());
   CHECK(sch.iters < 100000);
   // The event planned at 20000 of 100000 was pulled in to the fitted run (to 100, the earliest allowed),
-  // or dropped when 100 falls in the run's last 10% (a slow machine or a sanitized build).
+  // or dropped when 100 falls in the run's last 10% (a slow machine or a sanitized build). An event that
+  // already fired keeps its iteration when a later refit shortens the run into that last 10% (seen: fired at
+  // 100, refitted to 111), so a short final plan may still hold it, and then the run must have reached it.
   if (sch.iters >= 112) {
     REQUIRE(sch.upsample_at.size() == 1);
     REQUIRE(sch.mask_at.size() == 1);
     CHECK(sch.upsample_at[0] == 100);
     CHECK(sch.mask_at[0] == 100);
   } else {
-    CHECK(sch.upsample_at.empty());
-    CHECK(sch.mask_at.empty());
+    CHECK(sch.upsample_at.size() <= 1);
+    CHECK(sch.mask_at == sch.upsample_at);
+    if (!sch.upsample_at.empty()) {
+      CHECK(sch.upsample_at[0] == 100);
+      CHECK(sum.iterations >= 100);  // kept only because it fired
+    }
   }
   // The refit horizon is within a factor of ~2 of the steps actually taken (the rate varies as it trains).
   CHECK(sch.iters < 2 * sum.iterations + 20);
