@@ -230,22 +230,17 @@ TEST_CASE("time-budgeted run: the schedule is refitted to the budget and the run
   const auto& sch = t.config().schedule;
   INFO("ran " << sum.iterations << " steps; " << sch.describe());
   CHECK(sch.iters < 100000);
-  // The event planned at 20000 of 100000 was pulled in to the fitted run (to 100, the earliest allowed),
-  // or dropped when 100 falls in the run's last 10% (a slow machine or a sanitized build). An event that
-  // already fired keeps its iteration when a later refit shortens the run into that last 10% (seen: fired at
-  // 100, refitted to 111), so a short final plan may still hold it, and then the run must have reached it.
-  if (sch.iters >= 112) {
-    REQUIRE(sch.upsample_at.size() == 1);
-    REQUIRE(sch.mask_at.size() == 1);
-    CHECK(sch.upsample_at[0] == 100);
-    CHECK(sch.mask_at[0] == 100);
-  } else {
-    CHECK(sch.upsample_at.size() <= 1);
-    CHECK(sch.mask_at == sch.upsample_at);
-    if (!sch.upsample_at.empty()) {
-      CHECK(sch.upsample_at[0] == 100);
-      CHECK(sum.iterations >= 100);  // kept only because it fired
-    }
+  // The event planned at 20000 of 100000 was pulled in to the fitted run. Where exactly depends on the step
+  // rate each refit measured (fitted() puts it at max(100, 0.8 x the horizon then), seen: 100, 106), so the
+  // test checks what must hold for any timing; refit_schedule's arithmetic is tested exactly above. An event
+  // that fired keeps its iteration when a later refit shortens the run (seen: fired at 100, run refitted to
+  // 111); one that has not fired lies at or after 100 and outside the run's last 10%, or was dropped.
+  CHECK(sch.mask_at == sch.upsample_at);
+  REQUIRE(sch.upsample_at.size() <= 1);
+  if (!sch.upsample_at.empty()) {
+    const int at = sch.upsample_at[0];
+    CHECK(at >= 100);
+    if (at > sum.iterations) CHECK(at <= int(0.9 * sch.iters));  // not fired: outside the last 10%
   }
   // The refit horizon is within a factor of ~2 of the steps actually taken (the rate varies as it trains).
   CHECK(sch.iters < 2 * sum.iterations + 20);
