@@ -160,5 +160,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--lr-decoder -1", "--lr-stylizer and --lr-decoder must be positive");
   expect(train + "--decoder-warm 5 --lr-decoder-warm 0", "--lr-decoder-warm must be a positive number");
   expect(train + "--lr-decoder-warm 1e-4", "--lr-decoder-warm needs --decoder-warm N > 0");
+  expect(train + "--decoder-warm 5 --decoder-warm-style -1", "--decoder-warm-style must be a positive number");
+  expect(train + "--decoder-warm-style 1", "--decoder-warm-style needs --decoder-warm N > 0");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

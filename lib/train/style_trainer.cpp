@@ -42,6 +42,7 @@ json StyleTrainConfig::to_json() const {
           {"warm_start", warm_start},
           {"decoder_warm", decoder_warm},
           {"lr_decoder_warm", lr_decoder_warm},
+          {"decoder_warm_style", decoder_warm_style},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
@@ -66,6 +67,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.warm_start = j.at("warm_start").get<int>();
   c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
   c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
+  c.decoder_warm_style = j.value("decoder_warm_style", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
@@ -291,9 +293,11 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   nn::ConvStack::Ctx dctx;
   const Tensor rgb = model_.features.decoder.forward(style_taps[2], &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
-  const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight);
+  const ReconstructionLoss loss =
+      reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight, cfg_.decoder_warm_style);
   model_.features.decoder.backward(dctx, loss.drgb, false);
   st.content = loss.pixel_mse + kFeatureWeight * loss.feature_mse;
+  st.style = loss.style;
   st.rays = rgb.numel() / 3;
   return st;
 }
@@ -434,7 +438,7 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
       const double per_it = win_s / win_n;
       std::ostringstream l;
       l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
-        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
+        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content', its style term in 'style')" : "");
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
