@@ -301,17 +301,47 @@ TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr
     return m;
   };
   const double full = first_move(1.0f, 1.0), decayed = first_move(0.01f, 1.0), half = first_move(0.01f, 0.5);
+  // scale(0): a relative tolerance. doctest's Approx adds epsilon x 1 by default, which for a move of
+  // ~1e-4 would accept anything.
   const float lr = small_config(1).lr_stylizer;
-  CHECK(full == doctest::Approx(lr).epsilon(0.05));
-  CHECK(decayed == doctest::Approx(0.01 * lr).epsilon(0.05));
-  CHECK(half == doctest::Approx(0.1 * lr).epsilon(0.05));  // 0.01^0.5
+  CHECK(full == doctest::Approx(lr).epsilon(0.05).scale(0));
+  CHECK(decayed == doctest::Approx(0.01 * lr).epsilon(0.05).scale(0));
+  CHECK(half == doctest::Approx(0.1 * lr).epsilon(0.05).scale(0));  // 0.01^0.5
   // The ratio survives the checkpoint's config.
   auto cfg = small_config(1);
   cfg.lr_decay_ratio = 0.25f;
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decay_ratio == 0.25f);
 }
 
-TEST_CASE("the decoder warm-up steps the decoder at lr_decoder_warm, the steps after it at lr_decoder") {
+TEST_CASE("after a decoder warm-up the stylizer's lr decays from lr_stylizer at its first step") {
+  // A warm-up step at progress 0.5, then the stylizer's first step (also at 0.5: its decay starts there)
+  // moves by the full lr_stylizer; a step at 0.75, half-way through the stylizer's part of the run, by
+  // lr x ratio^0.5. The decoder follows the run's clock throughout (its first 2D step at 0.5: lr x ratio^0.5).
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(3);
+  cfg.decoder_warm = 1;
+  cfg.warm_start = 2;
+  cfg.lr_decay_ratio = 0.01f;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto step_at = [&](double progress, nn::Param& p) {
+    const auto w0 = p.value.to_host();
+    t.set_schedule_progress(progress);
+    REQUIRE_FALSE(t.step().skipped);
+    const auto w1 = p.value.to_host();
+    double m = 0;
+    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    return m;
+  };
+  nn::Param& fc = t.model().dst.fc_w;
+  CHECK(step_at(0.5, fc) == 0.0);  // the warm-up leaves the stylizer alone
+  // Adam's second move of a weight is at most ~1.001 lr (the first is ~lr), hence the one-sided bound.
+  const double first = step_at(0.5, fc), later = step_at(0.75, fc);
+  CHECK(first == doctest::Approx(cfg.lr_stylizer).epsilon(0.05).scale(0));
+  CHECK(later <= 1.01 * 0.1 * cfg.lr_stylizer);
+  CHECK(later > 0.02 * cfg.lr_stylizer);
+}
+
+TEST_CASE("the decoder warm-up steps the decoder only, at lr_decoder_warm; the steps after it step all at lr_decoder") {
   // Adam's first move of a weight is about lr (m / sqrt(v) = +-1) and its second at most ~1.001 lr, so the
   // largest decoder move of each step tells the rate it was taken at.
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
@@ -328,8 +358,15 @@ TEST_CASE("the decoder warm-up steps the decoder at lr_decoder_warm, the steps a
     for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
     return m;
   };
-  const double warm = largest_move(), after = largest_move();
-  CHECK(warm == doctest::Approx(cfg.lr_decoder_warm).epsilon(0.05));
+  const std::string stylizer = t.model().dst.fc_w.name, decoder = t.model().features.decoder.layers().front().w.name;
+  const double warm = largest_move();
+  // The warm-up stepped the decoder only: the stylizer's Adam clock (its bias correction) has not started.
+  CHECK(t.optimizer().updates(decoder) == 1);
+  CHECK(t.optimizer().updates(stylizer) == 0);
+  const double after = largest_move();
+  CHECK(t.optimizer().updates(decoder) == 2);
+  CHECK(t.optimizer().updates(stylizer) == 1);
+  CHECK(warm == doctest::Approx(cfg.lr_decoder_warm).epsilon(0.05).scale(0));
   CHECK(after <= 1.01 * cfg.lr_decoder);
   CHECK(after > 0.2 * cfg.lr_decoder);
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decoder_warm == cfg.lr_decoder_warm);

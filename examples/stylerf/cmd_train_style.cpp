@@ -65,7 +65,7 @@ int run_train_style(int argc, char** argv) {
       "crop against the crop, texture statistics a pixel and feature MSE let the decoder blur (default: none)")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
-      "time with --minutes); 1: constant, the paper's")(
+      "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
       "ema", po::value(&ema)->default_value(0.0f),
       "D in (0, 1): held-out losses and the checkpoint use an exponential moving average of the weights over "
       "~1/(1-D) steps (the last iterate is kept for --resume); 0: off, the paper's")(

@@ -38,6 +38,11 @@ void Adam::step(const std::vector<Param*>& params, float lr_scale) {
   }
 }
 
+int Adam::updates(const std::string& name) const {
+  const auto it = state_.find(name);
+  return it == state_.end() ? 0 : it->second.steps;
+}
+
 void Adam::remap(const std::string& name, const std::function<Tensor(const Tensor&)>& f) {
   auto it = state_.find(name);
   if (it == state_.end()) return;

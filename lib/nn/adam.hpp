@@ -33,6 +33,7 @@ class Adam {
   // gradient are skipped; a param whose group does not exist is an Error.
   void step(const std::vector<Param*>& params, float lr_scale = 1.0f);
   int steps() const { return step_; }  // step() calls since construction or reset()
+  int updates(const std::string& name) const;  // updates of one parameter (its bias-correction clock; 0: none)
 
   // Moments of `name` become f(moment) (f maps a tensor shaped like the old parameter to one shaped like
   // the new one). No-op for a parameter without state.

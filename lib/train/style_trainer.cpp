@@ -302,9 +302,9 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   return st;
 }
 
-void StyleTrainer::set_decoder_lr(float lr) {
+void StyleTrainer::set_group_lr(const std::string& group, float lr) {
   for (nn::AdamGroup& g : adam_.groups())
-    if (g.name == "decoder") g.lr = lr;
+    if (g.name == group) g.lr = lr;
 }
 
 StyleStepStats StyleTrainer::step() {
@@ -331,9 +331,29 @@ StyleStepStats StyleTrainer::step() {
                   "); try lower learning rates or another --seed");
     const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
                                                     : double(k - 1) / double(std::max(1, cfg_.iters));
-    const float lr_scale = float(std::pow(double(cfg_.lr_decay_ratio), progress));
-    set_decoder_lr(st.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder);
-    adam_.step(model_.params(), lr_scale);
+    // The decoder trains from the first step, so its rate decays over the whole run. The stylizer starts
+    // after the decoder warm-up: its rate decays over the rest of the run, from lr_stylizer at its first
+    // step (were it to follow the run's clock, a 1500-step warm-up would start it at ~0.5 lr_stylizer).
+    if (!st.decoder_warm && stylizer_start_ < 0) {
+      // Where its decay starts: here, when this run just ended the warm-up; a run resumed after it
+      // continues the schedule by iterations (decoder_warm / iters) or, under a time budget (whose progress
+      // restarts at a resume), starts it at the resumed run's start.
+      stylizer_start_ = cfg_.decoder_warm == 0          ? 0.0  // no warm-up: the run's own schedule
+                        : iteration_ == cfg_.decoder_warm ? progress
+                        : schedule_progress_ >= 0         ? 0.0
+                                                          : double(cfg_.decoder_warm) / double(std::max(1, cfg_.iters));
+    }
+    const double stylizer_progress =
+        stylizer_start_ < 0 ? 0.0 : std::clamp((progress - stylizer_start_) / std::max(1e-9, 1.0 - stylizer_start_), 0.0, 1.0);
+    const double decay = double(cfg_.lr_decay_ratio);
+    set_group_lr("stylizer", float(double(cfg_.lr_stylizer) * std::pow(decay, stylizer_progress)));
+    set_group_lr("decoder", float(double(st.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm
+                                                                                      : cfg_.lr_decoder) *
+                                  std::pow(decay, progress)));
+    // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
+    // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
+    // first ~100 updates up to ~3x their intended size).
+    adam_.step(st.decoder_warm ? model_.features.decoder.params() : model_.params());
     ema_.update(model_.params());
   }
   iteration_ = k;

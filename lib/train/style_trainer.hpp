@@ -56,7 +56,7 @@ struct StyleTrainConfig {
   int style_size = 512, style_crop = 256;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
   float beta1 = 0.9f, beta2 = 0.99f;
-  float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start
+  float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
   float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
@@ -115,6 +115,7 @@ class StyleTrainer {
   const StyleTrainConfig& config() const { return cfg_; }
   const StyleSet& styles() const { return styles_; }
   model::StyleModel& model() { return model_; }
+  const nn::Adam& optimizer() const { return adam_; }
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
   // max_styles of them), SICT in inference mode; with ema_decay > 0, of the averaged weights.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
@@ -128,7 +129,7 @@ class StyleTrainer {
   StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
-  void set_decoder_lr(float lr);  // the decoder group's Adam rate (the warm-up may have its own)
+  void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
@@ -140,6 +141,7 @@ class StyleTrainer {
   features::FeatureTargets targets_;  // warm start on VGG maps only
   RenderedWarmMaps rendered_maps_;    // warm start on rendered maps only
   double schedule_progress_ = -1;
+  double stylizer_start_ = -1;  // the run's progress at the stylizer's first step (its lr decay starts there)
   std::unique_ptr<features::PatchSampler> patches_;
   std::mt19937_64 rng_;
   int iteration_ = 0;
