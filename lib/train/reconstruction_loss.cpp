@@ -14,20 +14,14 @@ ReconstructionLoss reconstruction_loss(nn::VggEncoder& vgg, const host::Tensor& 
   l.feature_mse =
       double(nn::mse_forward(out[2], target_taps[2]).to_host()[0]) + nn::mse_forward(out[3], target_taps[3]).to_host()[0];
   nn::VggFeatures grads;
-  grads[2] = nn::mse_backward(out[2], target_taps[2], feature_weight);
-  grads[3] = nn::mse_backward(out[3], target_taps[3], feature_weight);
-  if (style_weight > 0) {
-    nn::VggFeatures style_grads;
-    const StyleLossValues sv =
-        style_losses(out, target_taps[3], target_taps, nullptr, StyleLossWeights{0.0f, style_weight}, &style_grads);
-    l.style = sv.style;
-    for (int t = 0; t < nn::VggFeatures::kCount; ++t) {
-      if (!style_grads[t].defined()) continue;
-      if (grads[t].defined())
-        nn::axpby(1.0f, style_grads[t], 1.0f, grads[t]);
-      else
-        grads[t] = style_grads[t];
-    }
+  if (style_weight > 0)  // fills all four taps' gradients (its content term, at weight 0, adds nothing)
+    l.style = style_losses(out, target_taps[3], target_taps, nullptr, StyleLossWeights{0.0f, style_weight}, &grads).style;
+  for (int t : {2, 3}) {
+    const host::Tensor g = nn::mse_backward(out[t], target_taps[t], feature_weight);
+    if (grads[t].defined())
+      nn::axpby(1.0f, g, 1.0f, grads[t]);
+    else
+      grads[t] = g;
   }
   l.drgb = vgg.backward(grads);
   vgg.release();

@@ -307,6 +307,29 @@ void StyleTrainer::set_group_lr(const std::string& group, float lr) {
     if (g.name == group) g.lr = lr;
 }
 
+// The decoder trains from the first step, so its rate decays over the whole run. The stylizer starts after
+// the decoder warm-up: its rate decays over the rest of the run, from lr_stylizer at its first step (on the
+// run's clock, a 1500-step warm-up of a 45-minute run would start it at ~0.5 lr_stylizer).
+void StyleTrainer::set_step_lrs(int k, bool decoder_warm) {
+  const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
+                                                  : double(k - 1) / double(std::max(1, cfg_.iters));
+  if (!decoder_warm && stylizer_start_ < 0) {
+    // Where the stylizer's decay starts: at once without a warm-up; here when this run just ended it; a run
+    // resumed after it continues by iterations (decoder_warm / iters) or, under a time budget (whose
+    // progress restarts at a resume), starts at the resumed run's start.
+    if (cfg_.decoder_warm == 0 || schedule_progress_ >= 0)
+      stylizer_start_ = iteration_ == cfg_.decoder_warm && cfg_.decoder_warm > 0 ? progress : 0.0;
+    else
+      stylizer_start_ = double(cfg_.decoder_warm) / double(std::max(1, cfg_.iters));
+  }
+  const double stylizer_progress =
+      stylizer_start_ < 0 ? 0.0 : std::clamp((progress - stylizer_start_) / std::max(1e-9, 1.0 - stylizer_start_), 0.0, 1.0);
+  const double decay = double(cfg_.lr_decay_ratio);
+  const float decoder_lr = decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder;
+  set_group_lr("stylizer", float(double(cfg_.lr_stylizer) * std::pow(decay, stylizer_progress)));
+  set_group_lr("decoder", float(double(decoder_lr) * std::pow(decay, progress)));
+}
+
 StyleStepStats StyleTrainer::step() {
   const auto t0 = std::chrono::steady_clock::now();
   const int k = iteration_ + 1;
@@ -329,27 +352,7 @@ StyleStepStats StyleTrainer::step() {
     if (!std::isfinite(st.content + st.style))
       throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
                   "); try lower learning rates or another --seed");
-    const double progress = schedule_progress_ >= 0 ? std::min(1.0, schedule_progress_)
-                                                    : double(k - 1) / double(std::max(1, cfg_.iters));
-    // The decoder trains from the first step, so its rate decays over the whole run. The stylizer starts
-    // after the decoder warm-up: its rate decays over the rest of the run, from lr_stylizer at its first
-    // step (were it to follow the run's clock, a 1500-step warm-up would start it at ~0.5 lr_stylizer).
-    if (!st.decoder_warm && stylizer_start_ < 0) {
-      // Where its decay starts: here, when this run just ended the warm-up; a run resumed after it
-      // continues the schedule by iterations (decoder_warm / iters) or, under a time budget (whose progress
-      // restarts at a resume), starts it at the resumed run's start.
-      stylizer_start_ = cfg_.decoder_warm == 0          ? 0.0  // no warm-up: the run's own schedule
-                        : iteration_ == cfg_.decoder_warm ? progress
-                        : schedule_progress_ >= 0         ? 0.0
-                                                          : double(cfg_.decoder_warm) / double(std::max(1, cfg_.iters));
-    }
-    const double stylizer_progress =
-        stylizer_start_ < 0 ? 0.0 : std::clamp((progress - stylizer_start_) / std::max(1e-9, 1.0 - stylizer_start_), 0.0, 1.0);
-    const double decay = double(cfg_.lr_decay_ratio);
-    set_group_lr("stylizer", float(double(cfg_.lr_stylizer) * std::pow(decay, stylizer_progress)));
-    set_group_lr("decoder", float(double(st.decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm
-                                                                                      : cfg_.lr_decoder) *
-                                  std::pow(decay, progress)));
+    set_step_lrs(k, st.decoder_warm);
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).

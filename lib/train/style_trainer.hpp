@@ -130,6 +130,7 @@ class StyleTrainer {
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
+  void set_step_lrs(int k, bool decoder_warm);            // both groups' rates for step k (lr decay, warm-up)
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
