@@ -324,6 +324,22 @@ TEST_CASE("style encoder: hard images, memory and disk caches") {
     const auto cc = m.render_camera_content(sc, sc.train[0].camera);
     CHECK(testing::all_finite(m.stylize_camera(cc, grey, sc.train[0].camera.width, sc.train[0].camera.height)));
   }
+  // The trainer's cached halves draw the same crops as the one-call loader, and refuse what it refuses.
+  {
+    const io::Image source = style::load_style_source(fixture("rgb16.png"), 24);
+    for (uint64_t seed : {1u, 2u, 3u}) {
+      std::mt19937_64 a(seed), b(seed);
+      CHECK(style::crop_style_image(source, 16, &a, "rgb16.png").to_host() ==
+            style::load_style_image(fixture("rgb16.png"), 24, 16, &b).to_host());
+      CHECK(a() == b());  // the same random draws were taken
+    }
+    CHECK(style::crop_style_image(source, 24, nullptr, "x").to_host() ==
+          style::load_style_image(fixture("rgb16.png"), 24, 24, nullptr).to_host());
+    CHECK_THROWS_WITH_AS(style::crop_style_image(source, 32, nullptr, "named.png"),
+                         doctest::Contains("style image named.png: crop 32 must be a multiple of 8 in [8, 24]"), host::Error);
+    CHECK_THROWS_WITH_AS(style::crop_style_image(source, 12, nullptr, "named.png"), doctest::Contains("crop 12"),
+                         host::Error);
+  }
   // 16-bit PNG: decoded at full precision (the fixture is ffmpeg's testsrc: saturated colours).
   const Tensor img16 = style::load_style_image(fixture("rgb16.png"), 16, 16, nullptr);
   CHECK(testing::all_finite(img16.to_host()));

@@ -31,7 +31,7 @@ int run_train_style(int argc, char** argv) {
               warm_maps_name = "vgg";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0;
-  int patch = 256;
+  int patch = 256, style_size = 512;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f;
   uint64_t seed = 0;
@@ -45,6 +45,9 @@ int run_train_style(int argc, char** argv) {
       "iters", po::value(&iters), "iterations (default 25000, the paper's)")(
       "minutes", po::value(&minutes), "train for this much time (replaces --iters)")(
       "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
+      "style-size", po::value(&style_size)->default_value(512),
+      "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
+      "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
       "sict", po::value(&sict_name)->default_value("volume-adaptive"),
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
@@ -90,6 +93,8 @@ int run_train_style(int argc, char** argv) {
     throw Error("--minutes must be a positive number of minutes");
   if (minutes > 0 && iters > 0) throw Error("--minutes and --iters exclude each other");
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
+  if (style_size < 256 || style_size > 4096)
+    throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(style_size));
   if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   for (float lr : {lr_stylizer, lr_decoder})
@@ -138,6 +143,7 @@ int run_train_style(int argc, char** argv) {
     cfg.dst_bias = dst_name == "bias";
     if (iters > 0) cfg.iters = iters;
     cfg.patch = patch;
+    cfg.style_size = style_size;
     cfg.lr_stylizer = lr_stylizer;
     cfg.lr_decoder = lr_decoder;
     cfg.lr_decay_ratio = lr_decay;

@@ -12,11 +12,19 @@ namespace stylerf::style {
 
 using host::Error;
 
-host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
-  if (size < 8 || crop > size || crop < 8 || crop % 8)
+io::Image load_style_source(const std::string& path, int size) {
+  if (size < 8) throw Error("style image " + path + ": size " + std::to_string(size) + " must be >= 8");
+  io::Image full = io::resize(io::load_image(path), size, size);
+  for (float v : full.data)
+    if (!std::isfinite(v)) throw Error("style image " + path + ": decoded to values that are not finite");
+  return full;
+}
+
+host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64* rng, const std::string& path) {
+  const int size = source.width;
+  if (source.height != size || crop > size || crop < 8 || crop % 8)
     throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
-                std::to_string(size) + "]");
-  const io::Image full = io::resize(io::load_image(path), size, size);
+                std::to_string(std::min(source.width, source.height)) + "] of a square image");
   int x0 = (size - crop) / 2, y0 = (size - crop) / 2;
   if (rng && crop < size) {
     std::uniform_int_distribution<int> u(0, size - crop);
@@ -28,12 +36,15 @@ host::Tensor load_style_image(const std::string& path, int size, int crop, std::
   out.data.resize(size_t(3) * crop * crop);
   for (int c = 0; c < 3; ++c)
     for (int y = 0; y < crop; ++y)
-      for (int x = 0; x < crop; ++x) {
-        const float v = full.at(c, y0 + y, x0 + x);
-        if (!std::isfinite(v)) throw Error("style image " + path + ": decoded to values that are not finite");
-        out.at(c, y, x) = v;
-      }
+      for (int x = 0; x < crop; ++x) out.at(c, y, x) = source.at(c, y0 + y, x0 + x);
   return io::to_tensor(out);
+}
+
+host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
+  if (size < 8 || crop > size || crop < 8 || crop % 8)
+    throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
+                std::to_string(size) + "]");
+  return crop_style_image(load_style_source(path, size), crop, rng, path);
 }
 
 std::vector<std::string> style_images_in(const std::string& dir, std::ostream* log) {

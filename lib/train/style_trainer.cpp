@@ -116,6 +116,9 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
+  if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
+    throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
+                "the style size " + std::to_string(cfg_.style_size));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed);
   init(log);
   init_running_stats(log);
@@ -336,7 +339,9 @@ StyleStepStats StyleTrainer::step() {
   if (styles_.train.empty()) throw Error("train-style: no training styles");
   std::uniform_int_distribution<size_t> pick(0, styles_.train.size() - 1);
   const std::string& path = styles_.train[pick(rng_)];
-  const Tensor simg = load_style_image(path, cfg_.style_size, cfg_.style_crop, &rng_);
+  auto source = style_sources_.find(path);
+  if (source == style_sources_.end()) source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
+  const Tensor simg = style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
   const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
   model_.zero_grad();
   StyleStepStats st;
