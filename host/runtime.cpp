@@ -103,13 +103,7 @@ Runtime::Runtime(const DeviceInfo& device) : device_(device) {
 #endif
   check(err, "clCreateCommandQueue", device_.name);
   if (const char* p = std::getenv("STYLERF_PROFILE"); p && std::string(p) == "1") profiling_ = true;
-  // CPU devices: a quarter of the memory. A stage-3 fern step frees ~2 GiB of per-sample tensors (x, q/k/v,
-  // their gradients) that the next step asks for again; under a 1 GiB cap they went back to the driver, and
-  // re-faulting their pages cost ~20% of the step on PoCL. Other devices keep 1 GiB: GPU drivers commit
-  // memory lazily, so an over-full pool would fail at a later enqueue rather than at clCreateBuffer, where
-  // allocate() trims the pool and retries. STYLERF_POOL_MIB overrides (0: no pooling).
-  pool_cap_bytes_ = (device_.type & CL_DEVICE_TYPE_CPU) ? device_.global_mem_bytes / 4
-                                                        : std::min<size_t>(device_.global_mem_bytes / 4, size_t(1) << 30);
+  pool_cap_bytes_ = default_pool_cap_bytes((device_.type & CL_DEVICE_TYPE_CPU) != 0, device_.global_mem_bytes);
   if (const char* c = std::getenv("STYLERF_POOL_MIB"); c && *c) {
     char* end = nullptr;
     const unsigned long long mib = std::strtoull(c, &end, 10);
@@ -117,6 +111,12 @@ Runtime::Runtime(const DeviceInfo& device) : device_(device) {
       throw Error(std::string("STYLERF_POOL_MIB='") + c + "' is not a whole number of MiB (the buffer pool's cap)");
     pool_cap_bytes_ = size_t(mib) << 20;
   }
+}
+
+size_t default_pool_cap_bytes(bool cpu_device, size_t global_mem_bytes) {
+  constexpr size_t kGiB = size_t(1) << 30;
+  if (cpu_device) return std::max(global_mem_bytes / 4, std::min(global_mem_bytes / 2, 4 * kGiB));
+  return std::min(global_mem_bytes / 4, kGiB);
 }
 
 Runtime::~Runtime() {

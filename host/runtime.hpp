@@ -26,6 +26,15 @@ struct KernelTiming {
   double total_ms = 0.0;
 };
 
+// The buffer pool's default cap for a device of `global_mem_bytes`. CPU devices: a quarter of their memory,
+// but at least half of it up to 4 GiB. A stage-3 fern step frees ~2 GiB of per-sample tensors (x, q/k/v,
+// their gradients) that the next step asks for again; a cap below that hands them back to the driver, and
+// re-faulting their pages cost 20-25% of the step on PoCL. PoCL may report far less than the host's RAM
+// (6.5 GiB of 24 seen here), so a quarter alone is not enough. Other devices: a quarter, at most 1 GiB:
+// GPU drivers commit memory lazily, so an over-full pool would fail at a later enqueue rather than at
+// clCreateBuffer, where allocate() trims the pool and retries.
+size_t default_pool_cap_bytes(bool cpu_device, size_t global_mem_bytes);
+
 class Runtime {
  public:
   // Initialises the process-wide runtime on the device named by spec (see choose_device). Calling it
@@ -52,8 +61,8 @@ class Runtime {
   // Allocates a device buffer. Throws an Error naming `what`, the bytes asked for and the device's
   // limits when the request exceeds them or the driver refuses it.
   cl_mem allocate(size_t bytes, const std::string& what);
-  // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap: a quarter of the
-  // memory of a CPU device, 1 GiB elsewhere, or STYLERF_POOL_MIB) and handed out again for requests of
+  // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap: default_pool_cap_bytes,
+  // or STYLERF_POOL_MIB) and handed out again for requests of
   // the same rounded size or up to a quarter smaller: a fresh buffer costs first-touch page faults on a
   // CPU device and an allocation on a GPU, and training loops allocate about the same shapes every step.
   // The in-order queue makes reuse safe: commands using the old owner finish before those of the new one.

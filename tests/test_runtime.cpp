@@ -84,6 +84,17 @@ TEST_CASE("profiling sums time per kernel") {
   CHECK(b.to_host()[5] == doctest::Approx(4.0f));
 }
 
+TEST_CASE("the pool's default cap: CPU devices keep a step's ~2 GiB of freed tensors, GPUs at most 1 GiB") {
+  constexpr size_t GiB = size_t(1) << 30;
+  using stylerf::host::default_pool_cap_bytes;
+  CHECK(default_pool_cap_bytes(true, 6 * GiB + GiB / 2) == 3 * GiB + GiB / 4);  // PoCL's 6.5 GiB: half
+  CHECK(default_pool_cap_bytes(true, 32 * GiB) == 8 * GiB);                     // large: a quarter
+  CHECK(default_pool_cap_bytes(true, 12 * GiB) == 4 * GiB);                     // between: 4 GiB
+  CHECK(default_pool_cap_bytes(true, 2 * GiB) == GiB);                          // small: half
+  CHECK(default_pool_cap_bytes(false, 80 * GiB) == GiB);
+  CHECK(default_pool_cap_bytes(false, 2 * GiB) == GiB / 2);
+}
+
 TEST_CASE("freed buffers are pooled and reused for the same size class") {
   auto& rt = Runtime::instance();
   rt.trim_buffer_pool();

@@ -16,8 +16,8 @@ namespace stylerf::style {
 host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng);
 
 // The two halves of load_style_image, for callers that crop one image many times (style training draws
-// each of ~100 images thousands of times; decoding and resizing a 1-megapixel JPEG each time costs ~5% of a
-// step): the decoded image resized to size x size, checked finite; and a crop x crop window of it (at a
+// each of ~100 images tens of times, and its ~1-megapixel JPEGs need not be decoded and resized again):
+// the decoded image resized to size x size, checked finite; and a crop x crop window of it (at a
 // random corner with `rng`, else centred). `path` only names the image in errors.
 io::Image load_style_source(const std::string& path, int size);
 host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64* rng, const std::string& path);
