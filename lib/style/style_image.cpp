@@ -12,6 +12,15 @@ namespace stylerf::style {
 
 using host::Error;
 
+namespace {
+// One message for both loaders; load_style_image checks before it decodes anything.
+void check_crop(const std::string& path, int crop, int size) {
+  if (size < 8 || crop > size || crop < 8 || crop % 8)
+    throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
+                std::to_string(size) + "] of a square image");
+}
+}  // namespace
+
 io::Image load_style_source(const std::string& path, int size) {
   if (size < 8) throw Error("style image " + path + ": size " + std::to_string(size) + " must be >= 8");
   io::Image full = io::resize(io::load_image(path), size, size);
@@ -21,10 +30,11 @@ io::Image load_style_source(const std::string& path, int size) {
 }
 
 host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64* rng, const std::string& path) {
+  if (source.width != source.height)
+    throw Error("style image " + path + ": its source is " + std::to_string(source.width) + "x" +
+                std::to_string(source.height) + ", not square (load_style_source makes it square)");
   const int size = source.width;
-  if (source.height != size || crop > size || crop < 8 || crop % 8)
-    throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
-                std::to_string(std::min(source.width, source.height)) + "] of a square image");
+  check_crop(path, crop, size);
   int x0 = (size - crop) / 2, y0 = (size - crop) / 2;
   if (rng && crop < size) {
     std::uniform_int_distribution<int> u(0, size - crop);
@@ -41,9 +51,7 @@ host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64
 }
 
 host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
-  if (size < 8 || crop > size || crop < 8 || crop % 8)
-    throw Error("style image " + path + ": crop " + std::to_string(crop) + " must be a multiple of 8 in [8, " +
-                std::to_string(size) + "]");
+  check_crop(path, crop, size);
   return crop_style_image(load_style_source(path, size), crop, rng, path);
 }
 
