@@ -14,8 +14,9 @@ struct BenchOptions {
   double budget_s = 0, knob_budget_s = 0;
   std::vector<std::string> parts;
   // bench patch only: a density or feature checkpoint whose geometry to render (empty: a synthetic
-  // geometry where every sample counts), the stage, the decoder profile and the patch side.
-  std::string ckpt, profile = "fast";
+  // geometry where every sample counts), the stage, the decoder profile, the patch side, and (stage 3) the
+  // style decoder (stage2 | vgg-adain).
+  std::string ckpt, profile = "fast", style_decoder = "stage2";
   int stage = 2, size = 256;
   // bench render only: the scene (default: the checkpoint's), held-out views to render, training steps to
   // time, and the early-termination thresholds to compare (empty: the default only).

@@ -1,6 +1,7 @@
 // `stylerf bench patch --stage 3 --profile fast|paper --size 256 [--ckpt CKPT] [--json F]`: one style step
 // (StyleRF stage 3) at size x size pixels, part by part, each timed with the queue drained (best of
 // --repeats after a warm-up step):
+// --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder.
 //   forward:  render (march, density, weights, keep, compositing of the 32 SICT channels), field (grid
 //             components + basis per kept sample), SICT, DST (style code + apply), decoder, VGG (style
 //             image, true patch, stylised patch; to relu4_1);
@@ -80,6 +81,7 @@ int bench_patch_style(const BenchOptions& opt) {
   auto& rt = host::Runtime::instance();
   if (opt.size < 8 || opt.size % 8) throw Error("bench patch: --size must be a positive multiple of 8");
   const auto profile = model::parse_decoder_profile(opt.profile);
+  const auto decoder_kind = model::parse_style_decoder(opt.style_decoder);
   const int S = opt.quick ? 64 : opt.size, repeats = opt.quick ? 1 : opt.repeats;
   BenchOptions o = opt;
   o.size = S;
@@ -87,7 +89,8 @@ int bench_patch_style(const BenchOptions& opt) {
   model::FeatureFieldConfig fc;
   fc.rank = st.rank;
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
-                                                  style::SictMode::VolumeAdaptive, true, 1);
+                                                  style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
+  const bool vgg_adain = decoder_kind == model::StyleDecoderKind::VggAdain;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
   int w = 0, h = 0;
@@ -105,7 +108,8 @@ int bench_patch_style(const BenchOptions& opt) {
   std::cout << "device: " << rt.device().describe() << "\n"
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
             << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
-            << m.features.decoder.spec().describe() << "\n  geometry: " << st.source << "\n  best of " << repeats
+            << (vgg_adain ? "vgg-adain: VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
+                          : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
             << " after a warm-up step\n";
   const char* names[] = {"render fwd", "field fwd",  "SICT fwd",     "DST fwd",      "decoder fwd", "VGG fwd",
                          "VGG bwd",    "decoder bwd", "DST bwd",      "composite bwd", "SICT bwd",    "optimizer"};
@@ -142,8 +146,8 @@ int bench_patch_style(const BenchOptions& opt) {
     style::Dst::ApplyContext actx;
     Tensor y = m.dst.apply(r.value, r.kept_acc, code, &actx);
     p[3] = lap(t);
-    nn::ConvStack::Ctx dctx;
-    const Tensor rgb = m.features.decoder.forward(nn::rows_to_image(y, h, w), &dctx);
+    model::StyleModel::DecoderCtx dctx;
+    const Tensor rgb = m.decode_map(nn::rows_to_image(y, h, w), &dctx);
     p[4] = lap(t);
     const nn::VggFeatures ft = vgg.forward(gt, 4, false);
     const nn::VggFeatures fo = vgg.forward(rgb, 4, true);
@@ -153,7 +157,7 @@ int bench_patch_style(const BenchOptions& opt) {
     const Tensor drgb = vgg.backward(g);
     vgg.release();
     p[6] = lap(t);
-    const Tensor dmap = m.features.decoder.backward(dctx, drgb, true);
+    const Tensor dmap = m.decode_map_backward(dctx, drgb, true);
     p[7] = lap(t);
     const auto ag = m.dst.apply_backward(actx, nn::rows_to_image_backward(dmap), true);
     m.dst.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, false);
@@ -169,14 +173,19 @@ int bench_patch_style(const BenchOptions& opt) {
     for (int i = 0; i < kParts; ++i) best[i] = std::min(best[i], p[i]);
     best_total = std::min(best_total, t - start);
   }
-  const double dec = stack_flops(m.features.decoder, h, w);
+  // vgg-adain: the tail's convs at the map's size (three 256 -> 256) and half of it (conv4_1), then AdaIN's
+  // decoder from half the map's size; the frozen tail's backward computes d input only (1x its forward,
+  // against 2x for a trained stack).
+  const double tail = vgg_adain ? 2.0 * 9.0 * (3.0 * 256 * 256 * h * w + 256.0 * 512 * (h / 2) * (w / 2)) : 0.0;
+  const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) : stack_flops(m.features.decoder, h, w);
+  const double dec = tail + stack, dec_bwd = tail + 2 * stack;
   const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
   // SICT per point: q/k/v 2*256*96, attention ~ 4 * 32 * 32 (logits and weighted sum); backward ~2x.
   const double sict = double(kept) * (2.0 * 256 * 96 + 4.0 * 32 * 32);
   const double L = 64.0 * 64.0;  // relu3_1 positions of the 256 x 256 style
   const double dst = L * 2.0 * (256 * 128 + 128 * 64 + 64 * 32) + L * 2.0 * 32 * 32 + 2.0 * 1024 * 1024 +
                      double(R) * 2.0 * (32 * 256 + 256);
-  const double flops[kParts] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), 2 * dec,
+  const double flops[kParts] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), dec_bwd,
                                 2 * dst, 0, 2 * sict, 0};
   nlohmann::json rows = nlohmann::json::array();
   std::cout << std::left << std::setw(14) << "part" << std::right << std::setw(10) << "s" << std::setw(12) << "GFLOP"
@@ -197,6 +206,7 @@ int bench_patch_style(const BenchOptions& opt) {
             << kept << " (SICT points)\n";
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
+                        {"style_decoder", model::style_decoder_name(decoder_kind)},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};

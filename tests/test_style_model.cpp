@@ -6,6 +6,8 @@
 //    VGG maps or on rendered maps, whose mean features and opacities are checked against the field) and
 //    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; with a weight
 //    average, the checkpoint holds the average (double reference) and resumes from the last iterate;
+//  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
+//    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -171,6 +173,81 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   CHECK(r.styles().holdout == styles.holdout);
   r.set_total_iters(5);
   CHECK(std::isfinite(r.step().style));
+}
+
+TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trains, never stage 2's decoder; it round-trips") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(3);
+  cfg.warm_start = 1;
+  cfg.warm_maps = train::WarmMaps::Rendered;
+  cfg.style_decoder = model::StyleDecoderKind::VggAdain;
+  cfg.lr_decoder = 1e-4f;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_decoder == model::StyleDecoderKind::VggAdain);
+  {
+    auto j = small_config(1).to_json();
+    j.erase("style_decoder");  // written before the option existed
+    CHECK(train::StyleTrainConfig::from_json(j).style_decoder == model::StyleDecoderKind::Stage2);
+  }
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto& m = t.model();
+  REQUIRE(m.decoder_kind == model::StyleDecoderKind::VggAdain);
+  // The decoder is AdaIN's, whole (its 512 -> 256 first conv included), behind the tail.
+  CHECK(m.style_decoder.in_channels() == 512);
+  CHECK(m.style_decoder.upsamplings() == 3);
+  CHECK(m.decoder_params().front()->name.rfind("style.decoder.", 0) == 0);
+  CHECK(m.decoder_params().front()->group == model::kGroupStyleDecoder);
+  {
+    // decode_map = AdaIN's decoder of VGG's relu4_1 computed from relu3_1
+    auto x = testing::random_uniform(256 * 4 * 6, 7, 0.0f, 1.0f);
+    const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
+    const auto got = m.decode_map(map, nullptr).to_host();
+    const auto want = m.style_decoder.forward(m.vgg_tail.forward(map)).to_host();
+    CHECK(got == want);
+    // Inference takes odd sides (the last row / column repeated): a 16 x 20 image at least
+    const Tensor odd = Tensor::from_host(std::vector<float>(x.begin(), x.begin() + 256 * 3 * 5), {1, 256, 3, 5});
+    const Tensor img = m.decode_map(odd, nullptr);
+    CHECK(img.dim(2) >= 12);
+    CHECK(img.dim(3) >= 20);
+    CHECK(testing::all_finite(img.to_host()));
+    model::StyleModel::DecoderCtx ctx;
+    CHECK_THROWS_WITH_AS(m.decode_map(odd, &ctx), doctest::Contains("even sides"), host::Error);
+  }
+  const auto stage2 = m.features.decoder.params()[0]->value.to_host();
+  const auto adain0 = m.style_decoder.layers().front().w.value.to_host();
+  const auto dst0 = m.dst.fc_w.value.to_host();
+  while (!t.done()) {
+    const auto st = t.step();
+    CHECK(std::isfinite(st.content + st.style));
+  }
+  CHECK(m.dst.fc_w.value.to_host() != dst0);
+  CHECK(m.style_decoder.layers().front().w.value.to_host() != adain0);
+  CHECK(m.features.decoder.params()[0]->value.to_host() == stage2);  // unused, untouched
+
+  const std::string path = (testing::small_work_dir() / "style_vgg_adain.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  const auto ck = io::load_checkpoint(path, "style");
+  CHECK(ck.meta.at("style_model").at("decoder") == "vgg-adain");
+  const auto loaded = model::StyleModel::load(ck);
+  CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdain);
+  CHECK(loaded.style_decoder.layers().front().w.value.to_host() == m.style_decoder.layers().front().w.value.to_host());
+  const auto& cam = testing::small_scene().test[0].camera;
+  const Tensor simg = train::load_style_image(styles.holdout[0], 32, 32, nullptr);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
+  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
+                                  cam.width, cam.height);
+  const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
+                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
+  CHECK(a == b);
+  CHECK(testing::all_finite(a));
+  train::StyleTrainer r(testing::small_scene(), ck, nullptr);  // resumes with the same decoder
+  CHECK(r.model().decoder_kind == model::StyleDecoderKind::VggAdain);
+
+  // The paper profile's full-resolution maps are not relu3_1's: refused, named.
+  CHECK_THROWS_WITH_AS(model::StyleModel::create(small_features(model::DecoderProfile::Paper),
+                                                 style::SictMode::VolumeAdaptive, true, 1, model::StyleDecoderKind::VggAdain),
+                       doctest::Contains("fast profile"), host::Error);
+  CHECK_THROWS_WITH_AS(model::parse_style_decoder("adain"), doctest::Contains("stage2 or vgg-adain"), host::Error);
 }
 
 TEST_CASE("rendered warm-start maps hold each ray's mean feature and its opacity, as the field renders them") {

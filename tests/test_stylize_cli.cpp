@@ -157,6 +157,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--ema -0.1", "--ema must be in [0, 1)");
   expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
+  expect(train + "--style-decoder adain", "--style-decoder) must be stage2 or vgg-adain, got 'adain'");
   expect(train + "--lr-decoder -1", "--lr-stylizer and --lr-decoder must be positive");
   expect(train + "--decoder-warm 5 --lr-decoder-warm 0", "--lr-decoder-warm must be a positive number");
   expect(train + "--lr-decoder-warm 1e-4", "--lr-decoder-warm needs --decoder-warm N > 0");

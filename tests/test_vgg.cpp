@@ -9,7 +9,9 @@
 //  - encoder backward to the input against central differences of that reference;
 //  - decoder forward/backward (input and parameter gradients) on a small decoder read from a hand-made
 //    file, which also checks how the architecture is derived from the keys;
-//  - the real decoder inverts the real encoder far better than a He-initialised one.
+//  - the real decoder inverts the real encoder far better than a He-initialised one;
+//  - the VGG tail (relu3_1 -> relu4_1, the vgg-adain style decoder's front): forward against the reference
+//    and against the encoder's own relu4_1, backward against central differences, bad shapes refused.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -24,6 +26,7 @@
 #include "lib/io/safetensors.hpp"
 #include "lib/nn/decoder.hpp"
 #include "lib/nn/vgg.hpp"
+#include "lib/nn/vgg_tail.hpp"
 #include "lib/nn/weights.hpp"
 #include "tests/conv_reference.hpp"
 #include "tests/testing.hpp"
@@ -244,6 +247,67 @@ TEST_CASE("vgg: backward to the input matches central differences of the referen
     // the step (random inputs: not at these indices); float32 backward: rtol 2e-3, atol 1e-3 of the largest.
     testing::check_close(got, fd, 2e-3, 1e-3 * max_abs(fd), std::string("d input, ") + p.name);
   }
+}
+
+// relu3_1 -> relu4_1 of the reference: conv3_2, conv3_3, conv3_4 (+ ReLU), pool, conv4_1 (+ ReLU).
+RefTensor ref_tail(const RefVgg& r, RefTensor h) {
+  for (int i = 5; i < 9; ++i) {
+    if (i == 8) h = ref_pool(h);
+    h = ref_conv(h, r.convs[size_t(i)].w, r.convs[size_t(i)].b, r.convs[size_t(i)].cout, 3, r.reflect_pad);
+    ref_relu(h);
+  }
+  return h;
+}
+
+TEST_CASE("vgg tail: relu3_1 -> relu4_1 matches the reference and the encoder's own relu4_1") {
+  require_weights();
+  const nn::VggTail tail(encoder());
+  {
+    // Random non-negative relu3_1-like features: against the double reference
+    const int H = 4, W = 6;
+    auto x = testing::random_uniform(256 * H * W, 51, 0.0f, 2.0f);
+    const Tensor y = tail.forward(Tensor::from_host(x, {1, 256, H, W}));
+    const RefTensor ref = ref_tail(adain_reference(), ref_from(x, 256, H, W));
+    CHECK(y.shape() == host::Shape{1, 512, H / 2, W / 2});
+    testing::check_close(y.to_host(), ref.v, 1e-4, 1e-4 * max_abs(ref.v), "relu4_1 from relu3_1");
+  }
+  {
+    // An image's relu3_1 through the tail is the encoder's relu4_1 of it
+    const int H = 32, W = 16;
+    auto img = testing::random_uniform(3 * H * W, 52, 0.0f, 1.0f);
+    const auto f = encoder().forward(Tensor::from_host(img, {1, 3, H, W}), 4, false);
+    const auto want = f[3].to_host();
+    testing::check_close(tail.forward(f[2]).to_host(), testing::to_double(want), 1e-5, 1e-5 * max_abs(testing::to_double(want)),
+                         "tail(relu3_1) vs relu4_1");
+  }
+  // Shapes it cannot take are refused before any launch: odd sides (one 2x2 pool), other channel counts.
+  CHECK_THROWS_WITH_AS(tail.forward(Tensor::zeros({1, 256, 5, 6})), doctest::Contains("even"), host::Error);
+  CHECK_THROWS_WITH_AS(tail.forward(Tensor::zeros({1, 128, 4, 4})), doctest::Contains("[N,256,H,W]"), host::Error);
+  nn::VggTail::Ctx empty;
+  CHECK_THROWS_AS(tail.backward(empty, Tensor::zeros({1, 512, 2, 2})), host::Error);
+}
+
+TEST_CASE("vgg tail: backward matches central differences of the reference") {
+  require_weights();
+  const nn::VggTail tail(encoder());
+  const RefVgg ref = adain_reference();
+  const int H = 4, W = 4;
+  auto x = testing::random_uniform(256 * H * W, 61, 0.0f, 2.0f);
+  const RefTensor y = ref_tail(ref, ref_from(x, 256, H, W));
+  auto gf = testing::random_normal(y.v.size(), 62, 1.0f);
+  const auto g = testing::to_double(gf);
+  nn::VggTail::Ctx ctx;
+  tail.forward(Tensor::from_host(x, {1, 256, H, W}), &ctx);
+  const auto dx = tail.backward(ctx, Tensor::from_host(gf, {1, 512, H / 2, W / 2})).to_host();
+  REQUIRE(dx.size() == x.size());
+  auto loss = [&](const std::vector<double>& xd) { return testing::dot(g, ref_tail(ref, RefTensor{256, H, W, xd}).v); };
+  const std::vector<size_t> idx = {0, 5, 15, 300, 1000, 2047, 3000, 4095};
+  const auto fd = testing::finite_difference_at(loss, testing::to_double(x), idx, 1e-4);
+  std::vector<float> got;
+  for (size_t i : idx) got.push_back(dx[i]);
+  // As the encoder's backward test: float32 against double differences, no ReLU or pool switching inside
+  // the step at these random points.
+  testing::check_close(got, fd, 2e-3, 1e-3 * max_abs(fd), "d relu3_1");
 }
 
 TEST_CASE("vgg: bad weights files name the file and the problem") {

@@ -28,7 +28,7 @@ int run_train_style(int argc, char** argv) {
   namespace train = stylerf::train;
   namespace model = stylerf::model;
   std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
-              warm_maps_name = "vgg";
+              warm_maps_name = "vgg", style_decoder_name = "stage2";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0;
   int patch = 256, style_size = 512;
@@ -59,6 +59,9 @@ int run_train_style(int argc, char** argv) {
       "warm-maps", po::value(&warm_maps_name)->default_value("vgg"),
       "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
+      "style-decoder", po::value(&style_decoder_name)->default_value("stage2"),
+      "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
+      "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
       "lr-decoder-warm", po::value(&lr_decoder_warm),
@@ -112,6 +115,7 @@ int run_train_style(int argc, char** argv) {
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
   const auto warm_maps = train::parse_warm_maps(warm_maps_name);
+  const auto style_decoder = model::parse_style_decoder(style_decoder_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
 
@@ -150,6 +154,7 @@ int run_train_style(int argc, char** argv) {
     cfg.ema_decay = ema;
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
+    cfg.style_decoder = style_decoder;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.decoder_warm_style = decoder_warm_style;
@@ -161,7 +166,8 @@ int run_train_style(int argc, char** argv) {
   auto& m = trainer->model();
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
-            << (cfg.dst_bias ? "with" : "without") << " bias\n"
+            << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
+            << model::style_decoder_name(cfg.style_decoder) << "\n"
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"

@@ -5,6 +5,7 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
+#include "lib/nn/decoder.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
 #include "lib/nn/ops.hpp"
@@ -33,8 +34,25 @@ void SictHead::backward(const Context& ctx, const Tensor& dvalues) {
 }
 
 // ---- model -------------------------------------------------------------------------------------------------
-StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed) {
+StyleDecoderKind parse_style_decoder(const std::string& s) {
+  if (s == "stage2") return StyleDecoderKind::Stage2;
+  if (s == "vgg-adain") return StyleDecoderKind::VggAdain;
+  throw Error("style decoder (--style-decoder) must be stage2 or vgg-adain, got '" + s + "'");
+}
+
+const char* style_decoder_name(StyleDecoderKind k) { return k == StyleDecoderKind::Stage2 ? "stage2" : "vgg-adain"; }
+
+StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
+                              StyleDecoderKind decoder) {
+  if (decoder == StyleDecoderKind::VggAdain && features.profile != DecoderProfile::Fast)
+    throw Error("style model: the vgg-adain style decoder needs the fast profile (maps at relu3_1's 1/4 resolution); "
+                "this feature model is " + std::string(decoder_profile_name(features.profile)));
   StyleModel m;
+  m.decoder_kind = decoder;
+  if (decoder == StyleDecoderKind::VggAdain) {
+    m.vgg_tail = nn::VggTail(nn::VggEncoder::load_default());
+    m.style_decoder = nn::load_adain_decoder("", "style.decoder.", kGroupStyleDecoder);
+  }
   m.features = std::move(features);
   // Samples with weight below 1e-3 are dropped before SICT (the authors' style stage): fewer points, and
   // SICT's batch statistics describe the visible surface rather than the faint haze around it.
@@ -83,11 +101,45 @@ Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, Contex
     ctx->h = h;
     ctx->w = w;
   }
-  return features.decoder.forward(map, ctx ? &ctx->decoder : nullptr);
+  return decode_map(map, ctx ? &ctx->decoder : nullptr);
+}
+
+namespace {
+// [N, C, H, W] -> [N, C, H + H % 2, W + W % 2], the last row / column repeated. On the host: inference only,
+// once a frame.
+Tensor pad_to_even(const Tensor& x) {
+  const int64_t N = x.dim(0), C = x.dim(1), H = x.dim(2), W = x.dim(3), H2 = H + H % 2, W2 = W + W % 2;
+  const auto v = x.to_host();
+  std::vector<float> o(size_t(N * C * H2 * W2));
+  for (int64_t p = 0; p < N * C; ++p)
+    for (int64_t y = 0; y < H2; ++y)
+      for (int64_t xx = 0; xx < W2; ++xx)
+        o[size_t((p * H2 + y) * W2 + xx)] = v[size_t((p * H + std::min(y, H - 1)) * W + std::min(xx, W - 1))];
+  return Tensor::from_host(o, {N, C, H2, W2}, "map padded to even sides");
+}
+}  // namespace
+
+Tensor StyleModel::decode_map(const Tensor& map, DecoderCtx* ctx) const {
+  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.forward(map, ctx ? &ctx->stack : nullptr);
+  const bool odd = map.dim(2) % 2 || map.dim(3) % 2;
+  if (odd && ctx)
+    throw Error("style model: the vgg-adain decoder trains on maps with even sides, got " + host::shape_str(map.shape()));
+  const Tensor r41 = vgg_tail.forward(odd ? pad_to_even(map) : map, ctx ? &ctx->tail : nullptr);
+  return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
+}
+
+Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
+  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
+  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, true);
+  return need_dx ? vgg_tail.backward(ctx.tail, d41) : Tensor();
+}
+
+std::vector<nn::Param*> StyleModel::decoder_params() {
+  return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
 }
 
 style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
-  const Tensor dmap = features.decoder.backward(ctx.decoder, drgb, true);
+  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
   const Tensor dy = nn::rows_to_image_backward(dmap);
   style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
   render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
@@ -262,7 +314,10 @@ void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& c
 void StyleModel::collect_params(std::vector<nn::Param*>& out) {
   sict.collect_params(out);
   dst.collect_params(out);
-  features.decoder.collect_params(out);
+  if (decoder_kind == StyleDecoderKind::Stage2)
+    features.decoder.collect_params(out);
+  else
+    style_decoder.collect_params(out);
 }
 
 void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
@@ -271,7 +326,9 @@ void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
   sict.save(ck, "");
   dst.save(ck, "");
-  ck.meta["style_model"] = {{"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}};
+  if (decoder_kind == StyleDecoderKind::VggAdain) style_decoder.save(ck, "");
+  ck.meta["style_model"] = {
+      {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
@@ -280,15 +337,21 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
                 "'; train one with `stylerf train-style`)");
   style::SictMode mode;
   bool bias = true;
+  StyleDecoderKind decoder = StyleDecoderKind::Stage2;
   try {
-    mode = style::parse_sict_mode(ck.meta.at("style_model").at("sict").get<std::string>());
-    bias = ck.meta.at("style_model").at("dst_bias").get<bool>();
+    const json& sm = ck.meta.at("style_model");
+    mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
+    bias = sm.at("dst_bias").get<bool>();
+    decoder = parse_style_decoder(sm.value("decoder", std::string("stage2")));  // absent before the option existed
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
+  } catch (const Error& e) {
+    throw Error("checkpoint " + ck.path + ": " + e.what());
   }
-  StyleModel m = create(FeatureModel::load(ck), mode, bias, 0);
+  StyleModel m = create(FeatureModel::load(ck), mode, bias, 0, decoder);
   m.sict.load(ck, "");
   m.dst.load(ck, "");
+  if (decoder == StyleDecoderKind::VggAdain) m.style_decoder.load(ck, "");
   return m;
 }
 

@@ -7,8 +7,9 @@
 // The content part (up to c and w_r) does not depend on the style: render it once and apply any number of
 // styles (zero-shot use, interpolation), which is what render_content / decode_styled split.
 //
-// Parameters: "style.sict.*" and "style.dst.*" (group kGroupStylizer), the decoder's "decoder.*" (group
-// kGroupStyleDecoder); the field's parameters are not listed (frozen).
+// Parameters: "style.sict.*" and "style.dst.*" (group kGroupStylizer), the decoder's (group
+// kGroupStyleDecoder): stage 2's "decoder.*", or with the VGG-AdaIN style decoder "style.decoder.*"; the
+// field's parameters are not listed (frozen).
 #pragma once
 #include <string>
 
@@ -16,6 +17,7 @@
 #include "lib/model/feature_model.hpp"
 #include "lib/model/region.hpp"
 #include "lib/nn/vgg.hpp"
+#include "lib/nn/vgg_tail.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/style/sict.hpp"
 
@@ -24,6 +26,16 @@ namespace stylerf::model {
 enum StyleGroup { kGroupStylizer = 0, kGroupStyleDecoder = 1 };
 constexpr float kStyleWeightThreshold = 1e-3f;  // samples below this weight never reach SICT
 constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render_camera_content)
+
+// The decoder that draws stylised maps (train-style --style-decoder):
+//  - Stage2 ("stage2"): stage 2's decoder, fine-tuned: the paper's. It has seen one scene's photographs,
+//    so it must learn to draw painted texture within the style stage.
+//  - VggAdain ("vgg-adain"): VGG's frozen relu3_1 -> relu4_1 (nn::VggTail), then AdaIN's pretrained
+//    decoder (fine-tuned at the decoder's rate). It was trained to draw images whose VGG statistics match
+//    stylised relu4_1 features. Fast profile only: the map must be at relu3_1's own 1/4 resolution.
+enum class StyleDecoderKind { Stage2, VggAdain };
+StyleDecoderKind parse_style_decoder(const std::string& s);  // an Error names the accepted values
+const char* style_decoder_name(StyleDecoderKind k);
 
 // The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
 class SictHead : public SampleHead {
@@ -48,13 +60,29 @@ class SictHead : public SampleHead {
 
 class StyleModel : public nn::Module {
  public:
-  FeatureModel features;  // geometry and field frozen; the decoder is fine-tuned
+  FeatureModel features;  // geometry and field frozen; with the Stage2 decoder, its decoder is fine-tuned
   style::Sict sict;
   style::Dst dst;
+  StyleDecoderKind decoder_kind = StyleDecoderKind::Stage2;
+  nn::VggTail vgg_tail;         // VggAdain: frozen
+  nn::ConvStack style_decoder;  // VggAdain: AdaIN's decoder, "style.decoder.*"
 
-  // A fresh stylizer over a trained feature model (seeded); the decoder's parameters move to group
-  // kGroupStyleDecoder.
-  static StyleModel create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed);
+  // A fresh stylizer over a trained feature model (seeded); the decoder's parameters go to group
+  // kGroupStyleDecoder. VggAdain loads VGG and AdaIN's decoder from the weights folder.
+  static StyleModel create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
+                           StyleDecoderKind decoder = StyleDecoderKind::Stage2);
+
+  // The stylised-map decoder, whichever kind: map [1, 256, h, w] -> RGB [1, 3, h s, w s]. Inference
+  // (ctx null) takes odd sides too (VggAdain pads the map's last row / column, and the image comes out
+  // up to s pixels larger: crop_rgb cuts it); training needs even sides with VggAdain.
+  struct DecoderCtx {
+    nn::VggTail::Ctx tail;
+    nn::ConvStack::Ctx stack;
+  };
+  Tensor decode_map(const Tensor& map, DecoderCtx* ctx) const;
+  // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients.
+  Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx);
+  std::vector<nn::Param*> decoder_params();
   int stride() const { return features.stride(); }
 
   // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
@@ -67,7 +95,7 @@ class StyleModel : public nn::Module {
     RayContext rays;
     std::unique_ptr<SictHead> head;  // bound to this model's sict; backward needs the same head
     style::Dst::ApplyContext dst;
-    nn::ConvStack::Ctx decoder;
+    DecoderCtx decoder;
     int h = 0, w = 0;
   };
   // origins/dirs [R, 3] with R = h * w rays (row-major block centres at the profile's stride). training:

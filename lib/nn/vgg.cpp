@@ -83,6 +83,12 @@ void VggEncoder::load(const std::string& path) {
   saved_.clear();
 }
 
+std::pair<Tensor, Tensor> VggEncoder::conv_weights(const std::string& name) const {
+  for (const Conv& c : convs_)
+    if (c.name == name) return {c.w, c.b};
+  throw Error("VggEncoder: no conv named '" + name + "'" + (loaded() ? "" : " (no weights loaded)"));
+}
+
 VggEncoder VggEncoder::load_default() {
   VggEncoder e;
   e.load(weights_path(kVggWeightsFile));

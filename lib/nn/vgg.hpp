@@ -48,6 +48,11 @@ class VggEncoder {
 
   void release() { saved_.clear(); }
 
+  // A loaded conv's weight [Cout, Cin, k, k] and bias (names "conv1_1" .. "conv4_1"), and the padding of
+  // the 3x3 convs: for modules built from part of the network (nn::VggTail). An Error for other names.
+  std::pair<Tensor, Tensor> conv_weights(const std::string& name) const;
+  Padding padding() const { return pad_; }
+
  private:
   struct Conv {
     std::string name;

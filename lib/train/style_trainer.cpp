@@ -44,6 +44,7 @@ json StyleTrainConfig::to_json() const {
           {"lr_decoder_warm", lr_decoder_warm},
           {"decoder_warm_style", decoder_warm_style},
           {"warm_maps", warm_maps_name(warm_maps)},
+          {"style_decoder", model::style_decoder_name(style_decoder)},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -69,6 +70,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
   c.decoder_warm_style = j.value("decoder_warm_style", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
+  c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -119,7 +121,7 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
-  model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed);
+  model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   init(log);
   init_running_stats(log);
 }
@@ -271,14 +273,14 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   }
   model::StyleModel::Context mctx;  // only its decoder part is used
   const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &mctx)
-                              : model_.features.decoder.forward(nn::rows_to_image(y, h, w), &mctx.decoder);
+                              : model_.decode_map(nn::rows_to_image(y, h, w), &mctx.decoder);
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const Tensor dy = nn::rows_to_image_backward(model_.features.decoder.backward(mctx.decoder, drgb, true));
+  const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
@@ -293,12 +295,12 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   StyleStepStats st;
   st.decoder_warm = true;
   constexpr float kFeatureWeight = 0.1f;  // stage 2's patch loss
-  nn::ConvStack::Ctx dctx;
-  const Tensor rgb = model_.features.decoder.forward(style_taps[2], &dctx);
+  model::StyleModel::DecoderCtx dctx;
+  const Tensor rgb = model_.decode_map(style_taps[2], &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
   const ReconstructionLoss loss =
       reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight, cfg_.decoder_warm_style);
-  model_.features.decoder.backward(dctx, loss.drgb, false);
+  model_.decode_map_backward(dctx, loss.drgb, false);
   st.content = loss.pixel_mse + kFeatureWeight * loss.feature_mse;
   st.style = loss.style;
   st.rays = rgb.numel() / 3;
@@ -361,7 +363,7 @@ StyleStepStats StyleTrainer::step() {
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).
-    adam_.step(st.decoder_warm ? model_.features.decoder.params() : model_.params());
+    adam_.step(st.decoder_warm ? model_.decoder_params() : model_.params());
     ema_.update(model_.params());
   }
   iteration_ = k;

@@ -9,7 +9,7 @@
 // backward through VGG, the decoder, DST, the style branch and SICT; Adam (betas 0.9, 0.99) at lr_stylizer
 // for the stylizer and lr_decoder for the decoder; SICT's running statistics then move (momentum 1e-4).
 //
-// Two departures from the authors' loop, both for runs of minutes rather than 25k GPU steps:
+// Departures from the authors' loop, both for runs of minutes rather than 25k GPU steps:
 //  - SICT's running statistics start from the statistics of the kept samples of a few training patches
 //    (measured before the first step) instead of (0, 1): at momentum 1e-4 they would need ~10k steps to
 //    leave their initial values, and inference uses nothing else;
@@ -27,7 +27,10 @@
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
-//    only (the maps are at relu3_1's resolution, the fast profile's map resolution).
+//    only (the maps are at relu3_1's resolution, the fast profile's map resolution);
+//  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
+//    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
+//    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind).
 #pragma once
 #include <iosfwd>
 #include <memory>
@@ -66,6 +69,7 @@ struct StyleTrainConfig {
   float decoder_warm_style = 0.0f;  // > 0: those steps add this x the style term of the crop (reconstruction_loss)
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
+  model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
   int finite_check_every = 50;
