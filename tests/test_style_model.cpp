@@ -69,6 +69,20 @@ train::StyleTrainConfig small_config(int iters) {
   return c;
 }
 
+// A model and its checkpoint round trip stylise the first test view identically, and finitely.
+void check_same_stylized_view(const model::StyleModel& m, const model::StyleModel& loaded, const std::string& style) {
+  const auto& cam = testing::small_scene().test[0].camera;
+  const Tensor simg = train::load_style_image(style, 32, 32, nullptr);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
+  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
+                                  cam.width, cam.height);
+  const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
+                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
+  CHECK(a == b);
+  CHECK(testing::all_finite(a));
+}
+
 double max_abs(const std::vector<float>& v) {
   double m = 0;
   for (float x : v) m = std::max(m, double(std::abs(x)));
@@ -157,16 +171,7 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   t.save(path, {{"name", testing::small_scene().name}});
   const auto ck = io::load_checkpoint(path, "style");
   const auto loaded = model::StyleModel::load(ck);
-  const auto& cam = testing::small_scene().test[0].camera;
-  const Tensor simg = train::load_style_image(styles.holdout[0], 32, 32, nullptr);
-  nn::VggEncoder vgg = nn::VggEncoder::load_default();
-  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
-  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
-                                  cam.width, cam.height);
-  const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
-                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
-  CHECK(a == b);
-  CHECK(testing::all_finite(a));
+  check_same_stylized_view(m, loaded, styles.holdout[0]);
 
   train::StyleTrainer r(testing::small_scene(), ck, nullptr);
   CHECK(r.iteration() == 4);
@@ -230,16 +235,7 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   const auto loaded = model::StyleModel::load(ck);
   CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdain);
   CHECK(loaded.style_decoder.layers().front().w.value.to_host() == m.style_decoder.layers().front().w.value.to_host());
-  const auto& cam = testing::small_scene().test[0].camera;
-  const Tensor simg = train::load_style_image(styles.holdout[0], 32, 32, nullptr);
-  nn::VggEncoder vgg = nn::VggEncoder::load_default();
-  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
-  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
-                                  cam.width, cam.height);
-  const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
-                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
-  CHECK(a == b);
-  CHECK(testing::all_finite(a));
+  check_same_stylized_view(m, loaded, styles.holdout[0]);
   train::StyleTrainer r(testing::small_scene(), ck, nullptr);  // resumes with the same decoder
   CHECK(r.model().decoder_kind == model::StyleDecoderKind::VggAdain);
 
