@@ -239,6 +239,19 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   train::StyleTrainer r(testing::small_scene(), ck, nullptr);  // resumes with the same decoder
   CHECK(r.model().decoder_kind == model::StyleDecoderKind::VggAdain);
 
+  {
+    // The decoder warm-up goes through the same decoder (no d input needed: the tail is skipped)
+    auto wc = cfg;
+    wc.decoder_warm = 1;
+    train::StyleTrainer w(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, wc, nullptr);
+    const auto dec0 = w.model().style_decoder.layers().front().w.value.to_host();
+    const auto st = w.step();
+    CHECK(st.decoder_warm);
+    CHECK(std::isfinite(st.content));
+    CHECK(st.content > 0);
+    CHECK(w.model().style_decoder.layers().front().w.value.to_host() != dec0);
+  }
+
   // The paper profile's full-resolution maps are not relu3_1's: refused, named.
   CHECK_THROWS_WITH_AS(model::StyleModel::create(small_features(model::DecoderProfile::Paper),
                                                  style::SictMode::VolumeAdaptive, true, 1, model::StyleDecoderKind::VggAdain),

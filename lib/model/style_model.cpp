@@ -130,7 +130,8 @@ Tensor StyleModel::decode_map(const Tensor& map, DecoderCtx* ctx) const {
 
 Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
   if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
-  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, true);
+  // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
+  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx);
   return need_dx ? vgg_tail.backward(ctx.tail, d41) : Tensor();
 }
 
