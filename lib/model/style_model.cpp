@@ -139,9 +139,13 @@ std::vector<nn::Param*> StyleModel::decoder_params() {
   return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
 }
 
-style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra) {
   const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
-  const Tensor dy = nn::rows_to_image_backward(dmap);
+  Tensor dy = nn::rows_to_image_backward(dmap);
+  if (dy_extra.defined()) {
+    host::expect_shape(dy_extra, dy.shape(), "style model backward", "extra gradient at DST's output");
+    nn::axpby(1.0f, dy_extra, 1.0f, dy);
+  }
   style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
   render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
   return g;
