@@ -10,6 +10,7 @@
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
 //  - the AdaIN teacher: its target is relu3_1 of 2D AdaIN's output, its loss agrees with a double reference
 //    and central differences, and in training it changes the stylizer's update, not the step's losses;
+//  - style augmentation in training, and its config;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -635,6 +636,24 @@ TEST_CASE("the AdaIN teacher: relu3_1 of 2D AdaIN as a target; its loss and grad
     j.erase("adain_teacher");  // a checkpoint written before the option existed
     CHECK(train::StyleTrainConfig::from_json(j).adain_teacher == 0.0f);
   }
+}
+
+TEST_CASE("style_augment: the steps train on augmented styles; the config keeps it; old configs read it off") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(2);
+  cfg.style_size = cfg.style_crop;  // the whole image: no random crop, so only the augmentation differs
+  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  cfg.style_augment = true;
+  train::StyleTrainer augmented(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  const auto a1 = plain.step(), b1 = augmented.step();
+  CHECK(a1.style_name == b1.style_name);  // the same style drawn, then augmented
+  CHECK(b1.style != a1.style);            // a flipped / reordered style has other statistics to match
+  CHECK(std::isfinite(b1.style + b1.content + augmented.step().style));
+  CHECK(augmented.model().first_nonfinite().empty());
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_augment);
+  auto j = cfg.to_json();
+  j.erase("style_augment");  // a checkpoint written before the option existed
+  CHECK_FALSE(train::StyleTrainConfig::from_json(j).style_augment);
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

@@ -36,7 +36,7 @@ int run_train_style(int argc, char** argv) {
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f,
         adain_teacher = 0.0f;
   uint64_t seed = 0;
-  bool resume = false, force = false, timing = false;
+  bool resume = false, force = false, timing = false, style_augment = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("features", po::value(&features_path), "feature-stage checkpoint")(
       "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
@@ -63,6 +63,9 @@ int run_train_style(int argc, char** argv) {
       "style-decoder", po::value(&style_decoder_name)->default_value("stage2"),
       "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile)")(
+      "style-augment", po::bool_switch(&style_augment),
+      "each step's style image is one of its 48 flips, 90-degree turns and colour-channel orders, drawn at random, "
+      "so that a few hundred training styles teach reading any style rather than those styles (not the paper's)")(
       "adain-teacher", po::value(&adain_teacher)->default_value(0.0f),
       "W > 0: the loss adds W x the MSE between DST's output map and relu3_1 of 2D AdaIN of the true patch with "
       "the step's style, a target for every map pixel (not the paper's loss; 2D and rendered steps); 0: off, the "
@@ -163,6 +166,7 @@ int run_train_style(int argc, char** argv) {
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
     cfg.adain_teacher = adain_teacher;
+    cfg.style_augment = style_augment;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.decoder_warm_style = decoder_warm_style;
@@ -177,7 +181,8 @@ int run_train_style(int argc, char** argv) {
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << "\n"
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
-            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
+            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop
+            << (cfg.style_augment ? ", each step's flipped / turned / channel-reordered at random" : "") << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style
             << (cfg.adain_teacher > 0 ? " + AdaIN teacher (DST output vs relu3_1 of 2D AdaIN, MSE) x" +

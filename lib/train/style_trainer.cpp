@@ -46,6 +46,7 @@ json StyleTrainConfig::to_json() const {
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
           {"adain_teacher", adain_teacher},
+          {"style_augment", style_augment},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -73,6 +74,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.adain_teacher = j.value("adain_teacher", 0.0f);  // absent before the option existed
+  c.style_augment = j.value("style_augment", false);  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -361,7 +363,12 @@ StyleStepStats StyleTrainer::step() {
   const std::string& path = styles_.train[pick(rng_)];
   auto source = style_sources_.find(path);
   if (source == style_sources_.end()) source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
-  const Tensor simg = style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
+  io::Image augmented;
+  if (cfg_.style_augment) {
+    augmented = source->second;
+    style::augment_style_image(augmented, rng_);
+  }
+  const Tensor simg = style::crop_style_image(cfg_.style_augment ? augmented : source->second, cfg_.style_crop, &rng_, path);
   const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
   model_.zero_grad();
   StyleStepStats st;

@@ -31,6 +31,9 @@
 //  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
+//  - style_augment (off by default): each step's style image is one of 48 flips, turns and channel orders
+//    of it (style::augment_style_image): with ~100 styles met tens of times each, the stylizer otherwise
+//    learns the training styles rather than how to read a new one;
 //  - adain_teacher > 0 (off by default): the 2D and rendered steps add a dense target for DST's output,
 //    relu3_1 of 2D AdaIN of the true patch with the step's style (lib/train/adain_teacher.hpp).
 #pragma once
@@ -73,6 +76,7 @@ struct StyleTrainConfig {
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
+  bool style_augment = false;   // each step's style image flipped / turned / channel-reordered at random (style_image.hpp)
   float adain_teacher = 0.0f;   // > 0: adds this x the MSE of DST's output to relu3_1 of 2D AdaIN (adain_teacher.hpp)
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
