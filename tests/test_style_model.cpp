@@ -632,6 +632,11 @@ TEST_CASE("the AdaIN teacher: relu3_1 of 2D AdaIN as a target; its loss and grad
     CHECK(std::isfinite(t2.teacher + t2.style + t2.content));
     CHECK(taught.model().first_nonfinite().empty());
     CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).adain_teacher == 2.0f);
+    auto paper = cfg;
+    paper.warm_start = 0;  // refused for the paper profile on its own account
+    testing::expect_error(
+        [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, paper, nullptr); },
+        "--adain-teacher needs the fast profile");
     auto j = cfg.to_json();
     j.erase("adain_teacher");  // a checkpoint written before the option existed
     CHECK(train::StyleTrainConfig::from_json(j).adain_teacher == 0.0f);

@@ -122,6 +122,9 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
+  if (cfg_.adain_teacher > 0 && features.profile != model::DecoderProfile::Fast)
+    throw Error("train-style: --adain-teacher needs the fast profile (its target, relu3_1 of 2D AdaIN, is at the fast "
+                "profile's map resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
