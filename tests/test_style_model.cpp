@@ -479,6 +479,52 @@ TEST_CASE("the decoder warm-up steps the decoder only, at lr_decoder_warm; the s
   CHECK(train::StyleTrainConfig::from_json(j).lr_decoder_warm == 0.0f);
 }
 
+TEST_CASE("lr_decoder 0 freezes the decoder after any warm-up: 2D and rendered steps leave it, the stylizer trains") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(4);
+  cfg.decoder_warm = 1;
+  cfg.lr_decoder_warm = 1e-3f;
+  cfg.warm_start = 1;  // then 1 2D step and 2 rendered steps
+  cfg.lr_decoder = 0;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto decoder_weights = [&] {
+    std::vector<float> all;
+    for (nn::Param* p : t.model().decoder_params()) {
+      const auto v = p->value.to_host();
+      all.insert(all.end(), v.begin(), v.end());
+    }
+    return all;
+  };
+  const auto untrained = decoder_weights();
+  const std::string decoder = t.model().features.decoder.layers().front().w.name;
+  REQUIRE(t.step().decoder_warm);
+  const auto warmed = decoder_weights();
+  CHECK(warmed != untrained);  // the warm-up trains it, at its own rate
+  const auto fc0 = t.model().dst.fc_w.value.to_host();
+  for (int k = 0; k < 3; ++k) {
+    const auto s = t.step();
+    CHECK_FALSE(s.skipped);
+    CHECK(std::isfinite(s.style + s.content));
+  }
+  // Left exactly as the warm-up left it: no gradient computed, no Adam update (its moments would move it).
+  CHECK(decoder_weights() == warmed);
+  CHECK(t.optimizer().updates(decoder) == 1);
+  CHECK(t.model().dst.fc_w.value.to_host() != fc0);
+  CHECK(t.optimizer().updates(t.model().dst.fc_w.name) == 3);
+  CHECK(t.model().first_nonfinite().empty());
+
+  auto no_rate = cfg;
+  no_rate.lr_decoder_warm = 0;  // a warm-up of a frozen decoder at rate 0 would do nothing
+  testing::expect_error(
+      [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, no_rate, nullptr); },
+      "a frozen decoder's warm-up needs its own rate");
+  auto negative = cfg;
+  negative.lr_decoder = -1e-5f;
+  testing::expect_error(
+      [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, negative, nullptr); },
+      "learning rate must be >= 0");
+}
+
 TEST_CASE("the decoder warm-up's style term: style_losses' value, and its gradient through VGG added to drgb") {
   // reconstruction_loss composes parts tested on their own (VGG backward against central differences in
   // test_vgg, the style loss's in test_loss); this checks the composition: the reported term is

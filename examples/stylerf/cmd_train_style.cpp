@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -71,7 +72,9 @@ int run_train_style(int argc, char** argv) {
       "the step's style, a target for every map pixel (not the paper's loss; 2D and rendered steps); 0: off, the "
       "paper's")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
-      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
+      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f),
+      "decoder fine-tuning learning rate; 0 freezes the decoder (after any --decoder-warm, which then needs "
+      "--lr-decoder-warm): no weight gradients are computed for it")(
       "lr-decoder-warm", po::value(&lr_decoder_warm),
       "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
       "decoder-warm-style", po::value(&decoder_warm_style),
@@ -108,8 +111,11 @@ int run_train_style(int argc, char** argv) {
     throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(style_size));
   if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
-  for (float lr : {lr_stylizer, lr_decoder})
-    if (!(lr > 0) || !std::isfinite(lr)) throw Error("--lr-stylizer and --lr-decoder must be positive numbers");
+  if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
+  if (!(lr_decoder >= 0) || !std::isfinite(lr_decoder))
+    throw Error("--lr-decoder must be a positive number, or 0 to freeze the decoder");
+  if (lr_decoder == 0 && decoder_warm > 0 && !vm.count("lr-decoder-warm"))
+    throw Error("--lr-decoder 0 freezes the decoder: --decoder-warm then needs its own --lr-decoder-warm");
   if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
     throw Error("--lr-decoder-warm must be a positive number");
   if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
@@ -176,6 +182,11 @@ int run_train_style(int argc, char** argv) {
   }
   const auto& cfg = trainer->config();
   auto& m = trainer->model();
+  std::ostringstream decoder_lr;
+  if (cfg.lr_decoder > 0)
+    decoder_lr << cfg.lr_decoder;
+  else
+    decoder_lr << "frozen";
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
@@ -189,7 +200,8 @@ int run_train_style(int argc, char** argv) {
                                             std::to_string(cfg.adain_teacher)
                                       : std::string())
             << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
+            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder "
+            << decoder_lr.str()
             << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
             << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
             << "; grids frozen; "

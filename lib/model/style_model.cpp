@@ -128,10 +128,11 @@ Tensor StyleModel::decode_map(const Tensor& map, DecoderCtx* ctx) const {
   return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
 }
 
-Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
-  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
+Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder) {
+  if (decoder_kind == StyleDecoderKind::Stage2)
+    return features.decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
   // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
-  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx);
+  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
   return need_dx ? vgg_tail.backward(ctx.tail, d41) : Tensor();
 }
 
@@ -139,8 +140,16 @@ std::vector<nn::Param*> StyleModel::decoder_params() {
   return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
 }
 
-style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra) {
-  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
+std::vector<nn::Param*> StyleModel::stylizer_params() {
+  std::vector<nn::Param*> out;
+  sict.collect_params(out);
+  dst.collect_params(out);
+  return out;
+}
+
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra,
+                                            bool train_decoder) {
+  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true, train_decoder);
   Tensor dy = nn::rows_to_image_backward(dmap);
   if (dy_extra.defined()) {
     host::expect_shape(dy_extra, dy.shape(), "style model backward", "extra gradient at DST's output");

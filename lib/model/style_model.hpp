@@ -80,9 +80,11 @@ class StyleModel : public nn::Module {
     nn::ConvStack::Ctx stack;
   };
   Tensor decode_map(const Tensor& map, DecoderCtx* ctx) const;
-  // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients.
-  Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx);
+  // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients unless
+  // train_decoder is false (a frozen decoder: only the data gradient, about half the decoder's backward).
+  Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder = true);
   std::vector<nn::Param*> decoder_params();
+  std::vector<nn::Param*> stylizer_params();  // SICT's and DST's
   int stride() const { return features.stride(); }
 
   // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
@@ -108,8 +110,10 @@ class StyleModel : public nn::Module {
   Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
   // dstd) for the style branch (Dst::style_code_backward). dy_extra (optional, [h w, 256]): a gradient of
-  // another loss at DST's output rows, added to the decoder's (train::AdainTeacher's).
-  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra = Tensor());
+  // another loss at DST's output rows, added to the decoder's (train::AdainTeacher's). train_decoder false:
+  // the decoder's parameter gradients are not computed (decode_map_backward).
+  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra = Tensor(),
+                                  bool train_decoder = true);
 
   // The deferred-vs-per-point proof's other side: DST applied to every kept sample's SICT output (weight
   // 1 each: unzip(T c_i) * std + mean), then the 256 channels composited. Inference only; equals

@@ -125,6 +125,9 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if (cfg_.adain_teacher > 0 && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --adain-teacher needs the fast profile (its target, relu3_1 of 2D AdaIN, is at the fast "
                 "profile's map resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
+  if (!(cfg_.lr_decoder >= 0) || (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0)))
+    throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), and a frozen decoder's warm-up needs "
+                "its own rate (--lr-decoder-warm)");
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
@@ -237,7 +240,7 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, teach.dy);
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, teach.dy, !decoder_frozen());
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
   st.content = lv.content;
@@ -295,7 +298,7 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
+  Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true, !decoder_frozen()));
   if (teach.dy.defined()) nn::axpby(1.0f, teach.dy, 1.0f, dy);
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
@@ -391,7 +394,8 @@ StyleStepStats StyleTrainer::step() {
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).
-    adam_.step(st.decoder_warm ? model_.decoder_params() : model_.params());
+    // A frozen decoder (lr_decoder 0) is left out: its moments from a warm-up would otherwise keep moving it.
+    adam_.step(st.decoder_warm ? model_.decoder_params() : decoder_frozen() ? model_.stylizer_params() : model_.params());
     ema_.update(model_.params());
   }
   iteration_ = k;

@@ -65,7 +65,7 @@ struct StyleTrainConfig {
   int iters = 25000;
   int patch = 256;
   int style_size = 512, style_crop = 256;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;  // lr_decoder 0: the decoder is frozen (after any warm-up)
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
   float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
@@ -150,6 +150,8 @@ class StyleTrainer {
                            const std::vector<float>* row_weights);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
   void set_step_lrs(int k, bool decoder_warm);            // both groups' rates for step k (lr decay, warm-up)
+  // lr_decoder 0: after any warm-up the decoder is not trained, and no step computes its weight gradients.
+  bool decoder_frozen() const { return cfg_.lr_decoder == 0; }
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
