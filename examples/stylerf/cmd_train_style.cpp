@@ -182,11 +182,17 @@ int run_train_style(int argc, char** argv) {
   }
   const auto& cfg = trainer->config();
   auto& m = trainer->model();
-  std::ostringstream decoder_lr;
+  int64_t trained_params = m.param_count();
+  if (cfg.lr_decoder == 0)  // frozen after any warm-up: the stylizer's alone
+    for (const auto* p : m.decoder_params()) trained_params -= p->value.numel();
+  const std::string decay =
+      cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string();
+  std::ostringstream rates;  // the decay is said once, after the last rate that decays
+  rates << "  Adam lr stylizer " << cfg.lr_stylizer;
   if (cfg.lr_decoder > 0)
-    decoder_lr << cfg.lr_decoder;
+    rates << ", decoder " << cfg.lr_decoder << decay;
   else
-    decoder_lr << "frozen";
+    rates << decay << ", decoder frozen";
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
@@ -200,12 +206,10 @@ int run_train_style(int argc, char** argv) {
                                             std::to_string(cfg.adain_teacher)
                                       : std::string())
             << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder "
-            << decoder_lr.str()
-            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << rates.str()
             << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
             << "; grids frozen; "
-            << m.param_count() / 1e6 << "M trained parameters"
+            << trained_params / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")
