@@ -505,6 +505,12 @@ TEST_CASE("lr_decoder 0 freezes the decoder after any warm-up: 2D and rendered s
     const auto s = t.step();
     CHECK_FALSE(s.skipped);
     CHECK(std::isfinite(s.style + s.content));
+    // No weight gradient was computed: the step's zeroed decoder gradients are still zero (a trained
+    // decoder's would not be; its rate of 0 alone would hide that work).
+    for (nn::Param* p : t.model().decoder_params()) {
+      CAPTURE(p->name);
+      CHECK(max_abs(p->grad.to_host()) == 0.0);
+    }
   }
   // Left exactly as the warm-up left it: no gradient computed, no Adam update (its moments would move it).
   CHECK(decoder_weights() == warmed);

@@ -125,9 +125,11 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if (cfg_.adain_teacher > 0 && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --adain-teacher needs the fast profile (its target, relu3_1 of 2D AdaIN, is at the fast "
                 "profile's map resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (!(cfg_.lr_decoder >= 0) || (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0)))
-    throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), and a frozen decoder's warm-up needs "
-                "its own rate (--lr-decoder-warm)");
+  if (!(cfg_.lr_decoder >= 0))
+    throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), got " + std::to_string(cfg_.lr_decoder));
+  if (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0))
+    throw Error("train-style: a frozen decoder's warm-up needs its own rate (--lr-decoder-warm): at --lr-decoder 0 the "
+                "warm-up would not train it");
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
