@@ -18,6 +18,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "host/error.hpp"
@@ -715,6 +716,37 @@ TEST_CASE("style_augment: the steps train on augmented styles; the config keeps 
   CHECK(std::isfinite(b1.style + b1.content + augmented.step().style));
   CHECK(augmented.model().first_nonfinite().empty());
   check_option_kept(cfg, "style_augment", &train::StyleTrainConfig::style_augment, false);
+}
+
+TEST_CASE("style_crop_min: steps train on crops of other sides; the config keeps it; bad values are refused") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(6);
+  cfg.style_size = cfg.style_crop;  // the whole image without the option: only the crop side differs
+  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  cfg.style_crop_min = 16;
+  train::StyleTrainer parts(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  // Each crop's side is one of 16, 24, 32 (seeded draws: over six steps some are parts of the image), whose
+  // statistics the style loss then asks for instead of the whole's.
+  std::set<int> sides;
+  for (int i = 0; i < 6; ++i) {
+    const auto a = plain.step(), b = parts.step();
+    CHECK(a.style_side == 32);
+    CHECK(std::isfinite(b.style + b.content));
+    sides.insert(b.style_side);
+  }
+  CHECK(sides.size() >= 2);
+  CHECK(*sides.begin() >= 16);
+  CHECK(*sides.rbegin() <= 32);
+  CHECK(*sides.begin() < 32);
+  CHECK(parts.model().first_nonfinite().empty());
+  check_option_kept(cfg, "style_crop_min", &train::StyleTrainConfig::style_crop_min, 0);
+  for (int bad : {8, 20, 40}) {
+    CAPTURE(bad);
+    cfg.style_crop_min = bad;
+    testing::expect_error(
+        [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr); },
+        "--style-crop-min");
+  }
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

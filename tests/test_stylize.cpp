@@ -387,6 +387,23 @@ TEST_CASE("style encoder: hard images, memory and disk caches") {
   testing::expect_error([&] { style::style_images_in((bad_dir / "missing").string(), nullptr); }, "not a folder");
 }
 
+TEST_CASE("style crop sides: multiples of 8 drawn over the whole range; bad ranges are refused") {
+  std::mt19937_64 rng(3);
+  std::set<int> seen;
+  for (int i = 0; i < 400; ++i) {
+    const int side = style::draw_crop_side(128, 256, rng);
+    CHECK(side % 8 == 0);
+    CHECK(side >= 128);
+    CHECK(side <= 256);
+    seen.insert(side);
+  }
+  CHECK(seen.size() == 17);  // 128, 136, ..., 256: both ends included
+  CHECK(style::draw_crop_side(64, 64, rng) == 64);
+  CHECK_THROWS_WITH_AS(style::draw_crop_side(128, 64, rng), doctest::Contains("min <= max"), host::Error);
+  CHECK_THROWS_WITH_AS(style::draw_crop_side(100, 256, rng), doctest::Contains("multiples of 8"), host::Error);
+  CHECK_THROWS_WITH_AS(style::draw_crop_side(0, 256, rng), doctest::Contains("multiples of 8"), host::Error);
+}
+
 TEST_CASE("style augmentation draws each of a square image's 48 flips, turns and channel orders; non-square is refused") {
   const int n = 5;
   io::Image img;

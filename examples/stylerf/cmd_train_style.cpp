@@ -32,7 +32,7 @@ int run_train_style(int argc, char** argv) {
               warm_maps_name = "vgg", style_decoder_name = "stage2";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0;
-  int patch = 256, style_size = 512;
+  int patch = 256, style_size = 512, style_crop_min = 0;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f,
         adain_teacher = 0.0f;
@@ -50,6 +50,10 @@ int run_train_style(int argc, char** argv) {
       "style-size", po::value(&style_size)->default_value(512),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
+      "style-crop-min", po::value(&style_crop_min)->default_value(0),
+      "N > 0: each step's crop side is drawn from [N, 256] (multiples of 8) and cut without rescaling: with "
+      "--style-size 256, parts of each painting at the scale inference reads it, so ~100 training styles give "
+      "the stylizer many inputs rather than the same ~100 (not the paper's); 0: every crop 256")(
       "sict", po::value(&sict_name)->default_value("volume-adaptive"),
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
@@ -173,6 +177,7 @@ int run_train_style(int argc, char** argv) {
     cfg.style_decoder = style_decoder;
     cfg.adain_teacher = adain_teacher;
     cfg.style_augment = style_augment;
+    cfg.style_crop_min = style_crop_min;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.decoder_warm_style = decoder_warm_style;
@@ -198,7 +203,8 @@ int run_train_style(int argc, char** argv) {
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << "\n"
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
-            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop
+            << " held out; style images resized to " << cfg.style_size << " then cropped to "
+            << (cfg.style_crop_min > 0 ? std::to_string(cfg.style_crop_min) + ".." : std::string()) << cfg.style_crop
             << (cfg.style_augment ? ", each step's flipped / turned / channel-reordered at random" : "") << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style

@@ -71,6 +71,14 @@ void augment_style_image(io::Image& img, std::mt19937_64& rng) {
   img = std::move(out);
 }
 
+int draw_crop_side(int min_side, int max_side, std::mt19937_64& rng) {
+  if (min_side < 8 || min_side % 8 || max_side % 8 || max_side < min_side)
+    throw Error("style crop sides must be multiples of 8 with min <= max, got [" + std::to_string(min_side) + ", " +
+                std::to_string(max_side) + "]");
+  std::uniform_int_distribution<int> eighths(min_side / 8, max_side / 8);
+  return 8 * eighths(rng);
+}
+
 host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
   check_crop(path, crop, size);
   return crop_style_image(load_style_source(path, size), crop, rng, path);
