@@ -338,11 +338,18 @@ void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.coll
 
 void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
-  sict.save(ck, "");
-  dst.save(ck, "");
-  if (decoder_kind == StyleDecoderKind::VggAdain) style_decoder.save(ck, "");
+  save_trained(ck);
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
+}
+
+void StyleModel::save_trained(io::Checkpoint& ck) {
+  sict.save(ck, "");
+  dst.save(ck, "");
+  if (decoder_kind == StyleDecoderKind::VggAdain)
+    style_decoder.save(ck, "");
+  else
+    features.decoder.save(ck, "model.");  // as FeatureModel::save names it
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
