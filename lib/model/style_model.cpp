@@ -338,7 +338,7 @@ void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.coll
 
 void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
-  save_trained(ck);
+  save_trained(ck);    // with the stage-2 decoder, writes its tensors again (the same names and values)
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
 }
