@@ -336,20 +336,26 @@ void StyleModel::collect_params(std::vector<nn::Param*>& out) {
 
 void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
 
+namespace {
+// SICT, DST and AdaIN's decoder where it draws the maps: the tensors a style checkpoint adds to the feature
+// model's.
+void save_style_parts(StyleModel& m, io::Checkpoint& ck) {
+  m.sict.save(ck, "");
+  m.dst.save(ck, "");
+  if (m.decoder_kind == StyleDecoderKind::VggAdain) m.style_decoder.save(ck, "");
+}
+}  // namespace
+
 void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
-  save_trained(ck);    // with the stage-2 decoder, writes its tensors again (the same names and values)
+  save_style_parts(*this, ck);
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
 }
 
 void StyleModel::save_trained(io::Checkpoint& ck) {
-  sict.save(ck, "");
-  dst.save(ck, "");
-  if (decoder_kind == StyleDecoderKind::VggAdain)
-    style_decoder.save(ck, "");
-  else
-    features.decoder.save(ck, "model.");  // as FeatureModel::save names it
+  save_style_parts(*this, ck);
+  if (decoder_kind == StyleDecoderKind::Stage2) features.decoder.save(ck, "model.");  // as FeatureModel::save names it
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
