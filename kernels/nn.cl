@@ -157,22 +157,26 @@ __kernel void bias_add(__global float* y, __global const float* b, int C, int HW
   }
 }
 
-// db[c] = sum over n and pixels of dy[n, c, :]. One work-item per channel; 8 partial sums along the row
-// keep the float rounding error ~ sqrt(N*HW/8) ulps rather than N*HW. Global: (C).
-__kernel void bias_grad(__global const float* dy, __global float* db, int N, int C, int HW) {
-  const int c = get_global_id(0);
-  if (c >= C) return;
+// A convolution's bias gradient, db[c] = sum over n and pixels of dy[n, c, :], first stage: part
+// p = n * chunks + k of channel c sums pixels [k * chunk, (k + 1) * chunk) of image n into partial[p, c];
+// linear_bias_grad (kernels/linear.cl) then adds each channel's partials in a fixed order
+// (lib/nn/columns.cpp, image_channel_sum). One work-item per channel over all pixels left a GPU nearly
+// idle. 8 partial sums along the chunk keep the float rounding error ~ sqrt(chunk / 8) ulps. Global:
+// (C, N * chunks).
+__kernel void channel_partial_sums(__global const float* x, __global float* partial, int N, int C, int HW, int chunk,
+                                   int chunks) {
+  const int c = get_global_id(0), p = get_global_id(1);
+  if (c >= C || p >= N * chunks) return;
+  const int n = p / chunks, i0 = (p % chunks) * chunk, i1 = min(HW, i0 + chunk);
+  __global const float* row = x + ((long)n * C + c) * HW;
   float8 acc = (float8)(0.0f);
   float tail = 0.0f;
-  for (int n = 0; n < N; ++n) {
-    __global const float* row = dy + ((long)n * C + c) * HW;
-    int i = 0;
-    for (; i + 8 <= HW; i += 8) acc += vload8(0, row + i);
-    for (; i < HW; ++i) tail += row[i];
-  }
+  int i = i0;
+  for (; i + 8 <= i1; i += 8) acc += vload8(0, row + i);
+  for (; i < i1; ++i) tail += row[i];
   const float4 s4 = acc.lo + acc.hi;
   const float2 s2 = s4.lo + s4.hi;
-  db[c] = s2.x + s2.y + tail;
+  partial[(long)p * C + c] = s2.x + s2.y + tail;
 }
 
 // ---- relu ------------------------------------------------------------------------------------

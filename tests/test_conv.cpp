@@ -245,6 +245,25 @@ TEST_CASE("conv2d backward computes only what is asked for") {
   });
 }
 
+TEST_CASE("conv2d bias gradient is the sum of dy over images and pixels, across its two stages") {
+  // db does not depend on x or w, so its reference is the double sum of dy. The shapes cut each channel
+  // plane into 1, 2 (4096 pixels) and 3 uneven parts (65 x 70) of about 2048 pixels (lib/nn/columns.cpp).
+  for (const Case c : {Case{3, 1, 5, 1, 1, 1, Padding::Zero, true}, Case{1, 1, 2, 64, 64, 1, Padding::Zero, true},
+                       Case{2, 1, 3, 65, 70, 1, Padding::Zero, true}}) {
+    CAPTURE(name(c));
+    Data d = make_data(c, 450);
+    nn::Conv2dGrads g = run_backward(c, d, false, true);
+    REQUIRE(g.db.defined());
+    const size_t hw = size_t(c.H) * c.W;
+    std::vector<double> want(size_t(c.Cout), 0.0);
+    for (int n = 0; n < c.N; ++n)
+      for (int co = 0; co < c.Cout; ++co)
+        for (size_t i = 0; i < hw; ++i) want[size_t(co)] += d.dy[(size_t(n) * c.Cout + co) * hw + i];
+    // Sums of up to 9100 terms of O(1) (magnitude ~100): float blocks of 8 lanes err ~1e-5.
+    check_close(g.db.to_host(), want, 1e-5, 1e-4, "conv2d db " + name(c));
+  }
+}
+
 TEST_CASE("conv2d with huge and tiny magnitudes stays finite and accurate") {
   for_each_algo([&] {
     Case c{1, 3, 4, 5, 6, 3, Padding::Reflect, false};

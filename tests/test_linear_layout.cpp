@@ -160,9 +160,10 @@ TEST_CASE("layout: bad shapes give errors naming the op") {
 // ---- linear ----------------------------------------------------------------------------------------------
 // Shapes: tiny; one row (the DST's covariance -> T map is 1 x 1024 -> 1024); the feature basis matrix
 // (rank 144 -> 256 channels) on a batch of rays; columns not a multiple of 8 with more rows than the
-// bias-gradient block of 64.
-const LinearCase kLinearCases[] = {{5, 7, 3, true}, {1, 1024, 1024, true}, {100, 144, 256, false},
-                                   {200, 9, 13, true}, {3, 2, 1, true}};
+// bias-gradient block of 64; enough rows for the bias gradient's two stages (three parts of ~1667 rows,
+// lib/nn/columns.cpp).
+const LinearCase kLinearCases[] = {{5, 7, 3, true},    {1, 1024, 1024, true}, {100, 144, 256, false},
+                                   {200, 9, 13, true}, {3, 2, 1, true},       {5000, 9, 13, true}};
 
 TEST_CASE("linear: forward matches the double reference") {
   uint64_t seed = 300;
@@ -217,33 +218,36 @@ TEST_CASE("linear: dx, dW, db against central differences of the reference") {
 }
 
 TEST_CASE("linear: the module form accumulates into Param grads; two backward calls give twice one") {
-  const LinearCase c{70, 12, 10, true};
-  LinearData d = make_data(c, 500);
-  Tensor x = Tensor::from_host(d.x, {c.n, c.in}), dy = Tensor::from_host(d.dy, {c.n, c.out});
-  nn::Param w("lin.w", 1, Tensor::from_host(d.w, {c.in, c.out}));
-  nn::Param b("lin.b", 1, Tensor::from_host(d.b, {c.out}));
-  nn::LinearGrads once = nn::linear_backward(x, w.value, dy, false, true, true);
+  // 5000 rows: the bias gradient's two stages accumulate too.
+  for (const LinearCase c : {LinearCase{70, 12, 10, true}, LinearCase{5000, 12, 10, true}}) {
+    CAPTURE(c.n);
+    LinearData d = make_data(c, 500);
+    Tensor x = Tensor::from_host(d.x, {c.n, c.in}), dy = Tensor::from_host(d.dy, {c.n, c.out});
+    nn::Param w("lin.w", 1, Tensor::from_host(d.w, {c.in, c.out}));
+    nn::Param b("lin.b", 1, Tensor::from_host(d.b, {c.out}));
+    nn::LinearGrads once = nn::linear_backward(x, w.value, dy, false, true, true);
 
-  Tensor dx = nn::linear_backward(x, w, &b, dy, /*need_dx=*/false);
-  CHECK(!dx.defined());
-  REQUIRE(w.grad.defined());
-  REQUIRE(b.grad.defined());
-  // One call into fresh (zero) grads equals the ops form: same GEMM, beta = 1 on zeros.
-  check_close(w.grad.to_host(), to_double(once.dw.to_host()), 1e-6, 1e-7, "accumulated dW after one call");
-  check_close(b.grad.to_host(), to_double(once.db.to_host()), 1e-6, 1e-7, "accumulated db after one call");
-  dx = nn::linear_backward(x, w, &b, dy, /*need_dx=*/true);
-  CHECK(dx.defined());
-  auto twice = [](const Tensor& t) {
-    auto v = to_double(t.to_host());
-    for (double& e : v) e *= 2;
-    return v;
-  };
-  check_close(w.grad.to_host(), twice(once.dw), 1e-6, 1e-7, "dW after two calls");
-  check_close(b.grad.to_host(), twice(once.db), 1e-6, 1e-7, "db after two calls");
+    Tensor dx = nn::linear_backward(x, w, &b, dy, /*need_dx=*/false);
+    CHECK(!dx.defined());
+    REQUIRE(w.grad.defined());
+    REQUIRE(b.grad.defined());
+    // One call into fresh (zero) grads equals the ops form: same GEMM, beta = 1 on zeros.
+    check_close(w.grad.to_host(), to_double(once.dw.to_host()), 1e-6, 1e-7, "accumulated dW after one call");
+    check_close(b.grad.to_host(), to_double(once.db.to_host()), 1e-6, 1e-7, "accumulated db after one call");
+    dx = nn::linear_backward(x, w, &b, dy, /*need_dx=*/true);
+    CHECK(dx.defined());
+    auto twice = [](const Tensor& t) {
+      auto v = to_double(t.to_host());
+      for (double& e : v) e *= 2;
+      return v;
+    };
+    check_close(w.grad.to_host(), twice(once.dw), 1e-6, 1e-7, "dW after two calls");
+    check_close(b.grad.to_host(), twice(once.db), 1e-6, 1e-7, "db after two calls");
 
-  w.zero_grad();
-  nn::linear_backward(x, w, nullptr, dy, false);  // no bias
-  check_close(w.grad.to_host(), to_double(once.dw.to_host()), 1e-6, 1e-7, "dW after zero_grad and one call");
+    w.zero_grad();
+    nn::linear_backward(x, w, nullptr, dy, false);  // no bias
+    check_close(w.grad.to_host(), to_double(once.dw.to_host()), 1e-6, 1e-7, "dW after zero_grad and one call");
+  }
 }
 
 TEST_CASE("linear: bad inputs give errors naming the op and the shapes") {

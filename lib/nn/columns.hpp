@@ -9,6 +9,10 @@ using host::Tensor;
 
 // [cols]: sum over rows of a.
 Tensor column_sum(const Tensor& a);
+// out (+)= the sum over rows of a: nn::linear's bias gradient (accumulate adds to a Param's gradient).
+void column_sum_into(const Tensor& a, Tensor& out, bool accumulate);
+// [C]: the sum of x [N, C, H, W] over images and pixels: a convolution's bias gradient.
+Tensor image_channel_sum(const Tensor& x);
 // [cols]: sum over rows of a * b (same shape).
 Tensor column_dot(const Tensor& a, const Tensor& b);
 // [cols]: mean over rows.

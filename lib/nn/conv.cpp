@@ -20,6 +20,7 @@
 #include "host/error.hpp"
 #include "host/gemm.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/columns.hpp"
 #include "host/runtime.hpp"
 #include "lib/nn/conv_internal.hpp"
 #include "lib/nn/ops.hpp"
@@ -156,8 +157,7 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
   if (need_dx) out.dx = Tensor({g.N, g.Cin, g.H, g.W}, "conv2d_backward dx");
   if (need_params) {
     out.dw = Tensor(w.shape(), "conv2d_backward dw");
-    out.db = Tensor({g.Cout}, "conv2d_backward db");
-    host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, hw);
+    out.db = image_channel_sum(dy);
   }
 
   const ConvAlgo a = g.K == 3 ? resolve_conv_algo(algo, g.Cin, g.Cout, g.H, g.W, g.N) : ConvAlgo::Im2col;

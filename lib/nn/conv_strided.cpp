@@ -16,6 +16,7 @@
 
 #include "host/error.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/columns.hpp"
 #include "lib/nn/conv_internal.hpp"
 #include "lib/nn/ops.hpp"
 
@@ -109,12 +110,10 @@ Conv2dGrads conv2d_strided_backward(const Tensor& x, const Tensor& w, const Tens
   expect_shape(dy, {g.N, g.Cout, g.Ho, g.Wo}, "conv2d_strided_backward", "dy");
   Conv2dGrads out;
   if (!need_dx && !need_params) return out;
-  const int howo = int(g.howo());
   if (need_dx) out.dx = Tensor({g.N, g.Cin, g.H, g.W}, "conv2d_strided_backward dx");
   if (need_params) {
     out.dw = Tensor(w.shape(), "conv2d_strided_backward dw");
-    out.db = Tensor({g.Cout}, "conv2d_strided_backward db");
-    host::launch("nn", "bias_grad", {size_t(g.Cout)}, dy, out.db, g.N, g.Cout, howo);
+    out.db = image_channel_sum(dy);
   }
   detail::conv_chunked_backward(
       "conv2d_strided_backward", col_gemm_geom(g), w.mem(), dy.mem(), need_params ? out.dw.mem() : nullptr, need_dx,
