@@ -7,12 +7,15 @@
 #include <algorithm>
 #include <cstdlib>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <unordered_map>
 
 #include "host/error.hpp"
+#include "host/launch.hpp"
 #include "host/runtime.hpp"
+#include "host/tensor.hpp"
 
 namespace stylerf::host {
 namespace {
@@ -135,7 +138,76 @@ void clblast_gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A
                 " N=" + std::to_string(N) + " K=" + std::to_string(K));
 }
 
+// ---- split-K ----------------------------------------------------------------------------------------
+// CLBlast spreads a GEMM over C's tiles only. A weight gradient over millions of rows (SICT's q/k/v:
+// 256 x 96 outputs, K = 3M points) has a handful of 64 x 64 tiles, so it ran on ~8 of an H100's 132
+// compute units. Such a GEMM runs as `parts` chunks of K, multiplied by one GemmStridedBatched into a
+// scratch [parts, M, N] and added in order by kernels/gemm_split.cl.
+int g_split_k = 0;  // 0: auto; 1: never; >= 2: always this many chunks (tests, benchmarks)
+
+int split_k_setting() {
+  if (g_split_k != 0) return g_split_k;
+  static const int from_env = [] {
+    const char* env = std::getenv("STYLERF_GEMM_SPLIT_K");
+    if (!env || !*env || std::string(env) == "auto") return 0;
+    char* end = nullptr;
+    const long v = std::strtol(env, &end, 10);
+    if (*end != '\0' || v < 1 || v > 4096)
+      throw Error(std::string("STYLERF_GEMM_SPLIT_K: expected auto or a number of chunks 1..4096, got '") + env + "'");
+    return int(v);
+  }();
+  return from_env;
+}
+
+void clblast_gemm_split(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
+                        cl_mem B, size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, bool tuned,
+                        int parts) {
+  const int kc = (K + parts - 1) / parts;
+  const int full = K / kc, tail = K - full * kc, slots = full + (tail > 0 ? 1 : 0);
+  // Moving k by kc: columns of a stored row for an untransposed A (rows of B), whole rows otherwise.
+  const size_t a_step = ta == Trans::No ? size_t(kc) : size_t(kc) * size_t(lda);
+  const size_t b_step = tb == Trans::No ? size_t(kc) * size_t(ldb) : size_t(kc);
+  const size_t mn = size_t(M) * size_t(N);
+  // Zeroed: CLBlast computes beta * C even for beta = 0, and pooled memory may hold NaN.
+  Tensor partial = Tensor::zeros({int64_t(slots) * int64_t(mn)}, "gemm split-K partial products");
+  apply_clblast_params(tuned);
+  Runtime& rt = Runtime::instance();
+  const auto tr = [](Trans t) { return t == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo; };
+  auto st = clblast::GemmStridedBatched<float>(clblast::Layout::kRowMajor, tr(ta), tr(tb), M, N, kc, 1.0f, A, a_offset,
+                                               lda, a_step, B, b_offset, ldb, b_step, 0.0f, partial.mem(), 0, N, mn,
+                                               full, rt.queue_ptr(), nullptr);
+  if (st != clblast::StatusCode::kSuccess)
+    throw Error("clblast::GemmStridedBatched failed (" + std::to_string(static_cast<int>(st)) + ") for split-K M=" +
+                std::to_string(M) + " N=" + std::to_string(N) + " K=" + std::to_string(K) + " in " +
+                std::to_string(full) + " chunks of " + std::to_string(kc));
+  if (tail > 0)
+    clblast_gemm(ta, tb, M, N, tail, 1.0f, A, a_offset + size_t(full) * a_step, lda, B,
+                 b_offset + size_t(full) * b_step, ldb, 0.0f, partial.mem(), size_t(full) * mn, N, tuned);
+  if (c_offset > size_t(std::numeric_limits<int>::max())) throw Error("gemm split-K: C offset exceeds int range");
+  launch("gemm_split", "gemm_sum_chunks", {size_t(N), size_t(M)}, partial, slots, M, N, alpha, beta, C, int(c_offset),
+         ldc);
+}
+
 }  // namespace
+
+void set_gemm_split_k(int parts) {
+  if (parts < 0 || parts > 4096)
+    throw Error("set_gemm_split_k: parts must be 0 (auto) or 1..4096, got " + std::to_string(parts));
+  g_split_k = parts;
+}
+
+int gemm_split_k_parts(int M, int N, int K) {
+  const int setting = split_k_setting();
+  if (setting >= 1) return std::max(1, std::min(setting, K));
+  const DeviceInfo& d = Runtime::instance().device();
+  if (d.type & CL_DEVICE_TYPE_CPU) return 1;  // a CPU has few compute units; CPU GEMMs use host-blas anyway
+  const int64_t tiles = int64_t((M + 63) / 64) * int64_t((N + 63) / 64);
+  const int64_t cus = std::max<int64_t>(1, d.compute_units);
+  if (tiles >= cus) return 1;
+  // About two work-groups' worth of tiles per compute unit, each chunk at least 2048 long.
+  const int64_t parts = std::min<int64_t>((2 * cus + tiles - 1) / tiles, K / 2048);
+  return parts >= 2 ? int(std::min<int64_t>(parts, 4096)) : 1;
+}
 
 const char* gemm_engine_name(GemmEngine e) {
   switch (e) {
@@ -216,6 +288,9 @@ void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, 
     if (K == 0 || e == GemmEngine::Own) {
       // K = 0 means C = beta * C (BLAS semantics). CLBlast rejects it, so every engine takes the own kernel's path.
       gemm_own_with(own_gemm_params(), ta, tb, M, N, K, alpha, A, ao, lda, B, bo, ldb, beta, C, co, ldc);
+    } else if (const int parts = gemm_split_k_parts(M, N, K); parts >= 2) {
+      clblast_gemm_split(ta, tb, M, N, K, alpha, A, ao, lda, B, bo, ldb, beta, C, co, ldc,
+                         e != GemmEngine::ClblastDefault, parts);
     } else {
       clblast_gemm(ta, tb, M, N, K, alpha, A, ao, lda, B, bo, ldb, beta, C, co, ldc, e != GemmEngine::ClblastDefault);
     }

@@ -47,6 +47,15 @@ void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, 
                           size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
                           size_t c_offset, int ldc, size_t c_stride, int batch, GemmEngine engine = GemmEngine::Auto);
 
+// Split-K for the CLBlast engines: a GEMM with fewer 64 x 64 tiles of C than the device has compute
+// units and a long K (a weight gradient over millions of rows) runs as chunks of K in one batched GEMM,
+// then a kernel adds the chunks in order (kernels/gemm_split.cl). Auto splits on non-CPU devices only, into
+// about 2 * compute units / tiles chunks of at least 2048. set_gemm_split_k(P): 0 auto (the default; the
+// STYLERF_GEMM_SPLIT_K variable, auto or a count, sets it for a process), 1 never, P >= 2 always P chunks
+// (at most K). gemm_split_k_parts says what a CLBlast GEMM of that shape runs as here (1: unsplit).
+void set_gemm_split_k(int parts);
+int gemm_split_k_parts(int M, int N, int K);
+
 // host-blas: whether this build links a CBLAS, and whether it can run here (linked, and a CPU device).
 bool host_blas_linked();
 bool host_blas_usable();

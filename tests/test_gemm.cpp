@@ -206,6 +206,30 @@ TEST_CASE("beta = 0 ignores NaN in C (the CPU engines: own, and host-blas where 
         run_case(Case{ta, tb, 13, 21, 9}, e, nullptr, 1.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
 }
 
+TEST_CASE("split-K (forced): CLBlast engines match the reference with uneven tails, offsets, alpha, beta, NaN in C") {
+  // Auto splits only on GPUs (few tiles of C, long K); forcing it runs the same path on this device.
+  struct Reset {
+    ~Reset() { set_gemm_split_k(0); }
+  } reset;
+  for (int parts : {2, 3, 7}) {
+    set_gemm_split_k(parts);
+    for (GemmEngine e : {GemmEngine::ClblastTuned, GemmEngine::ClblastDefault})
+      for (Trans ta : kTrans)
+        for (Trans tb : kTrans) {
+          run_case(Case{ta, tb, 9, 13, 100}, e);                                 // 100 = chunks + a shorter tail
+          run_case(Case{ta, tb, 19, 37, 23, 3, 5, 2, 7, 13, 5, -1.5f, 0.75f}, e);  // offsets, ld slack, beta
+          run_case(Case{ta, tb, 13, 21, 9}, e, nullptr, 1.0f, 1.0f, std::numeric_limits<float>::quiet_NaN());
+        }
+  }
+  CHECK(gemm_split_k_parts(9, 13, 100) == 7);
+  CHECK(gemm_split_k_parts(9, 13, 5) == 5);  // never more chunks than K
+  set_gemm_split_k(1);
+  CHECK(gemm_split_k_parts(9, 13, 1 << 20) == 1);
+  set_gemm_split_k(0);
+  if (Runtime::instance().device().type & CL_DEVICE_TYPE_CPU) CHECK(gemm_split_k_parts(256, 96, 3 << 20) == 1);
+  CHECK_THROWS_AS(set_gemm_split_k(-1), Error);
+}
+
 TEST_CASE("huge and tiny magnitudes stay finite and accurate") {
   // |a b| ~ 1e36 summed over K = 40 stays below FLT_MAX (3.4e38); tiny: |a b| ~ 1e-30, far from denormals.
   for (GemmEngine e : engines())
