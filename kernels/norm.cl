@@ -3,8 +3,10 @@
 // A tensor [N,C,H,W] is seen as nc = N*C channels of hw = H*W contiguous floats.
 // Reductions: one work-item owns a whole channel (on a CPU device a work-item is one iteration of the
 // work-group loop; float8 vectors give the SIMD), so there are no barriers and the order of additions
-// is fixed: results are deterministic. Elementwise passes: one work-item per SPAN floats of a channel
-// (float8 loop, scalar tail), global size (ceil(hw / SPAN), nc); 64 floats per work-item measured ~1.5x
+// is fixed: results are deterministic. Channels longer than a chunk (lib/nn/norm.cpp) are summed in
+// chunks by several work-items, then the chunk sums in order (the "chunked" kernels below). Elementwise
+// passes: one work-item per SPAN floats of a channel (float8 loop, scalar tail), global size
+// (ceil(hw / SPAN), nc); 64 floats per work-item measured ~1.5x
 // faster than 8 on PoCL (less per-work-item overhead).
 //
 // Precision: sums are blocked (a fresh float8 accumulator every BLOCK vectors) so rounding error grows
@@ -73,6 +75,92 @@ __kernel void channel_stats_forward(__global const float* x, __global float* mea
   const float lo = (m0 - (m - bb)) + (corr - bb);
   mean[c] = m;
   mean_lo[c] = lo;
+  stdv[c] = sqrt(var + eps);
+}
+
+// ---- the same statistics over long channels, several work-items a channel --------------------------
+// One work-item per channel left a GPU nearly idle (channel_stats_forward took 62% of an H100's decoder
+// step). For hw above a chunk the host (lib/nn/norm.cpp) cuts each channel into `chunks` chunks of
+// `chunk` floats and the sums above are taken per chunk (blocked as above), then added in chunk order:
+// still deterministic. Global (chunks, nc) for the partial kernels, (nc) for the finishing ones.
+
+// Blocked float sum of p[0, n).
+inline float blocked_sum(__global const float* p, int n) {
+  const int n8 = n / 8;
+  float8 total = 0.0f;
+  for (int b = 0; b < n8; b += BLOCK) {
+    const int e = min(b + BLOCK, n8);
+    float8 acc = 0.0f;
+    for (int i = b; i < e; ++i) acc += vload8(i, p);
+    total += acc;
+  }
+  float s = hsum8(total);
+  for (int i = n8 * 8; i < n; ++i) s += p[i];
+  return s;
+}
+
+// The approximate mean m0 of channel c from its chunk sums, added in order.
+inline float chunked_mean(__global const float* psum, int c, int chunks, int hw) {
+  float s = 0.0f;
+  for (int k = 0; k < chunks; ++k) s += psum[c * chunks + k];
+  return s / (float)hw;
+}
+
+__kernel void channel_sums_chunked(__global const float* x, __global float* psum, int hw, int chunk, int chunks) {
+  const int k = get_global_id(0), c = get_global_id(1);
+  if (k >= chunks) return;
+  const int j0 = k * chunk;
+  psum[c * chunks + k] = blocked_sum(x + (long)c * hw + j0, max(0, min(chunk, hw - j0)));
+}
+
+// Pass 2 per chunk: sums of d = x - m0 and d^2.
+__kernel void channel_centred_sums_chunked(__global const float* x, __global const float* psum, __global float* pd,
+                                           __global float* pq, int hw, int chunk, int chunks) {
+  const int k = get_global_id(0), c = get_global_id(1);
+  if (k >= chunks) return;
+  const float m0 = chunked_mean(psum, c, chunks, hw);
+  const int j0 = k * chunk, n = max(0, min(chunk, hw - j0)), n8 = n / 8;
+  __global const float* p = x + (long)c * hw + j0;
+  float8 tot_d = 0.0f, tot_q = 0.0f;
+  for (int b = 0; b < n8; b += BLOCK) {
+    const int e = min(b + BLOCK, n8);
+    float8 acc_d = 0.0f, acc_q = 0.0f;
+    for (int i = b; i < e; ++i) {
+      const float8 d = vload8(i, p) - m0;
+      acc_d += d;
+      acc_q = fma(d, d, acc_q);
+    }
+    tot_d += acc_d;
+    tot_q += acc_q;
+  }
+  float sd = hsum8(tot_d), sq = hsum8(tot_q);
+  for (int i = n8 * 8; i < n; ++i) {
+    const float d = p[i] - m0;
+    sd += d;
+    sq = fma(d, d, sq);
+  }
+  pd[c * chunks + k] = sd;
+  pq[c * chunks + k] = sq;
+}
+
+// mean, mean_lo and std from the chunk sums, as channel_stats_forward finishes.
+__kernel void channel_stats_finish(__global const float* psum, __global const float* pd, __global const float* pq,
+                                   __global float* mean, __global float* stdv, __global float* mean_lo, int hw,
+                                   int chunks, float eps, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  const float m0 = chunked_mean(psum, c, chunks, hw);
+  float sd = 0.0f, sq = 0.0f;
+  for (int k = 0; k < chunks; ++k) {
+    sd += pd[c * chunks + k];
+    sq += pq[c * chunks + k];
+  }
+  const float corr = sd / (float)hw;
+  const float var = max((sq - sd * corr) / (float)hw, 0.0f);
+  const float m = m0 + corr;
+  const float bb = m - m0;
+  mean[c] = m;
+  mean_lo[c] = (m0 - (m - bb)) + (corr - bb);
   stdv[c] = sqrt(var + eps);
 }
 
@@ -157,6 +245,61 @@ __kernel void norm_backward_sums(__global const float* x, __global const float* 
     sg += g;
     sgx = fma(g, d, sgx);
     sx += d;
+  }
+  const float delta = sx / (float)hw;
+  sdy_out[c] = sg;
+  sdyhat_out[c] = (sgx - delta * sg) / stdv[c];
+  delta_out[c] = delta;
+}
+
+// norm_backward_sums over long channels: the three sums per chunk (global (chunks, nc)), then added in
+// chunk order (global (nc)).
+__kernel void norm_backward_partials(__global const float* x, __global const float* mean, __global const float* dy,
+                                     __global float* pg, __global float* pgx, __global float* px, int hw, int chunk,
+                                     int chunks) {
+  const int k = get_global_id(0), c = get_global_id(1);
+  if (k >= chunks) return;
+  const int j0 = k * chunk, n = max(0, min(chunk, hw - j0)), n8 = n / 8;
+  __global const float* xs = x + (long)c * hw + j0;
+  __global const float* gs = dy + (long)c * hw + j0;
+  const float m = mean[c];
+  float8 tg = 0.0f, tgx = 0.0f, tx = 0.0f;
+  for (int b = 0; b < n8; b += BLOCK) {
+    const int e = min(b + BLOCK, n8);
+    float8 ag = 0.0f, agx = 0.0f, ax = 0.0f;
+    for (int i = b; i < e; ++i) {
+      const float8 d = vload8(i, xs) - m;
+      const float8 g = vload8(i, gs);
+      ag += g;
+      agx = fma(g, d, agx);
+      ax += d;
+    }
+    tg += ag;
+    tgx += agx;
+    tx += ax;
+  }
+  float sg = hsum8(tg), sgx = hsum8(tgx), sx = hsum8(tx);
+  for (int i = n8 * 8; i < n; ++i) {
+    const float d = xs[i] - m, g = gs[i];
+    sg += g;
+    sgx = fma(g, d, sgx);
+    sx += d;
+  }
+  pg[c * chunks + k] = sg;
+  pgx[c * chunks + k] = sgx;
+  px[c * chunks + k] = sx;
+}
+
+__kernel void norm_backward_finish(__global const float* pg, __global const float* pgx, __global const float* px,
+                                   __global const float* stdv, __global float* sdy_out, __global float* sdyhat_out,
+                                   __global float* delta_out, int hw, int chunks, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  float sg = 0.0f, sgx = 0.0f, sx = 0.0f;
+  for (int k = 0; k < chunks; ++k) {
+    sg += pg[c * chunks + k];
+    sgx += pgx[c * chunks + k];
+    sx += px[c * chunks + k];
   }
   const float delta = sx / (float)hw;
   sdy_out[c] = sg;

@@ -113,6 +113,14 @@ TEST_CASE("channel stats: forward and backward on small random data (HW with a t
   check_close(s.std.to_host(), r.std, 1e-6, 0.0, "[1,2,37,41] std");
 }
 
+TEST_CASE("channels longer than a chunk (several work-items a channel): stats, instance norm, AdaIN, fwd and bwd") {
+  // 70 x 61 = 4270 floats a channel: three chunks of <= 1424 (lib/nn/norm.cpp), the last with a scalar tail.
+  Input in = normal({1, 2, 70, 61}, 7, 1.5f, 0.4f);
+  check_stats(in, kEps, 1e-5, 1e-5, 1e-4, "[1,2,70,61]");
+  check_instance_norm(in, kEps, 1e-5, 1e-4, "[1,2,70,61]");
+  check_adain(in, normal({1, 2, 65, 66}, 8, 2.0f, -1.0f), kEps, 1e-5, 1e-4, 1e-4, "content [1,2,70,61], style [1,2,65,66]");
+}
+
 TEST_CASE("instance norm: forward and backward") {
   check_instance_norm(normal({2, 3, 5, 4}, 3, 1.5f, 0.7f), kEps, 1e-5, 1e-4, "[2,3,5,4]");
   check_instance_norm(normal({1, 2, 9, 11}, 4), kEps, 1e-5, 1e-4, "[1,2,9,11]");

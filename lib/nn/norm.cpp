@@ -1,4 +1,5 @@
 // Channel statistics, instance norm and AdaIN (kernels/norm.cl), forward and backward side by side.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -23,6 +24,18 @@ void expect_eps(float eps, const char* op) {
 // Elementwise launches: one work-item per 64 floats (SPAN in kernels/norm.cl) of a channel.
 host::Range chunks(const ChannelDims& d) { return host::Range((d.hw + 63) / 64, d.nc); }
 
+// Channels longer than kStatChunk floats are reduced in chunks of about that size, several work-items a
+// channel (kernels/norm.cl, the "chunked" kernels): one work-item per channel over 65536 pixels took
+// 62% of an H100's decoder-step kernel time. Shorter channels keep the one-launch kernels.
+constexpr int kStatChunk = 2048;
+struct StatChunks {
+  int count, size;
+};
+StatChunks stat_chunks(int hw) {
+  const int count = std::min(256, (hw + kStatChunk - 1) / kStatChunk);
+  return {std::max(1, count), (hw + std::max(1, count) - 1) / std::max(1, count)};
+}
+
 // Stats of the right shape for x (N,C from x).
 void expect_stats(const ChannelStats& s, const ChannelDims& d, const char* op) {
   if (!s.mean.defined() || !s.std.defined()) throw Error(std::string(op) + ": stats.mean / stats.std are undefined");
@@ -41,7 +54,18 @@ PreciseStats channel_stats_precise(const Tensor& x, float eps, const char* op, c
   r.stats.mean = Tensor({d.n, d.c}, std::string(op) + " mean");
   r.stats.std = Tensor({d.n, d.c}, std::string(op) + " std");
   r.mean_lo = Tensor({d.n, d.c}, std::string(op) + " mean residual");
-  launch("norm", "channel_stats_forward", {size_t(d.nc)}, x, r.stats.mean, r.stats.std, r.mean_lo, d.hw, eps, d.nc);
+  const StatChunks ch = stat_chunks(d.hw);
+  if (ch.count == 1) {
+    launch("norm", "channel_stats_forward", {size_t(d.nc)}, x, r.stats.mean, r.stats.std, r.mean_lo, d.hw, eps, d.nc);
+    return r;
+  }
+  Tensor psum({d.nc, ch.count}, std::string(op) + " chunk sums"), pd({d.nc, ch.count}, std::string(op) + " chunk d"),
+      pq({d.nc, ch.count}, std::string(op) + " chunk d^2");
+  const host::Range parts(size_t(ch.count), size_t(d.nc));
+  launch("norm", "channel_sums_chunked", parts, x, psum, d.hw, ch.size, ch.count);
+  launch("norm", "channel_centred_sums_chunked", parts, x, psum, pd, pq, d.hw, ch.size, ch.count);
+  launch("norm", "channel_stats_finish", {size_t(d.nc)}, psum, pd, pq, r.stats.mean, r.stats.std, r.mean_lo, d.hw,
+         ch.count, eps, d.nc);
   return r;
 }
 
@@ -101,8 +125,18 @@ NormBackward norm_backward(const Tensor& x, const ChannelStats& stats, const Ten
   r.sdy = Tensor({d.n, d.c}, std::string(op) + " sum(dy)");
   r.sdyhat = Tensor({d.n, d.c}, std::string(op) + " sum(dy*xhat)");
   Tensor delta({d.n, d.c}, std::string(op) + " mean residual");
-  launch("norm", "norm_backward_sums", {size_t(d.nc)}, x, stats.mean, stats.std, dy, r.sdy, r.sdyhat, delta, d.hw,
-         d.nc);
+  const StatChunks ch = stat_chunks(d.hw);
+  if (ch.count == 1) {
+    launch("norm", "norm_backward_sums", {size_t(d.nc)}, x, stats.mean, stats.std, dy, r.sdy, r.sdyhat, delta, d.hw,
+           d.nc);
+  } else {
+    Tensor pg({d.nc, ch.count}, std::string(op) + " chunk sum(dy)"),
+        pgx({d.nc, ch.count}, std::string(op) + " chunk sum(dy*d)"), px({d.nc, ch.count}, std::string(op) + " chunk sum(d)");
+    launch("norm", "norm_backward_partials", host::Range(size_t(ch.count), size_t(d.nc)), x, stats.mean, dy, pg, pgx, px,
+           d.hw, ch.size, ch.count);
+    launch("norm", "norm_backward_finish", {size_t(d.nc)}, pg, pgx, px, stats.std, r.sdy, r.sdyhat, delta, d.hw,
+           ch.count, d.nc);
+  }
   r.dx = Tensor(x.shape(), std::string(op) + " dx");
   const bool has_gain = gain.defined();
   launch("norm", "norm_backward_apply", chunks(d), x, stats.mean, stats.std, has_gain ? gain : stats.std, dy, r.sdy,
