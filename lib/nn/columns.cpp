@@ -72,7 +72,8 @@ void column_sum_into(const Tensor& a, Tensor& out, bool accumulate) {
 
 Tensor image_channel_sum(const Tensor& x) {
   if (!x.defined() || x.ndim() != 4)
-    throw Error("image_channel_sum: input must be [N, C, H, W], got " + (x.defined() ? host::shape_str(x.shape()) : "undefined"));
+    throw Error("image_channel_sum: input must be [N, C, H, W], got " +
+                (x.defined() ? host::shape_str(x.shape()) : std::string("undefined")));
   const int N = int(x.dim(0)), C = int(x.dim(1)), hw = int(x.dim(2) * x.dim(3));
   // Each image's channel plane is cut into chunks of about 2048 pixels: part n * chunks + k.
   const int chunks = std::max(1, (hw + 2047) / 2048), chunk = (hw + chunks - 1) / chunks;
