@@ -33,8 +33,6 @@ namespace {
 
 constexpr int C = 256, E = 32;
 
-std::vector<float> to_float(const std::vector<double>& v) { return std::vector<float>(v.begin(), v.end()); }
-
 ref::Mode ref_mode(style::SictMode m) {
   return m == style::SictMode::VolumeAdaptive ? ref::Mode::VolumeAdaptive
                                                : (m == style::SictMode::VanillaIn ? ref::Mode::VanillaIn : ref::Mode::None);
