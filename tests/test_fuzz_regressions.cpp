@@ -78,7 +78,7 @@ TEST_CASE("fuzz seeds, damaged copies and past findings are read or refused clea
   int files = 0;
   const fs::path scratch = testing::small_work_dir() / "fuzz_replay";
   fs::create_directories(scratch);
-  for (const fs::path base : {kFixtures / ".." / ".." / "fuzz" / "corpus", kFixtures / "fuzz_regressions"}) {
+  for (const fs::path& base : {kFixtures / ".." / ".." / "fuzz" / "corpus", kFixtures / "fuzz_regressions"}) {
     for (const auto& [harness, reader] : readers()) {
       const fs::path dir = base / harness;
       if (!fs::is_directory(dir)) continue;
