@@ -27,64 +27,7 @@ inline float hsum8(float8 v) {
   return b.x + b.y;
 }
 
-// mean, std = sqrt(var + eps) and mean_lo (see above) for each channel.
-__kernel void channel_stats_forward(__global const float* x, __global float* mean, __global float* stdv,
-                                    __global float* mean_lo, int hw, float eps, int nc) {
-  const int c = get_global_id(0);
-  if (c >= nc) return;
-  __global const float* p = x + c * hw;
-  const int n8 = hw / 8;
-
-  // Pass 1: approximate mean.
-  float8 total = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 acc = 0.0f;
-    for (int i = b; i < e; ++i) acc += vload8(i, p);
-    total += acc;
-  }
-  float s = hsum8(total);
-  for (int i = n8 * 8; i < hw; ++i) s += p[i];
-  const float m0 = s / (float)hw;
-
-  // Pass 2: centred sums.
-  float8 tot_d = 0.0f, tot_q = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 acc_d = 0.0f, acc_q = 0.0f;
-    for (int i = b; i < e; ++i) {
-      const float8 d = vload8(i, p) - m0;
-      acc_d += d;
-      acc_q = fma(d, d, acc_q);
-    }
-    tot_d += acc_d;
-    tot_q += acc_q;
-  }
-  float sd = hsum8(tot_d), sq = hsum8(tot_q);
-  for (int i = n8 * 8; i < hw; ++i) {
-    const float d = p[i] - m0;
-    sd += d;
-    sq = fma(d, d, sq);
-  }
-  const float corr = sd / (float)hw;
-  const float var = max((sq - sd * corr) / (float)hw, 0.0f);
-
-  // TwoSum: m = fl(m0 + corr) and the exact rounding error lo, so m + lo == m0 + corr.
-  const float m = m0 + corr;
-  const float bb = m - m0;
-  const float lo = (m0 - (m - bb)) + (corr - bb);
-  mean[c] = m;
-  mean_lo[c] = lo;
-  stdv[c] = sqrt(var + eps);
-}
-
-// ---- the same statistics over long channels, several work-items a channel --------------------------
-// One work-item per channel left a GPU nearly idle (channel_stats_forward took 62% of an H100's decoder
-// step). For hw above a chunk the host (lib/nn/norm.cpp) cuts each channel into `chunks` chunks of
-// `chunk` floats and the sums above are taken per chunk (blocked as above), then added in chunk order:
-// still deterministic. Global (chunks, nc) for the partial kernels, (nc) for the finishing ones.
-
-// Blocked float sum of p[0, n).
+// Blocked float sum of p[0, n): pass 1.
 inline float blocked_sum(__global const float* p, int n) {
   const int n8 = n / 8;
   float8 total = 0.0f;
@@ -98,6 +41,62 @@ inline float blocked_sum(__global const float* p, int n) {
   for (int i = n8 * 8; i < n; ++i) s += p[i];
   return s;
 }
+
+// Pass 2 over p[0, n): *sd = sum(d), *sq = sum(d^2) with d = x - m0, blocked as above.
+inline void centred_sums(__global const float* p, int n, float m0, float* sd_out, float* sq_out) {
+  const int n8 = n / 8;
+  float8 tot_d = 0.0f, tot_q = 0.0f;
+  for (int b = 0; b < n8; b += BLOCK) {
+    const int e = min(b + BLOCK, n8);
+    float8 acc_d = 0.0f, acc_q = 0.0f;
+    for (int i = b; i < e; ++i) {
+      const float8 d = vload8(i, p) - m0;
+      acc_d += d;
+      acc_q = fma(d, d, acc_q);
+    }
+    tot_d += acc_d;
+    tot_q += acc_q;
+  }
+  float sd = hsum8(tot_d), sq = hsum8(tot_q);
+  for (int i = n8 * 8; i < n; ++i) {
+    const float d = p[i] - m0;
+    sd += d;
+    sq = fma(d, d, sq);
+  }
+  *sd_out = sd;
+  *sq_out = sq;
+}
+
+// mean, mean_lo and std of channel c from m0 and the centred sums.
+inline void write_stats(int c, float m0, float sd, float sq, int hw, float eps, __global float* mean,
+                        __global float* stdv, __global float* mean_lo) {
+  const float corr = sd / (float)hw;
+  const float var = max((sq - sd * corr) / (float)hw, 0.0f);
+  // TwoSum: m = fl(m0 + corr) and the exact rounding error lo, so m + lo == m0 + corr.
+  const float m = m0 + corr;
+  const float bb = m - m0;
+  mean[c] = m;
+  mean_lo[c] = (m0 - (m - bb)) + (corr - bb);
+  stdv[c] = sqrt(var + eps);
+}
+
+// mean, std = sqrt(var + eps) and mean_lo (see above) for each channel.
+__kernel void channel_stats_forward(__global const float* x, __global float* mean, __global float* stdv,
+                                    __global float* mean_lo, int hw, float eps, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  __global const float* p = x + c * hw;
+  const float m0 = blocked_sum(p, hw) / (float)hw;
+  float sd, sq;
+  centred_sums(p, hw, m0, &sd, &sq);
+  write_stats(c, m0, sd, sq, hw, eps, mean, stdv, mean_lo);
+}
+
+// ---- the same statistics over long channels, several work-items a channel --------------------------
+// One work-item per channel left a GPU nearly idle (channel_stats_forward took 62% of an H100's decoder
+// step). For hw above a chunk the host (lib/nn/norm.cpp) cuts each channel into `chunks` chunks of
+// `chunk` floats and the sums above are taken per chunk, then added in chunk order: still deterministic.
+// Global (chunks, nc) for the partial kernels, (nc) for the finishing ones.
 
 // The approximate mean m0 of channel c from its chunk sums, added in order.
 inline float chunked_mean(__global const float* psum, int c, int chunks, int hw) {
@@ -118,50 +117,25 @@ __kernel void channel_centred_sums_chunked(__global const float* x, __global con
                                            __global float* pq, int hw, int chunk, int chunks) {
   const int k = get_global_id(0), c = get_global_id(1);
   if (k >= chunks) return;
-  const float m0 = chunked_mean(psum, c, chunks, hw);
-  const int j0 = k * chunk, n = max(0, min(chunk, hw - j0)), n8 = n / 8;
-  __global const float* p = x + (long)c * hw + j0;
-  float8 tot_d = 0.0f, tot_q = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 acc_d = 0.0f, acc_q = 0.0f;
-    for (int i = b; i < e; ++i) {
-      const float8 d = vload8(i, p) - m0;
-      acc_d += d;
-      acc_q = fma(d, d, acc_q);
-    }
-    tot_d += acc_d;
-    tot_q += acc_q;
-  }
-  float sd = hsum8(tot_d), sq = hsum8(tot_q);
-  for (int i = n8 * 8; i < n; ++i) {
-    const float d = p[i] - m0;
-    sd += d;
-    sq = fma(d, d, sq);
-  }
+  const int j0 = k * chunk;
+  float sd, sq;
+  centred_sums(x + (long)c * hw + j0, max(0, min(chunk, hw - j0)), chunked_mean(psum, c, chunks, hw), &sd, &sq);
   pd[c * chunks + k] = sd;
   pq[c * chunks + k] = sq;
 }
 
-// mean, mean_lo and std from the chunk sums, as channel_stats_forward finishes.
+// mean, mean_lo and std from the chunk sums.
 __kernel void channel_stats_finish(__global const float* psum, __global const float* pd, __global const float* pq,
                                    __global float* mean, __global float* stdv, __global float* mean_lo, int hw,
                                    int chunks, float eps, int nc) {
   const int c = get_global_id(0);
   if (c >= nc) return;
-  const float m0 = chunked_mean(psum, c, chunks, hw);
   float sd = 0.0f, sq = 0.0f;
   for (int k = 0; k < chunks; ++k) {
     sd += pd[c * chunks + k];
     sq += pq[c * chunks + k];
   }
-  const float corr = sd / (float)hw;
-  const float var = max((sq - sd * corr) / (float)hw, 0.0f);
-  const float m = m0 + corr;
-  const float bb = m - m0;
-  mean[c] = m;
-  mean_lo[c] = (m0 - (m - bb)) + (corr - bb);
-  stdv[c] = sqrt(var + eps);
+  write_stats(c, chunked_mean(psum, c, chunks, hw), sd, sq, hw, eps, mean, stdv, mean_lo);
 }
 
 // y = ((x - mean) - mean_lo) / std
@@ -215,54 +189,11 @@ __kernel void channel_stats_backward(__global const float* x, __global const flo
 //   delta  = sum(x - mean) / hw          (the mean's rounding residual, as mean_lo above)
 //   sdyhat = sum(dy * xhat), xhat = (x - mean - delta) / std
 // using sum(dy * (x - mean - delta)) = sum(dy * (x - mean)) - delta * sdy.
-__kernel void norm_backward_sums(__global const float* x, __global const float* mean, __global const float* stdv,
-                                 __global const float* dy, __global float* sdy_out, __global float* sdyhat_out,
-                                 __global float* delta_out, int hw, int nc) {
-  const int c = get_global_id(0);
-  if (c >= nc) return;
-  __global const float* px = x + c * hw;
-  __global const float* pg = dy + c * hw;
-  const float m = mean[c];
-  const int n8 = hw / 8;
-  float8 tg = 0.0f, tgx = 0.0f, tx = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 ag = 0.0f, agx = 0.0f, ax = 0.0f;
-    for (int i = b; i < e; ++i) {
-      const float8 d = vload8(i, px) - m;
-      const float8 g = vload8(i, pg);
-      ag += g;
-      agx = fma(g, d, agx);
-      ax += d;
-    }
-    tg += ag;
-    tgx += agx;
-    tx += ax;
-  }
-  float sg = hsum8(tg), sgx = hsum8(tgx), sx = hsum8(tx);
-  for (int i = n8 * 8; i < hw; ++i) {
-    const float d = px[i] - m, g = pg[i];
-    sg += g;
-    sgx = fma(g, d, sgx);
-    sx += d;
-  }
-  const float delta = sx / (float)hw;
-  sdy_out[c] = sg;
-  sdyhat_out[c] = (sgx - delta * sg) / stdv[c];
-  delta_out[c] = delta;
-}
 
-// norm_backward_sums over long channels: the three sums per chunk (global (chunks, nc)), then added in
-// chunk order (global (nc)).
-__kernel void norm_backward_partials(__global const float* x, __global const float* mean, __global const float* dy,
-                                     __global float* pg, __global float* pgx, __global float* px, int hw, int chunk,
-                                     int chunks) {
-  const int k = get_global_id(0), c = get_global_id(1);
-  if (k >= chunks) return;
-  const int j0 = k * chunk, n = max(0, min(chunk, hw - j0)), n8 = n / 8;
-  __global const float* xs = x + (long)c * hw + j0;
-  __global const float* gs = dy + (long)c * hw + j0;
-  const float m = mean[c];
+// Over xs[0, n), gs[0, n): *sg = sum(g), *sgx = sum(g * (x - m)), *sx = sum(x - m), blocked as above.
+inline void backward_sums(__global const float* xs, __global const float* gs, int n, float m, float* sg_out,
+                          float* sgx_out, float* sx_out) {
+  const int n8 = n / 8;
   float8 tg = 0.0f, tgx = 0.0f, tx = 0.0f;
   for (int b = 0; b < n8; b += BLOCK) {
     const int e = min(b + BLOCK, n8);
@@ -285,6 +216,39 @@ __kernel void norm_backward_partials(__global const float* x, __global const flo
     sgx = fma(g, d, sgx);
     sx += d;
   }
+  *sg_out = sg;
+  *sgx_out = sgx;
+  *sx_out = sx;
+}
+
+inline void write_backward_sums(int c, float sg, float sgx, float sx, int hw, __global const float* stdv,
+                                __global float* sdy_out, __global float* sdyhat_out, __global float* delta_out) {
+  const float delta = sx / (float)hw;
+  sdy_out[c] = sg;
+  sdyhat_out[c] = (sgx - delta * sg) / stdv[c];
+  delta_out[c] = delta;
+}
+
+__kernel void norm_backward_sums(__global const float* x, __global const float* mean, __global const float* stdv,
+                                 __global const float* dy, __global float* sdy_out, __global float* sdyhat_out,
+                                 __global float* delta_out, int hw, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  float sg, sgx, sx;
+  backward_sums(x + c * hw, dy + c * hw, hw, mean[c], &sg, &sgx, &sx);
+  write_backward_sums(c, sg, sgx, sx, hw, stdv, sdy_out, sdyhat_out, delta_out);
+}
+
+// norm_backward_sums over long channels: the three sums per chunk (global (chunks, nc)), then added in
+// chunk order (global (nc)).
+__kernel void norm_backward_partials(__global const float* x, __global const float* mean, __global const float* dy,
+                                     __global float* pg, __global float* pgx, __global float* px, int hw, int chunk,
+                                     int chunks) {
+  const int k = get_global_id(0), c = get_global_id(1);
+  if (k >= chunks) return;
+  const long o = (long)c * hw + k * chunk;
+  float sg, sgx, sx;
+  backward_sums(x + o, dy + o, max(0, min(chunk, hw - k * chunk)), mean[c], &sg, &sgx, &sx);
   pg[c * chunks + k] = sg;
   pgx[c * chunks + k] = sgx;
   px[c * chunks + k] = sx;
@@ -301,10 +265,7 @@ __kernel void norm_backward_finish(__global const float* pg, __global const floa
     sgx += pgx[c * chunks + k];
     sx += px[c * chunks + k];
   }
-  const float delta = sx / (float)hw;
-  sdy_out[c] = sg;
-  sdyhat_out[c] = (sgx - delta * sg) / stdv[c];
-  delta_out[c] = delta;
+  write_backward_sums(c, sg, sgx, sx, hw, stdv, sdy_out, sdyhat_out, delta_out);
 }
 
 // Instance-norm backward, optionally scaled per channel by gain (AdaIN: gain = std_style):
