@@ -15,7 +15,7 @@ struct BenchOptions {
   std::vector<std::string> parts;
   // bench patch only: a density or feature checkpoint whose geometry to render (empty: a synthetic
   // geometry where every sample counts), the stage, the decoder profile, the patch side, and (stage 3) the
-  // style decoder (stage2 | vgg-adain).
+  // style decoder (stage2 | vgg-adain | vgg-adain-relu4).
   std::string ckpt, profile = "fast", style_decoder = "stage2";
   int stage = 2, size = 256;
   bool adain_teacher = false;  // bench patch --stage 3: time train-style --adain-teacher's extra work as well

@@ -96,7 +96,7 @@ int bench_patch_style(const BenchOptions& opt) {
   fc.rank = st.rank;
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
                                                   style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
-  const bool vgg_adain = decoder_kind == model::StyleDecoderKind::VggAdain;
+  const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
   std::unique_ptr<train::AdainTeacher> teacher;
@@ -152,12 +152,12 @@ int bench_patch_style(const BenchOptions& opt) {
     const nn::VggFeatures st_taps = vgg.forward(style_img, 4, false);
     const double vgg_style_ms = lap(t);
     style::Dst::StyleContext sctx;
-    const style::StyleCode code = m.dst.style_code(model::style_rows(st_taps), &sctx);
+    const style::StyleCode code = m.style_code(st_taps, &sctx);
     style::Dst::ApplyContext actx;
     Tensor y = m.dst.apply(r.value, r.kept_acc, code, &actx);
     p[3] = lap(t);
     model::StyleModel::DecoderCtx dctx;
-    const Tensor rgb = m.decode_map(nn::rows_to_image(y, h, w), &dctx);
+    const Tensor rgb = m.decode_map(nn::rows_to_image(y, h, w), &code, &dctx);
     p[4] = lap(t);
     const nn::VggFeatures ft = vgg.forward(gt, 4, false);
     const double vgg_true_ms = lap(t);

@@ -1,4 +1,5 @@
-// Channel statistics, instance norm and AdaIN (kernels/norm.cl): forward against a double reference,
+// Channel statistics, instance norm and AdaIN (also towards given statistics: adain_to_stats)
+// (kernels/norm.cl): forward against a double reference,
 // backward against central finite differences of that reference, and the hard cases (constant
 // channels, huge and tiny magnitudes, mean 1e4 with std 1e-2, HW = 1, bad shapes).
 #include <doctest/doctest.h>
@@ -95,8 +96,19 @@ void check_adain(const Input& c, const Input& st, double eps, double atol_y, dou
   auto fs = [&](const std::vector<double>& x) {
     return testing::dot(testing::ref::adain(cd, x, c.nc, c.hw, st.hw, eps), gd);
   };
-  check_grad(gr.dcontent.to_host(), finite_difference(fc, cd, hc), what + " adain dcontent");
+  const auto dcontent_fd = finite_difference(fc, cd, hc);
+  check_grad(gr.dcontent.to_host(), dcontent_fd, what + " adain dcontent");
   check_grad(gr.dstyle.to_host(), finite_difference(fs, sd, hs), what + " adain dstyle");
+
+  // AdaIN towards given statistics (the style's, as floats): the same y and d content; the target is a
+  // constant. The float target's rounding is far inside atol_y.
+  const auto rs = testing::ref::channel_stats(sd, st.nc, st.hw, eps);
+  const std::vector<float> tmean(rs.mean.begin(), rs.mean.end()), tstd(rs.std.begin(), rs.std.end());
+  const nn::ChannelStats target{Tensor::from_host(tmean, {c.shape[0], c.shape[1]}),
+                                Tensor::from_host(tstd, {c.shape[0], c.shape[1]})};
+  check_close(nn::adain_to_stats_forward(c.t, target, float(eps)).to_host(), yr, 0.0, atol_y, what + " adain_to_stats y");
+  check_grad(nn::adain_to_stats_backward(c.t, target, Tensor::from_host(g, c.shape), float(eps)).to_host(), dcontent_fd,
+             what + " adain_to_stats dcontent");
 }
 
 
@@ -243,4 +255,9 @@ TEST_CASE("bad shapes give errors naming the op") {
   expect_error([&] { nn::adain_forward(x, Tensor::zeros({2, 4, 4, 4})); }, "adain_forward");
   expect_error([&] { nn::adain_backward(x, Tensor::zeros({1, 3, 4, 4}), x); }, "adain_backward");
   expect_error([&] { nn::adain_backward(x, x, Tensor::zeros({2, 3, 4, 3})); }, "adain_backward: dy");
+  const nn::ChannelStats t6{Tensor::zeros({2, 3}), Tensor::from_host(std::vector<float>(6, 1.0f), {2, 3})};
+  expect_error([&] { nn::adain_to_stats_forward(x, {Tensor::zeros({2, 4}), Tensor::zeros({2, 4})}); },
+               "stats.mean");
+  expect_error([&] { nn::adain_to_stats_forward(x, {Tensor(), Tensor()}); }, "adain_to_stats_forward: stats.mean / stats.std are undefined");
+  expect_error([&] { nn::adain_to_stats_backward(x, t6, Tensor::zeros({2, 3, 4, 3})); }, "adain_to_stats_backward: dy");
 }

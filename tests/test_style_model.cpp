@@ -28,6 +28,7 @@
 #include "lib/io/image.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/nn/layout.hpp"
+#include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
 #include "lib/train/adain_teacher.hpp"
 #include "lib/train/reconstruction_loss.hpp"
@@ -84,11 +85,11 @@ void check_same_stylized_view(const model::StyleModel& m, const model::StyleMode
   const auto& cam = testing::small_scene().test[0].camera;
   const Tensor simg = train::load_style_image(style, 32, 32, nullptr);
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
-  const auto rows = model::style_rows(vgg.forward(simg, 3, false));
-  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.dst.style_code(rows, nullptr),
+  const nn::VggFeatures taps = vgg.forward(simg, 4, false);
+  const auto a = m.stylize_camera(m.render_camera_content(testing::small_scene(), cam), m.style_code(taps, nullptr),
                                   cam.width, cam.height);
   const auto b = loaded.stylize_camera(loaded.render_camera_content(testing::small_scene(), cam),
-                                       loaded.dst.style_code(rows, nullptr), cam.width, cam.height);
+                                       loaded.style_code(taps, nullptr), cam.width, cam.height);
   CHECK(a == b);
   CHECK(testing::all_finite(a));
 }
@@ -227,17 +228,17 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
     // decode_map = AdaIN's decoder of VGG's relu4_1 computed from relu3_1
     auto x = testing::random_uniform(256 * 4 * 6, 7, 0.0f, 1.0f);
     const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
-    const auto got = m.decode_map(map, nullptr).to_host();
+    const auto got = m.decode_map(map, nullptr, nullptr).to_host();
     const auto want = m.style_decoder.forward(m.vgg_tail.forward(map)).to_host();
     CHECK(got == want);
     // Inference takes odd sides (the last row / column repeated): a 16 x 20 image at least
     const Tensor odd = Tensor::from_host(std::vector<float>(x.begin(), x.begin() + 256 * 3 * 5), {1, 256, 3, 5});
-    const Tensor img = m.decode_map(odd, nullptr);
+    const Tensor img = m.decode_map(odd, nullptr, nullptr);
     CHECK(img.dim(2) >= 12);
     CHECK(img.dim(3) >= 20);
     CHECK(testing::all_finite(img.to_host()));
     model::StyleModel::DecoderCtx ctx;
-    CHECK_THROWS_WITH_AS(m.decode_map(odd, &ctx), doctest::Contains("even sides"), host::Error);
+    CHECK_THROWS_WITH_AS(m.decode_map(odd, nullptr, &ctx), doctest::Contains("even sides"), host::Error);
   }
   const auto stage2 = m.features.decoder.params()[0]->value.to_host();
   const auto adain0 = m.style_decoder.layers().front().w.value.to_host();
@@ -278,7 +279,80 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   CHECK_THROWS_WITH_AS(model::StyleModel::create(small_features(model::DecoderProfile::Paper),
                                                  style::SictMode::VolumeAdaptive, true, 1, model::StyleDecoderKind::VggAdain),
                        doctest::Contains("fast profile"), host::Error);
-  CHECK_THROWS_WITH_AS(model::parse_style_decoder("adain"), doctest::Contains("stage2 or vgg-adain"), host::Error);
+  CHECK_THROWS_WITH_AS(model::parse_style_decoder("adain"), doctest::Contains("stage2, vgg-adain or vgg-adain-relu4"), host::Error);
+}
+
+TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style's; its gradient; it trains and round-trips") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(3);
+  cfg.warm_start = 1;
+  cfg.warm_maps = train::WarmMaps::Rendered;
+  cfg.style_decoder = model::StyleDecoderKind::VggAdainRelu4;
+  cfg.lr_decoder = 1e-4f;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_decoder == model::StyleDecoderKind::VggAdainRelu4);
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto& m = t.model();
+  REQUIRE(m.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
+  nn::VggEncoder vgg = nn::VggEncoder::load_default();
+  const nn::VggFeatures taps = vgg.forward(train::load_style_image(styles.holdout[0], 32, 32, nullptr), 4, false);
+  const style::StyleCode code = m.style_code(taps, nullptr);
+  REQUIRE(code.deep_mean.defined());
+  CHECK(code.deep_mean.shape() == host::Shape{1, 512});
+  {
+    // decode_map = AdaIN's decoder of the tail's relu4_1 moved to the style's relu4_1 statistics
+    auto x = testing::random_uniform(256 * 4 * 6, 7, 0.0f, 1.0f);
+    const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
+    const nn::ChannelStats target = nn::channel_stats_forward(taps[3]);
+    const auto want = m.style_decoder.forward(nn::adain_to_stats_forward(m.vgg_tail.forward(map), target)).to_host();
+    CHECK(m.decode_map(map, &code, nullptr).to_host() == want);
+    CHECK_THROWS_WITH_AS(m.decode_map(map, nullptr, nullptr), doctest::Contains("relu4_1 statistics"), host::Error);
+    const style::StyleCode no_relu4;
+    CHECK_THROWS_WITH_AS(m.decode_map(map, &no_relu4, nullptr),
+                         doctest::Contains("relu4_1 statistics"), host::Error);
+
+    // Its map gradient against central differences along a random direction v: the re-normalisation's
+    // backward sits between the decoder's and the tail's. L = <g, rgb>. The map is a real image's relu3_1
+    // (random maps leave relu4_1 channels nearly constant over a few pixels, which the normalisation
+    // amplifies until float differences mean nothing); the step 3e-3 lies where differences from 1e-2
+    // to 1e-3 agree to 1%.
+    model::StyleModel::DecoderCtx ctx;
+    const Tensor map8 = vgg.forward(train::load_style_image(styles.train[0], 32, 32, nullptr), 3, false)[2];
+    x = map8.to_host();
+    const Tensor rgb = m.decode_map(map8, &code, &ctx);
+    const auto g = testing::random_normal(size_t(rgb.numel()), 8);
+    const auto dmap = m.decode_map_backward(ctx, Tensor::from_host(g, rgb.shape()), true, false).to_host();
+    const auto v = testing::random_normal(x.size(), 9);
+    auto loss = [&](double e) {
+      std::vector<float> xe(x.size());
+      for (size_t i = 0; i < x.size(); ++i) xe[i] = float(x[i] + e * v[i]);
+      const auto out = m.decode_map(Tensor::from_host(xe, {1, 256, 8, 8}), &code, nullptr).to_host();
+      double l = 0;
+      for (size_t i = 0; i < out.size(); ++i) l += double(g[i]) * out[i];
+      return l;
+    };
+    const double e = 3e-3, fd = (loss(e) - loss(-e)) / (2 * e);
+    double an = 0;
+    for (size_t i = 0; i < v.size(); ++i) an += double(dmap[i]) * v[i];
+    CAPTURE(fd);
+    CAPTURE(an);
+    MESSAGE("relu4 decoder directional derivative: analytic " << an << ", central difference " << fd);
+    CHECK(std::abs(an - fd) <= 2e-2 * std::abs(fd) + 1e-3);
+  }
+  const auto dst0 = m.dst.fc_w.value.to_host();
+  while (!t.done()) CHECK(std::isfinite(t.step().style));
+  CHECK(m.dst.fc_w.value.to_host() != dst0);
+  const std::string path = (testing::small_work_dir() / "style_vgg_adain_relu4.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  const auto ck = io::load_checkpoint(path, "style");
+  CHECK(ck.meta.at("style_model").at("decoder") == "vgg-adain-relu4");
+  const auto loaded = model::StyleModel::load(ck);
+  CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
+  check_same_stylized_view(m, loaded, styles.holdout[0]);
+  // One map, one style's statistics: compositional regions are refused, named.
+  const auto& cam = testing::small_scene().test[0].camera;
+  const auto cc = m.render_camera_content(testing::small_scene(), cam);
+  CHECK_THROWS_WITH_AS(m.stylize_camera_regions(cc, code, code, cam.width, cam.height),
+                       doctest::Contains("vgg-adain-relu4"), host::Error);
 }
 
 TEST_CASE("rendered warm-start maps hold each ray's mean feature and its opacity, as the field renders them") {

@@ -183,7 +183,7 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
     }
   const auto direct = model::StyleModel::crop_rgb(
       m.decode_rows(Tensor::from_host(va, {int64_t(va.size() / 256), 256}), half.content.acc, half.height, half.width,
-                    nullptr),
+                    nullptr, nullptr),
       cam.width, cam.height);
   REQUIRE(direct.size() == composed.size());
   double worst = 0;

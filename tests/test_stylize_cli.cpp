@@ -157,7 +157,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--ema -0.1", "--ema must be in [0, 1)");
   expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
-  expect(train + "--style-decoder adain", "--style-decoder) must be stage2 or vgg-adain, got 'adain'");
+  expect(train + "--style-decoder adain", "--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got 'adain'");
   expect(train + "--lr-decoder -1", "--lr-decoder must be a positive number, or 0 to freeze the decoder");
   expect(train + "--lr-stylizer 0", "--lr-stylizer must be a positive number");
   expect(train + "--lr-decoder 0 --decoder-warm 5", "--decoder-warm then needs its own --lr-decoder-warm");

@@ -42,7 +42,7 @@ int run_bench(int argc, char** argv) {
       "profile", po::value(&opt.profile)->default_value("fast"), "patch: decoder profile, fast | paper")(
       "size", po::value(&opt.size)->default_value(256), "patch: side in pixels (multiple of 8)")(
       "style-decoder", po::value(&opt.style_decoder)->default_value("stage2"),
-      "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain (train-style --style-decoder)")(
+      "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain | vgg-adain-relu4 (train-style --style-decoder)")(
       "adain-teacher", po::bool_switch(&opt.adain_teacher),
       "patch --stage 3: also time train-style --adain-teacher's target (AdaIN's decoder, VGG to relu3_1) and loss")(
       "frozen-decoder", po::bool_switch(&opt.frozen_decoder),

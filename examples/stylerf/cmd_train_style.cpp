@@ -67,7 +67,9 @@ int run_train_style(int argc, char** argv) {
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
       "style-decoder", po::value(&style_decoder_name)->default_value("stage2"),
       "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
-      "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile)")(
+      "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
+      "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
+      "not the paper's; README)")(
       "style-augment", po::bool_switch(&style_augment),
       "each step's style image is one of its 48 flips, 90-degree turns and colour-channel orders, drawn at random, "
       "so that a few hundred training styles teach reading any style rather than those styles (not the paper's)")(

@@ -9,6 +9,7 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/style/style_encoder.hpp"
 
 namespace stylerf::model {
 
@@ -37,19 +38,27 @@ void SictHead::backward(const Context& ctx, const Tensor& dvalues) {
 StyleDecoderKind parse_style_decoder(const std::string& s) {
   if (s == "stage2") return StyleDecoderKind::Stage2;
   if (s == "vgg-adain") return StyleDecoderKind::VggAdain;
-  throw Error("style decoder (--style-decoder) must be stage2 or vgg-adain, got '" + s + "'");
+  if (s == "vgg-adain-relu4") return StyleDecoderKind::VggAdainRelu4;
+  throw Error("style decoder (--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got '" + s + "'");
 }
 
-const char* style_decoder_name(StyleDecoderKind k) { return k == StyleDecoderKind::Stage2 ? "stage2" : "vgg-adain"; }
+const char* style_decoder_name(StyleDecoderKind k) {
+  switch (k) {
+    case StyleDecoderKind::Stage2: return "stage2";
+    case StyleDecoderKind::VggAdain: return "vgg-adain";
+    case StyleDecoderKind::VggAdainRelu4: return "vgg-adain-relu4";
+  }
+  return "?";
+}
 
 StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
                               StyleDecoderKind decoder) {
-  if (decoder == StyleDecoderKind::VggAdain && features.profile != DecoderProfile::Fast)
-    throw Error("style model: the vgg-adain style decoder needs the fast profile (maps at relu3_1's 1/4 resolution); "
+  if (decoder != StyleDecoderKind::Stage2 && features.profile != DecoderProfile::Fast)
+    throw Error("style model: the " + std::string(style_decoder_name(decoder)) + " style decoder needs the fast profile (maps at relu3_1's 1/4 resolution); "
                 "this feature model is " + std::string(decoder_profile_name(features.profile)));
   StyleModel m;
   m.decoder_kind = decoder;
-  if (decoder == StyleDecoderKind::VggAdain) {
+  if (decoder != StyleDecoderKind::Stage2) {
     m.vgg_tail = nn::VggTail(nn::VggEncoder::load_default());
     m.style_decoder = nn::load_adain_decoder("", "style.decoder.", kGroupStyleDecoder);
   }
@@ -88,10 +97,12 @@ Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode&
   if (int64_t(h) * w != content.c.dim(0))
     throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
                 std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
-  return decode_rows(dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr), content.acc, h, w, ctx);
+  return decode_rows(dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr), content.acc, h, w, &code,
+                     ctx);
 }
 
-Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, Context* ctx) const {
+Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code,
+                               Context* ctx) const {
   // Empty space keeps stage 2's (unstyled) background feature, which the decoder learned to draw as the
   // background colour; the masked losses never look there.
   if (features.field.background.value.defined())
@@ -101,7 +112,7 @@ Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, Contex
     ctx->h = h;
     ctx->w = w;
   }
-  return decode_map(map, ctx ? &ctx->decoder : nullptr);
+  return decode_map(map, code, ctx ? &ctx->decoder : nullptr);
 }
 
 namespace {
@@ -119,12 +130,24 @@ Tensor pad_to_even(const Tensor& x) {
 }
 }  // namespace
 
-Tensor StyleModel::decode_map(const Tensor& map, DecoderCtx* ctx) const {
+Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const {
   if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.forward(map, ctx ? &ctx->stack : nullptr);
   const bool odd = map.dim(2) % 2 || map.dim(3) % 2;
   if (odd && ctx)
     throw Error("style model: the vgg-adain decoder trains on maps with even sides, got " + host::shape_str(map.shape()));
-  const Tensor r41 = vgg_tail.forward(odd ? pad_to_even(map) : map, ctx ? &ctx->tail : nullptr);
+  Tensor r41 = vgg_tail.forward(odd ? pad_to_even(map) : map, ctx ? &ctx->tail : nullptr);
+  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
+    if (!code || !code->deep_mean.defined() || !code->deep_std.defined())
+      throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 statistics (StyleCode "
+                  "deep_mean / deep_std; style::set_relu4_stats)");
+    const nn::ChannelStats target{code->deep_mean, code->deep_std};
+    Tensor renormed = nn::adain_to_stats_forward(r41, target);
+    if (ctx) {
+      ctx->relu4 = std::move(r41);
+      ctx->relu4_target = target;
+    }
+    r41 = std::move(renormed);
+  }
   return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
 }
 
@@ -132,8 +155,10 @@ Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb
   if (decoder_kind == StyleDecoderKind::Stage2)
     return features.decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
   // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
-  const Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
-  return need_dx ? vgg_tail.backward(ctx.tail, d41) : Tensor();
+  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
+  if (!need_dx) return Tensor();
+  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) d41 = nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
+  return vgg_tail.backward(ctx.tail, d41);
 }
 
 std::vector<nn::Param*> StyleModel::decoder_params() {
@@ -276,6 +301,9 @@ std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const sty
 
 std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, const style::StyleCode& inside,
                                                       const style::StyleCode& outside, int cam_w, int cam_h) const {
+  if (decoder_kind == StyleDecoderKind::VggAdainRelu4)
+    throw Error("style model: compositional regions need a decoder that reads no style statistics; the "
+                "vgg-adain-relu4 decoder re-normalises the whole map to one style's relu4_1 statistics");
   const int64_t n = int64_t(cc.width) * cc.height;
   if (int64_t(cc.region_mask.size()) != n) throw Error("style model: this content was rendered without a region");
   const auto c = cc.content.c.to_host(), k = cc.content.kept_acc.to_host();
@@ -295,7 +323,7 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
   const Tensor y_out = dst.apply(Tensor::from_host(c_out, {n, E}, "content outside"),
                                  Tensor::from_host(k_out, {n}, "opacity outside"), outside, nullptr);
   nn::axpby(1.0f, y_out, 1.0f, y);
-  return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr), cam_w, cam_h);
+  return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr, nullptr), cam_w, cam_h);
 }
 
 void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const {
@@ -342,7 +370,7 @@ namespace {
 void save_style_parts(StyleModel& m, io::Checkpoint& ck) {
   m.sict.save(ck, "");
   m.dst.save(ck, "");
-  if (m.decoder_kind == StyleDecoderKind::VggAdain) m.style_decoder.save(ck, "");
+  if (m.decoder_kind != StyleDecoderKind::Stage2) m.style_decoder.save(ck, "");
 }
 }  // namespace
 
@@ -378,13 +406,23 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   StyleModel m = create(FeatureModel::load(ck), mode, bias, 0, decoder);
   m.sict.load(ck, "");
   m.dst.load(ck, "");
-  if (decoder == StyleDecoderKind::VggAdain) m.style_decoder.load(ck, "");
+  if (decoder != StyleDecoderKind::Stage2) m.style_decoder.load(ck, "");
   return m;
 }
 
 Tensor style_rows(const nn::VggFeatures& taps) {
   if (!taps[2].defined()) throw Error("style_rows: the relu3_1 tap was not computed");
   return nn::image_to_rows(taps[2]);
+}
+
+style::StyleCode StyleModel::style_code(const nn::VggFeatures& taps, style::Dst::StyleContext* ctx) const {
+  style::StyleCode code = dst.style_code(style_rows(taps), ctx);
+  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
+    if (!taps[3].defined())
+      throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 tap (VGG to depth 4)");
+    style::set_relu4_stats(code, taps[3]);
+  }
+  return code;
 }
 
 }  // namespace stylerf::model

@@ -33,7 +33,12 @@ constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render
 //  - VggAdain ("vgg-adain"): VGG's frozen relu3_1 -> relu4_1 (nn::VggTail), then AdaIN's pretrained
 //    decoder (fine-tuned at the decoder's rate). It was trained to draw images whose VGG statistics match
 //    stylised relu4_1 features. Fast profile only: the map must be at relu3_1's own 1/4 resolution.
-enum class StyleDecoderKind { Stage2, VggAdain };
+//  - VggAdainRelu4 ("vgg-adain-relu4"): VggAdain with the tail's relu4_1 output re-normalised to the style
+//    image's own relu4_1 channel statistics (AdaIN at relu4_1, over each decoded map) before AdaIN's
+//    decoder, which was trained on exactly such inputs. DST only sets relu3_1's statistics, from which the
+//    tail's relu4_1 ones do not follow. The statistics are the decoded map's own, so a frame's are its
+//    own, not the scene's (README: what that costs in consistency).
+enum class StyleDecoderKind { Stage2, VggAdain, VggAdainRelu4 };
 StyleDecoderKind parse_style_decoder(const std::string& s);  // an Error names the accepted values
 const char* style_decoder_name(StyleDecoderKind k);
 
@@ -64,25 +69,31 @@ class StyleModel : public nn::Module {
   style::Sict sict;
   style::Dst dst;
   StyleDecoderKind decoder_kind = StyleDecoderKind::Stage2;
-  nn::VggTail vgg_tail;         // VggAdain: frozen
-  nn::ConvStack style_decoder;  // VggAdain: AdaIN's decoder, "style.decoder.*"
+  nn::VggTail vgg_tail;         // VggAdain*: frozen
+  nn::ConvStack style_decoder;  // VggAdain*: AdaIN's decoder, "style.decoder.*"
 
   // A fresh stylizer over a trained feature model (seeded); the decoder's parameters go to group
-  // kGroupStyleDecoder. VggAdain loads VGG and AdaIN's decoder from the weights folder.
+  // kGroupStyleDecoder. VggAdain* load VGG and AdaIN's decoder from the weights folder.
   static StyleModel create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
                            StyleDecoderKind decoder = StyleDecoderKind::Stage2);
 
   // The stylised-map decoder, whichever kind: map [1, 256, h, w] -> RGB [1, 3, h s, w s]. Inference
-  // (ctx null) takes odd sides too (VggAdain pads the map's last row / column, and the image comes out
-  // up to s pixels larger: crop_rgb cuts it); training needs even sides with VggAdain.
+  // (ctx null) takes odd sides too (VggAdain* pad the map's last row / column, and the image comes out
+  // up to s pixels larger: crop_rgb cuts it); training needs even sides with VggAdain*.
   struct DecoderCtx {
     nn::VggTail::Ctx tail;
     nn::ConvStack::Ctx stack;
+    Tensor relu4;  // VggAdainRelu4: the tail's output before the re-normalisation
+    nn::ChannelStats relu4_target;
   };
-  Tensor decode_map(const Tensor& map, DecoderCtx* ctx) const;
+  // code: the style's, for VggAdainRelu4 (its relu4_1 statistics); the others ignore it (may be null).
+  Tensor decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const;
   // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients unless
   // train_decoder is false (a frozen decoder: only the data gradient, about half the decoder's backward).
   Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder = true);
+  // A style image's code from its VGG taps: DST's (relu3_1), and for VggAdainRelu4 relu4_1's statistics
+  // (taps to depth 4). ctx: DST's style-branch context, for training.
+  style::StyleCode style_code(const nn::VggFeatures& taps, style::Dst::StyleContext* ctx) const;
   std::vector<nn::Param*> decoder_params();
   std::vector<nn::Param*> stylizer_params();  // SICT's and DST's
   int stride() const { return features.stride(); }
@@ -107,7 +118,7 @@ class StyleModel : public nn::Module {
   // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
   Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
   // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
-  Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, Context* ctx) const;
+  Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
   // dstd) for the style branch (Dst::style_code_backward). dy_extra (optional, [h w, 256]): a gradient of
   // another loss at DST's output rows, added to the decoder's (train::AdainTeacher's). train_decoder false:

@@ -196,4 +196,24 @@ AdainGrads adain_backward(const Tensor& content, const Tensor& style, const Tens
   return g;
 }
 
+Tensor adain_to_stats_forward(const Tensor& content, const ChannelStats& target, float eps) {
+  const char* op = "adain_to_stats_forward";
+  const ChannelDims dc = expect_nchw(content, op, "content");
+  expect_stats(target, dc, op);
+  detail::PreciseStats cs = detail::channel_stats_precise(content, eps, op, "content");
+  Tensor y(content.shape(), "adain_to_stats_forward y");
+  launch("norm", "adain_forward", chunks(dc), content, cs.stats.mean, cs.stats.std, cs.mean_lo, target.mean,
+         target.std, y, dc.hw);
+  return y;
+}
+
+Tensor adain_to_stats_backward(const Tensor& content, const ChannelStats& target, const Tensor& dy, float eps) {
+  const char* op = "adain_to_stats_backward";
+  const ChannelDims dc = expect_nchw(content, op, "content");
+  expect_stats(target, dc, op);
+  detail::PreciseStats cs = detail::channel_stats_precise(content, eps, op, "content");
+  // y = xhat_c * target.std + target.mean: the instance-norm backward scaled by target.std.
+  return norm_backward(content, cs.stats, dy, target.std, op).dx;
+}
+
 }  // namespace stylerf::nn

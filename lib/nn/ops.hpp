@@ -83,6 +83,12 @@ struct AdainGrads {
   Tensor dcontent, dstyle;
 };
 AdainGrads adain_backward(const Tensor& content, const Tensor& style, const Tensor& dy, float eps = kStatsEps);
+// AdaIN towards given statistics: y = (c - mean_c) / std_c * target.std + target.mean per (n, c), target
+// [N, C] each. The target is a constant here (no gradient): the vgg-adain-relu4 style decoder's relu4_1
+// re-normalisation, whose target is a style image's own VGG statistics (lib/model/style_model.hpp).
+Tensor adain_to_stats_forward(const Tensor& content, const ChannelStats& target, float eps = kStatsEps);
+Tensor adain_to_stats_backward(const Tensor& content, const ChannelStats& target, const Tensor& dy,
+                               float eps = kStatsEps);  // d content
 
 // ---- losses (return a [1] tensor; backward takes the upstream scalar gradient) ---------------
 Tensor mse_forward(const Tensor& a, const Tensor& b);             // mean((a-b)^2)

@@ -27,6 +27,10 @@ using host::Tensor;
 struct StyleCode {
   Tensor mean, std;  // [256]
   Tensor T;          // [32, 32]
+  // The style's relu4_1 channel statistics, [1, 512] each (std with the biased variance + 1e-5, as
+  // nn::channel_stats_forward): the vgg-adain-relu4 style decoder re-normalises its relu4_1 input to them
+  // (lib/model/style_model.hpp). DST reads relu3_1's only. Undefined where not computed.
+  Tensor deep_mean, deep_std;
 };
 
 class Dst : public nn::Module {

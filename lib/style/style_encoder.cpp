@@ -8,6 +8,7 @@
 #include "lib/features/content_hash.hpp"
 #include "lib/io/safetensors.hpp"
 #include "lib/nn/layout.hpp"
+#include "lib/nn/ops.hpp"
 #include "lib/style/style_image.hpp"
 
 namespace stylerf::style {
@@ -16,7 +17,8 @@ using host::Error;
 using host::Tensor;
 
 namespace {
-constexpr const char* kConvention = "stylerf style code v1 (256x256 resize, relu3_1, unbiased std)";
+constexpr const char* kConvention = "stylerf style code v2 (256x256 resize, relu3_1, unbiased std; relu4_1 stats)";
+constexpr int kDeepChannels = 512;  // relu4_1
 
 bool all_finite(const std::vector<float>& v) {
   for (float x : v)
@@ -44,9 +46,11 @@ StyleEncoder::StyleEncoder(const Dst& dst, nn::VggEncoder& vgg, std::string cach
 std::string StyleEncoder::default_cache_dir() { return host::cache_dir() + "/style_codes"; }
 
 StyleCode StyleEncoder::encode_image(const Tensor& image) const {
-  const nn::VggFeatures taps = vgg_.forward(image, 3, false);
+  const nn::VggFeatures taps = vgg_.forward(image, 4, false);
   StyleCode code = dst_.style_code(nn::image_to_rows(taps[2]), nullptr);
-  if (!all_finite(code.T.to_host()) || !all_finite(code.mean.to_host()) || !all_finite(code.std.to_host()))
+  set_relu4_stats(code, taps[3]);
+  if (!all_finite(code.T.to_host()) || !all_finite(code.mean.to_host()) || !all_finite(code.std.to_host()) ||
+      !all_finite(code.deep_mean.to_host()) || !all_finite(code.deep_std.to_host()))
     throw Error("style encoder: the style code is not finite (are the model's weights damaged?)");
   return code;
 }
@@ -69,10 +73,15 @@ StyleEncoder::Encoded StyleEncoder::encode(const std::string& image_path) {
       const auto& mean = st.get("mean", {Dst::kChannels});
       const auto& std = st.get("std", {Dst::kChannels});
       const auto& T = st.get("T", {Dst::kEmbed, Dst::kEmbed});
-      if (all_finite(mean.data) && all_finite(std.data) && all_finite(T.data)) {
+      const auto& deep_mean = st.get("deep_mean", {1, kDeepChannels});
+      const auto& deep_std = st.get("deep_std", {1, kDeepChannels});
+      if (all_finite(mean.data) && all_finite(std.data) && all_finite(T.data) && all_finite(deep_mean.data) &&
+          all_finite(deep_std.data)) {
         out.code.mean = Tensor::from_host(mean.data, {Dst::kChannels}, "style mean");
         out.code.std = Tensor::from_host(std.data, {Dst::kChannels}, "style std");
         out.code.T = Tensor::from_host(T.data, {Dst::kEmbed, Dst::kEmbed}, "style T");
+        out.code.deep_mean = Tensor::from_host(deep_mean.data, {1, kDeepChannels}, "style relu4_1 mean");
+        out.code.deep_std = Tensor::from_host(deep_std.data, {1, kDeepChannels}, "style relu4_1 std");
         out.from_cache = true;
       }
     } catch (const Error&) {
@@ -87,12 +96,21 @@ StyleEncoder::Encoded StyleEncoder::encode(const std::string& image_path) {
       io::save_safetensors(file,
                        {{"mean", {{Dst::kChannels}, out.code.mean.to_host()}},
                         {"std", {{Dst::kChannels}, out.code.std.to_host()}},
-                        {"T", {{Dst::kEmbed, Dst::kEmbed}, out.code.T.to_host()}}},
+                        {"T", {{Dst::kEmbed, Dst::kEmbed}, out.code.T.to_host()}},
+                        {"deep_mean", {{1, kDeepChannels}, out.code.deep_mean.to_host()}},
+                        {"deep_std", {{1, kDeepChannels}, out.code.deep_std.to_host()}}},
                        {{"image", image_path}, {"convention", kConvention}});
     }
   }
   memory_[out.key] = out.code;
   return out;
+}
+
+void set_relu4_stats(StyleCode& code, const Tensor& relu4_1) {
+  host::expect_shape(relu4_1, {1, kDeepChannels, relu4_1.dim(2), relu4_1.dim(3)}, "style code", "relu4_1 features");
+  const nn::ChannelStats s = nn::channel_stats_forward(relu4_1);
+  code.deep_mean = s.mean;
+  code.deep_std = s.std;
 }
 
 void check_mix_weights(const std::vector<float>& weights, size_t count, const std::string& what) {
@@ -125,6 +143,12 @@ StyleCode mix_codes(const std::vector<StyleCode>& codes, const std::vector<float
   m.mean = blend(&StyleCode::mean, "mixed style mean");
   m.std = blend(&StyleCode::std, "mixed style std");
   m.T = blend(&StyleCode::T, "mixed style T");
+  bool deep = true;
+  for (const StyleCode& c : codes) deep = deep && c.deep_mean.defined() && c.deep_std.defined();
+  if (deep) {  // a convex combination of statistics, as for relu3_1's
+    m.deep_mean = blend(&StyleCode::deep_mean, "mixed style relu4_1 mean");
+    m.deep_std = blend(&StyleCode::deep_std, "mixed style relu4_1 std");
+  }
   return m;
 }
 

@@ -1,4 +1,5 @@
-// Zero-shot style encoding: a style image -> its StyleCode (relu3_1 mean and std, T) through VGG and the
+// Zero-shot style encoding: a style image -> its StyleCode (relu3_1 mean and std, T; relu4_1's statistics
+// for the vgg-adain-relu4 decoder) through VGG and the
 // trained DST style branch, with no optimisation. Codes are cached by the image's content hash together
 // with a fingerprint of the style branch's weights and the VGG weights file, so a style is encoded once per
 // model: in memory for this process and, when a cache folder is given, on disk across runs
@@ -40,6 +41,9 @@ class StyleEncoder {
   std::string model_fingerprint_;
   std::map<std::string, StyleCode> memory_;
 };
+
+// Sets code.deep_mean / deep_std from a style image's relu4_1 features [1, 512, h, w].
+void set_relu4_stats(StyleCode& code, const host::Tensor& relu4_1);
 
 // Throws unless there are `count` weights, finite, >= 0, summing to 1 (within 1e-4); the error names `what`.
 void check_mix_weights(const std::vector<float>& weights, size_t count, const std::string& what);

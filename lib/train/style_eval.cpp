@@ -45,7 +45,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
   for (const auto& s : styles) {
     style_imgs.push_back(load_style_image(s, 256, 256, nullptr));
     style_taps.push_back(vgg.forward(style_imgs.back(), 4, false));
-    codes.push_back(m.dst.style_code(model::style_rows(style_taps.back()), nullptr));
+    codes.push_back(m.style_code(style_taps.back(), nullptr));
   }
   for (int vi = 0; vi < count; ++vi) {
     const scene::View& v = scene.test[size_t(int64_t(vi) * n / count)];

@@ -17,6 +17,7 @@
 #include "lib/train/progress.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/train/style_average.hpp"
+#include "lib/style/style_encoder.hpp"
 
 namespace stylerf::train {
 
@@ -243,7 +244,7 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
   std::vector<float> acc_rows;
   if (teacher_ && masked) acc_rows = content.acc.to_host();
   const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc_rows : nullptr);
-  const Tensor rgb = model_.decode_rows(std::move(y), content.acc, h, w, &ctx);
+  const Tensor rgb = model_.decode_rows(std::move(y), content.acc, h, w, &code, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
@@ -300,8 +301,8 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
   const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc : nullptr);  // before the background
   model::StyleModel::Context mctx;  // only its decoder part is used
-  const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &mctx)
-                              : model_.decode_map(nn::rows_to_image(y, h, w), &mctx.decoder);
+  const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
+                              : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
@@ -325,7 +326,9 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   st.decoder_warm = true;
   constexpr float kFeatureWeight = 0.1f;  // stage 2's patch loss
   model::StyleModel::DecoderCtx dctx;
-  const Tensor rgb = model_.decode_map(style_taps[2], &dctx);
+  style::StyleCode own;  // the crop's own relu4_1 statistics, for the vgg-adain-relu4 decoder
+  if (model_.decoder_kind == model::StyleDecoderKind::VggAdainRelu4) style::set_relu4_stats(own, style_taps[3]);
+  const Tensor rgb = model_.decode_map(style_taps[2], &own, &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
   const ReconstructionLoss loss =
       reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight, cfg_.decoder_warm_style);
@@ -392,7 +395,7 @@ StyleStepStats StyleTrainer::step() {
     st = decoder_warm_step(simg, taps);  // the style branch is not used
   } else {
     style::Dst::StyleContext sctx;
-    const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), &sctx);
+    const style::StyleCode code = model_.style_code(taps, &sctx);
     st = k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
   }
   st.style_name = stem(path);
@@ -443,7 +446,7 @@ HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
   for (int i = 0; i < n; ++i) {
     const Tensor simg = load_style_image(styles_.holdout[size_t(i)], cfg_.style_crop, cfg_.style_crop, nullptr);
     const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
-    const style::StyleCode code = model_.dst.style_code(model::style_rows(taps), nullptr);
+    const style::StyleCode code = model_.style_code(taps, nullptr);
     const Tensor rgb = model_.decode_styled(content, code, ph, pw, nullptr);
     const nn::VggFeatures out = vgg_.forward(rgb, 4, false);
     const StyleLossValues lv = style_losses(out, truth[3], taps, masked ? &mask : nullptr, cfg_.weights, nullptr);

@@ -31,6 +31,7 @@
 //  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
+//    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics;
 //  - style_augment (off by default): each step's style image is one of 48 flips, turns and channel orders
 //    of it (style::augment_style_image): with ~100 styles met tens of times each, the stylizer otherwise
 //    learns the training styles rather than how to read a new one;
