@@ -75,6 +75,11 @@ void bench_ops_norm(const BenchOptions& opt) {
     const std::string sh = host::shape_str(cs) + " s" + host::shape_str(ss);
     row("adain_forward", sh, 2 * nc + ns, best_of(reps, [&] { nn::adain_forward(c, st); }));
     row("adain_backward", sh, 3 * nc + 2 * ns, best_of(reps, [&] { nn::adain_backward(c, st, dy); }));
+    // Towards given statistics (the vgg-adain-relu4 decoder's relu4_1 re-normalisation): no style pass.
+    const nn::ChannelStats target = nn::channel_stats_forward(st);
+    const std::string sht = host::shape_str(cs) + " to stats";
+    row("adain_to_stats_forward", sht, 2 * nc, best_of(reps, [&] { nn::adain_to_stats_forward(c, target); }));
+    row("adain_to_stats_backward", sht, 3 * nc, best_of(reps, [&] { nn::adain_to_stats_backward(c, target, dy); }));
   }
   {
     const int n = opt.quick ? 1000000 : 10000000;
