@@ -203,14 +203,21 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   CHECK(std::isfinite(r.step().style));
 }
 
-TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trains, never stage 2's decoder; it round-trips") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+// Three steps, one of them a 2D warm-start step on rendered maps, with one of the VGG-tail decoders; the
+// choice survives the config's JSON round trip.
+train::StyleTrainConfig vgg_decoder_config(model::StyleDecoderKind kind) {
   auto cfg = small_config(3);
   cfg.warm_start = 1;
   cfg.warm_maps = train::WarmMaps::Rendered;
-  cfg.style_decoder = model::StyleDecoderKind::VggAdain;
+  cfg.style_decoder = kind;
   cfg.lr_decoder = 1e-4f;
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_decoder == model::StyleDecoderKind::VggAdain);
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_decoder == kind);
+  return cfg;
+}
+
+TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trains, never stage 2's decoder; it round-trips") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  const auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdain);
   {
     auto j = small_config(1).to_json();
     j.erase("style_decoder");  // written before the option existed
@@ -284,12 +291,7 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
 
 TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style's; its gradient; it trains and round-trips") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(3);
-  cfg.warm_start = 1;
-  cfg.warm_maps = train::WarmMaps::Rendered;
-  cfg.style_decoder = model::StyleDecoderKind::VggAdainRelu4;
-  cfg.lr_decoder = 1e-4f;
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).style_decoder == model::StyleDecoderKind::VggAdainRelu4);
+  const auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdainRelu4);
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto& m = t.model();
   REQUIRE(m.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
