@@ -26,7 +26,7 @@ int run_demo_images(int argc, char** argv) {
   po::options_description desc("stylerf demo-images -o DIR [options]");
   desc.add_options()("help,h", "show this help")("out,o", po::value(&out_dir), "output folder")(
       "size", po::value(&size)->default_value(256), "image side in pixels")(
-      "styles", po::value(&styles)->default_value(0), "also write N style variants to DIR/styles (style training)");
+      "styles", po::value(&styles)->default_value(0), "also write N style images to DIR/styles, each its own palette and texture (style training)");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
@@ -43,8 +43,8 @@ int run_demo_images(int argc, char** argv) {
     std::filesystem::create_directories(out_dir + "/styles");
     for (int v = 0; v < styles; ++v)
       stylerf::io::save_png(out_dir + "/styles/style_" + std::to_string(v) + ".png",
-                            to_io(stylerf::demo::make_style_image(size, size, v)));
-    std::cout << "wrote " << styles << " style variants to " << out_dir << "/styles\n";
+                            to_io(stylerf::demo::make_varied_style_image(size, size, v)));
+    std::cout << "wrote " << styles << " style images to " << out_dir << "/styles\n";
   }
   return 0;
 }

@@ -19,4 +19,12 @@ RgbImage render_content_image(int width, int height, float azimuth_degrees = 30.
 // texture statistics, so a style transfer result is easy to judge by eye.
 RgbImage make_style_image(int width, int height, int variant = 0);
 
+// A family of style images that differ in both palette and texture, so that a style stage trained on some
+// of them has to read colour and texture from the image (the variants of make_style_image share two
+// palettes and one texture: a model that ignored its style input fitted them all alike). Each variant
+// draws, from a hash of `variant`: a 3- or 4-colour palette (a random base hue, in an analogous,
+// complementary or triadic scheme), one of seven textures (swirled brush streaks, wavy stripes, dots,
+// stained-glass cells, cross-hatching, ripples, a noisy mosaic) and its scale and angle. Deterministic.
+RgbImage make_varied_style_image(int width, int height, int variant);
+
 }  // namespace stylerf::demo
