@@ -1,5 +1,6 @@
 #include "lib/train/density_trainer.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <iomanip>
@@ -99,6 +100,19 @@ DensityTrainConfig default_density_config(const scene::Scene& scene) {
   c.model.deferred_shading = true;
   c.schedule.upsample_at = {2000, 3000, 4000, 5500};
   c.schedule.voxels_init = 128LL * 128 * 128;
+  // Small images: TensoRF's grids are sized for 800 px views; below kSmallImageSide pixels they hold more
+  // voxels than there are pixels to supervise them, and a short run never reaches the alpha mask that
+  // makes their ~440 samples a ray cheap. There the grid sides are a quarter and three quarters of the
+  // image side (min 32). Measured on the generated 128 px scene: 128^3 -> 300^3 reached 14.3 dB in 45 s
+  // (58 steps), 32^3 -> 96^3 30.8 dB in 24 s (300 steps). Real scenes at the resolutions measured (lego
+  // 1/4: 200 px, fern 1/8: 504 px) keep TensoRF's grids.
+  constexpr int kSmallImageSide = 160;
+  const int side = std::max(scene.width(), scene.height());
+  if (side > 0 && side <= kSmallImageSide) {
+    const int64_t init = std::max(32, side / 4), fin = std::max<int64_t>(init, 3 * side / 4);
+    c.schedule.voxels_init = init * init * init;
+    c.schedule.voxels_final = fin * fin * fin;
+  }
   return c;
 }
 
