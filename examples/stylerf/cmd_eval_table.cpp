@@ -25,6 +25,7 @@
 #include "lib/eval/path_frames.hpp"
 #include "lib/eval/plot.hpp"
 #include "lib/model/density_model.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
@@ -279,8 +280,10 @@ int run_eval_table(int argc, char** argv) {
                 << score_line(adain_rows.scores.back()) << "\n";
       if (si == 0) first_adain = a;
       for (size_t mi = 0; mi < models.size(); ++mi) {
+        style::StyleCode code = encoders[mi]->encode(st).code;
+        model::SceneStyleStats(*models[mi], scene).attach(code);
         const auto f =
-            eval::stylerf_frames(*models[mi], scene, path.cams, encoders[mi]->encode(st).code, scene.effects.background,
+            eval::stylerf_frames(*models[mi], scene, path.cams, code, scene.effects.background,
                                 p.chunk, p.supersample);
         style_rows[mi].styles.push_back(st);
         style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));

@@ -8,6 +8,7 @@
 #include "host/runtime.hpp"
 #include "lib/io/checkpoint.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/style/style_encoder.hpp"
@@ -34,7 +35,8 @@ int main(int argc, char** argv) {
     // The style's code: VGG relu3_1 statistics and the transformation T (no cache here).
     nn::VggEncoder vgg = nn::VggEncoder::load_default();
     style::StyleEncoder encoder(m.dst, vgg);
-    const style::StyleCode code = encoder.encode(argv[2]).code;
+    style::StyleCode code = encoder.encode(argv[2]).code;
+    model::SceneStyleStats(m, scene).attach(code);  // one re-normalisation for the scene's every frame
 
     // Content once (style-independent), then any number of styles on it.
     const auto content = m.render_camera_content(scene, cam);

@@ -5,6 +5,7 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
+#include "lib/model/opacity_head.hpp"
 #include "lib/nn/decoder.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
@@ -141,7 +142,9 @@ Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, D
       throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 statistics (StyleCode "
                   "deep_mean / deep_std; style::set_relu4_stats)");
     const nn::ChannelStats target{code->deep_mean, code->deep_std};
-    Tensor renormed = nn::adain_to_stats_forward(r41, target);
+    const bool scene_stats = !ctx && code->scene_mean.defined() && code->scene_std.defined();
+    Tensor renormed = scene_stats ? nn::adain_between_stats_forward(r41, {code->scene_mean, code->scene_std}, target)
+                                  : nn::adain_to_stats_forward(r41, target);
     if (ctx) {
       ctx->relu4 = std::move(r41);
       ctx->relu4_target = target;
@@ -159,6 +162,14 @@ Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb
   if (!need_dx) return Tensor();
   if (decoder_kind == StyleDecoderKind::VggAdainRelu4) d41 = nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
   return vgg_tail.backward(ctx.tail, d41);
+}
+
+Tensor StyleModel::relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const {
+  if (decoder_kind == StyleDecoderKind::Stage2) throw Error("style model: the stage2 decoder has no VGG tail");
+  Tensor y = dst.apply(content.c, content.kept_acc, code, nullptr);
+  if (features.field.background.value.defined()) render::background_forward(y, content.acc, features.field.background.value);
+  const Tensor map = nn::rows_to_image(y, h, w);
+  return vgg_tail.forward(map.dim(2) % 2 || map.dim(3) % 2 ? pad_to_even(map) : map, nullptr);
 }
 
 std::vector<nn::Param*> StyleModel::decoder_params() {
@@ -273,6 +284,8 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   out.content.kept_acc = Tensor::from_host(mean_of(kept_acc), {n}, "camera kept opacity");
   out.content.acc = Tensor::from_host(mean_of(acc), {n}, "camera opacity");
   out.content.depth = Tensor::from_host(mean_of(depth), {n}, "camera depth");
+  if (features.geo.has_background && stride() > 1)
+    out.pixel_acc = render_geometry(features.geo, scene, cam, std::max(chunk, 8192)).acc;
   return out;
 }
 
@@ -329,7 +342,8 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
 void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const {
   if (!features.geo.has_background) return;
   if (rgb.size() != size_t(3) * cam_w * cam_h) throw Error("over_background: the image is not " + std::to_string(cam_w) + "x" + std::to_string(cam_h));
-  const auto acc = cc.content.acc.to_host();
+  const bool per_pixel = cc.pixel_acc.size() == size_t(cam_w) * cam_h;
+  const auto acc = per_pixel ? std::vector<float>() : cc.content.acc.to_host();
   const float s = float(stride());
   const auto& bg = features.geo.background;
   auto at = [&](int x, int y) {
@@ -343,8 +357,9 @@ void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& c
       const float fx = (x + 0.5f) / s - 0.5f, fy = (y + 0.5f) / s - 0.5f;
       const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
       const float u = fx - x0, v = fy - y0;
-      const float a = std::clamp((1 - u) * (1 - v) * at(x0, y0) + u * (1 - v) * at(x0 + 1, y0) +
-                                     (1 - u) * v * at(x0, y0 + 1) + u * v * at(x0 + 1, y0 + 1),
+      const float a = std::clamp(per_pixel ? cc.pixel_acc[size_t(y) * cam_w + x]
+                                           : (1 - u) * (1 - v) * at(x0, y0) + u * (1 - v) * at(x0 + 1, y0) +
+                                                 (1 - u) * v * at(x0, y0 + 1) + u * v * at(x0 + 1, y0 + 1),
                                  0.0f, 1.0f);
       for (int c = 0; c < 3; ++c) {
         float& p = rgb[(size_t(y) * cam_w + x) * 3 + c];

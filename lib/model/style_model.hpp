@@ -36,8 +36,9 @@ constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render
 //  - VggAdainRelu4 ("vgg-adain-relu4"): VggAdain with the tail's relu4_1 output re-normalised to the style
 //    image's own relu4_1 channel statistics (AdaIN at relu4_1, over each decoded map) before AdaIN's
 //    decoder, which was trained on exactly such inputs. DST only sets relu3_1's statistics, from which the
-//    tail's relu4_1 ones do not follow. The statistics are the decoded map's own, so a frame's are its
-//    own, not the scene's (README: what that costs in consistency).
+//    tail's relu4_1 ones do not follow. In training the statistics re-normalised from are each patch's
+//    own; at inference, a code with scene statistics (model::SceneStyleStats) is re-normalised from
+//    those, the same for every frame, and one without from each frame's own (which flickers).
 enum class StyleDecoderKind { Stage2, VggAdain, VggAdainRelu4 };
 StyleDecoderKind parse_style_decoder(const std::string& s);  // an Error names the accepted values
 const char* style_decoder_name(StyleDecoderKind k);
@@ -117,6 +118,9 @@ class StyleModel : public nn::Module {
                          Context* ctx) const;
   // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
   Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
+  // VGG's relu4_1 of the styled map, what the vgg-adain decoders' tail gives before any re-normalisation
+  // [1, 512, h', w'] (inference; VggAdain kinds only): what SceneStyleStats pools.
+  Tensor relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const;
   // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
   Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
@@ -139,6 +143,10 @@ class StyleModel : public nn::Module {
     // With a region: per ray the fraction of its kept weight inside the region (the region's indicator
     // composited with the scene's weights, divided by the kept opacity; 0 where nothing was kept).
     std::vector<float> region_mask;
+    // Scenes with a background, when the map is coarser than the image (stride > 1): the opacity of one
+    // ray per image pixel [cam H * cam W] (the geometry alone, with early termination: cheap), so that
+    // over_background cuts silhouettes at the image's resolution rather than the map's blocks.
+    std::vector<float> pixel_acc;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
   // supersample n > 1: n x n rays per block, spread evenly over it, and their content averaged (c, w_r,
@@ -161,7 +169,8 @@ class StyleModel : public nn::Module {
                                             const style::StyleCode& outside, int cam_w, int cam_h) const;
 
   // Scenes with a background colour: rgb (interleaved, cam_w x cam_h) composited over it by the rendered
-  // opacity (bilinear from the block centres), a = acc: rgb a + bg (1 - a). The decoder draws empty space
+  // opacity a (cc.pixel_acc, one ray per pixel, when it was rendered; else bilinear from the block
+  // centres): rgb a + bg (1 - a). The decoder draws empty space
   // from stage 2's background feature, but stage 3's masked losses never look there, so its colour drifts
   // while the style is trained; this puts the scene's own background back. No-op without a background.
   void over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const;

@@ -207,6 +207,18 @@ Tensor adain_to_stats_forward(const Tensor& content, const ChannelStats& target,
   return y;
 }
 
+Tensor adain_between_stats_forward(const Tensor& content, const ChannelStats& source, const ChannelStats& target) {
+  const char* op = "adain_between_stats_forward";
+  const ChannelDims dc = expect_nchw(content, op, "content");
+  expect_stats(source, dc, op);
+  expect_stats(target, dc, op);
+  const Tensor no_lo = Tensor::zeros({dc.n, dc.c}, "adain_between_stats_forward mean_lo");
+  Tensor y(content.shape(), "adain_between_stats_forward y");
+  launch("norm", "adain_forward", chunks(dc), content, source.mean, source.std, no_lo, target.mean, target.std, y,
+         dc.hw);
+  return y;
+}
+
 Tensor adain_to_stats_backward(const Tensor& content, const ChannelStats& target, const Tensor& dy, float eps) {
   const char* op = "adain_to_stats_backward";
   const ChannelDims dc = expect_nchw(content, op, "content");

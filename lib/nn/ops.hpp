@@ -89,6 +89,11 @@ AdainGrads adain_backward(const Tensor& content, const Tensor& style, const Tens
 Tensor adain_to_stats_forward(const Tensor& content, const ChannelStats& target, float eps = kStatsEps);
 Tensor adain_to_stats_backward(const Tensor& content, const ChannelStats& target, const Tensor& dy,
                                float eps = kStatsEps);  // d content
+// Between given statistics: y = (c - source.mean) / source.std * target.std + target.mean per (n, c), both
+// [N, C] constants: a fixed per-channel affine map. The vgg-adain-relu4 decoder at inference, with the
+// source statistics measured once over the scene's views (a frame's own would make frames flicker as a
+// whole). Inference only: its gradient is the affine's slope, which no training step asks for.
+Tensor adain_between_stats_forward(const Tensor& content, const ChannelStats& source, const ChannelStats& target);
 
 // ---- losses (return a [1] tensor; backward takes the upstream scalar gradient) ---------------
 Tensor mse_forward(const Tensor& a, const Tensor& b);             // mean((a-b)^2)

@@ -31,6 +31,11 @@ struct StyleCode {
   // nn::channel_stats_forward): the vgg-adain-relu4 style decoder re-normalises its relu4_1 input to them
   // (lib/model/style_model.hpp). DST reads relu3_1's only. Undefined where not computed.
   Tensor deep_mean, deep_std;
+  // The relu4_1 channel statistics of one scene's maps under this style, [1, 512] each (pooled over a few
+  // training views: model::StyleModel::attach_scene_stats). Where defined, the vgg-adain-relu4 decoder
+  // re-normalises a frame from these rather than from the frame's own statistics, so every frame of the
+  // scene gets the same per-channel map. Undefined for a code not yet tied to a scene.
+  Tensor scene_mean, scene_std;
 };
 
 class Dst : public nn::Module {

@@ -7,6 +7,7 @@
 
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/train/style_trainer.hpp"
 
 namespace stylerf::train {
@@ -42,10 +43,12 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
   std::vector<nn::VggFeatures> style_taps;
   std::vector<style::StyleCode> codes;
   std::vector<Tensor> style_imgs;
+  const model::SceneStyleStats scene_stats(m, scene);
   for (const auto& s : styles) {
     style_imgs.push_back(load_style_image(s, 256, 256, nullptr));
     style_taps.push_back(vgg.forward(style_imgs.back(), 4, false));
     codes.push_back(m.style_code(style_taps.back(), nullptr));
+    scene_stats.attach(codes.back());
   }
   for (int vi = 0; vi < count; ++vi) {
     const scene::View& v = scene.test[size_t(int64_t(vi) * n / count)];
