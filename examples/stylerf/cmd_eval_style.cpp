@@ -10,6 +10,7 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
+#include "host/files.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/style_eval.hpp"
 #include "lib/train/style_trainer.hpp"
@@ -22,13 +23,14 @@ using stylerf::host::Error;
 
 int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
-  std::string ckpt, styles_dir, images, device;
+  std::string ckpt, styles_dir, images, json_path, device;
   int views = 5, supersample = 1;
   po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
       "views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
       "images", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
+      "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
       "supersample", po::value(&supersample)->default_value(1),
       "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
       "device", po::value(&device), "OpenCL device");
@@ -76,6 +78,22 @@ int run_eval_style(int argc, char** argv) {
             << "; AdaIN content " << ac / k << " style " << as / k << "\n"
             << "style loss ours / AdaIN = " << (os / k) / (as / k) << "  (content ours / AdaIN = " << (oc / k) / (ac / k)
             << ")" << std::endl;
+  if (!json_path.empty()) {
+    nlohmann::json per = nlohmann::json::array();
+    for (const auto& r : rows)
+      per.push_back({{"style", r.style},
+                     {"ours_content", r.ours_content},
+                     {"ours_style", r.ours_style},
+                     {"adain_content", r.adain_content},
+                     {"adain_style", r.adain_style},
+                     {"style_ratio", r.ours_style / r.adain_style}});
+    const nlohmann::json doc = {{"checkpoint", ckpt},
+                                {"views", views},
+                                {"styles", per},
+                                {"style_loss_ratio", (os / k) / (as / k)},
+                                {"content_loss_ratio", (oc / k) / (ac / k)}};
+    stylerf::host::write_file_atomic(json_path, doc.dump(2) + "\n");
+  }
   // Where the style gap lies: relu1_1 / relu2_1 measure colour and fine texture, relu3_1 / relu4_1 larger
   // patterns. A blurred stylisation loses most at the low taps.
   const char* taps[] = {"relu1_1", "relu2_1", "relu3_1", "relu4_1"};

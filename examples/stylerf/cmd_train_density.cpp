@@ -14,6 +14,7 @@
 #include "host/runtime.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/density_trainer.hpp"
+#include "lib/train/recipes.hpp"
 
 namespace po = boost::program_options;
 
@@ -55,7 +56,7 @@ std::array<int, 3> parse_rank(const std::string& s, const std::string& flag) {
 int run_train_density(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
-                        app_rank, shading;
+                        app_rank, shading, recipe;
   int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1, ert = 1e-4f;
@@ -79,6 +80,9 @@ int run_train_density(int argc, char** argv) {
       "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
       "shading", po::value(&shading), "deferred (default: one MLP per ray on its mean feature) | per-sample "
                                       "(TensoRF: one MLP per kept sample)")(
+      "recipe", po::value(&recipe)->default_value("fast"),
+      "fast: deferred shading (measured better at equal time) | paper: per-sample shading, TensoRF's (stage 1 "
+      "of the paper); --shading overrides")(
       "ert", po::value(&ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
       "for NDC scenes, whose rays rarely turn opaque)")(
@@ -115,6 +119,7 @@ int run_train_density(int argc, char** argv) {
   cli::check_int_range("--eval-views", eval_views, 0, 100000);
   if (vm.count("lr-grid")) cli::check_range("--lr-grid", lr_grid, 1e-8, 10);
   if (vm.count("ert")) cli::check_range("--ert", ert, 0.0, 0.5);
+  if (shading.empty() && train::parse_recipe(recipe) == train::Recipe::Paper) shading = "per-sample";
   if (!shading.empty() && shading != "per-sample" && shading != "deferred")
     throw Error("--shading: unknown '" + shading + "' (per-sample, deferred)");
   if (vm.count("lr-net")) cli::check_range("--lr-net", lr_net, 1e-8, 10);

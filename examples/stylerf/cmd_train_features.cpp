@@ -17,6 +17,7 @@
 #include "lib/scene/scene.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/feature_trainer.hpp"
+#include "lib/train/recipes.hpp"
 
 namespace po = boost::program_options;
 namespace fs = std::filesystem;
@@ -28,7 +29,7 @@ using stylerf::host::Error;
 int run_train_features(int argc, char** argv) {
   namespace train = stylerf::train;
   namespace model = stylerf::model;
-  std::string density_path, dir, out, profile_name = "fast", device;
+  std::string density_path, dir, out, profile_name, recipe, device;
   int downsample = 0, iters = 0, log_every = 50, ckpt_every = 500, eval_views = 5, batch = 4096, patch = 256;
   double minutes = 0;
   float tv = -1, lr_grid = -1, lr_basis = -1, lr_decoder = -1;
@@ -39,9 +40,11 @@ int run_train_features(int argc, char** argv) {
       "scene", po::value(&dir), "scene directory (default: the density checkpoint's)")(
       "downsample", po::value(&downsample), "image downsample factor (default: the density checkpoint's)")(
       "output,o", po::value(&out), "feature checkpoint to write")(
-      "profile", po::value(&profile_name)->default_value("fast"),
+      "recipe", po::value(&recipe)->default_value("fast"),
+      "fast: the fast profile | paper: the paper profile (the paper's stage 2); --profile overrides")(
+      "profile", po::value(&profile_name),
       "fast (features at 1/4 resolution, AdaIN-initialised upsampling decoder) | paper (full resolution, "
-      "PlainDecoder)")(
+      "PlainDecoder); default: the recipe's")(
       "iters", po::value(&iters), "iterations (ray and patch steps alternate; default 10000)")(
       "minutes", po::value(&minutes), "train for this much time; the lr decay is fitted to it (replaces --iters)")(
       "batch", po::value(&batch)->default_value(4096), "rays per ray step")(
@@ -72,6 +75,7 @@ int run_train_features(int argc, char** argv) {
   if (batch < 1 || log_every < 0 || ckpt_every < 0 || eval_views < 0)
     throw Error("--batch must be >= 1; --log-every, --ckpt-every and --eval-views >= 0");
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
+  if (profile_name.empty()) profile_name = train::recipe_name(train::parse_recipe(recipe));  // a recipe's profile bears its name
   const auto profile = model::parse_decoder_profile(profile_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
@@ -82,7 +86,7 @@ int run_train_features(int argc, char** argv) {
   if (resume) {
     resumed = std::make_unique<stylerf::io::Checkpoint>(stylerf::io::load_checkpoint(out, "features"));
     const auto& tm = resumed->meta.at("trainer").at("config");
-    if (tm.value("profile", "") != profile_name && vm.count("profile") && !vm["profile"].defaulted())
+    if (tm.value("profile", "") != profile_name && vm.count("profile"))
       throw Error("--resume: checkpoint " + out + " was trained with --profile " + tm.value("profile", "") +
                   ", not " + profile_name);
     dmeta_scene = resumed->meta.value("scene", nlohmann::json::object());

@@ -1,0 +1,130 @@
+#include "examples/stylerf/pipeline_steps.hpp"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "host/error.hpp"
+#include "host/files.hpp"
+#include "lib/io/sha256.hpp"
+
+namespace fs = std::filesystem;
+
+namespace stylerf::cli {
+
+using host::Error;
+
+std::string folder_fingerprint(const std::string& dir) {
+  std::vector<std::string> rows;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    if (!it->is_regular_file()) continue;
+    const auto mtime = it->last_write_time().time_since_epoch().count();
+    rows.push_back(fs::relative(it->path(), dir).string() + " " + std::to_string(it->file_size()) + " " +
+                   std::to_string(mtime));
+  }
+  if (ec) throw Error("cannot list " + dir + ": " + ec.message());
+  std::sort(rows.begin(), rows.end());
+  std::string all;
+  for (const auto& r : rows) all += r + "\n";
+  return io::sha256_hex(all);
+}
+
+namespace {
+
+const char* kRecord = "steps.json";
+
+// Runs self with args, its stdout and stderr copied line by line to ours and to `log_path`. Returns the
+// child's exit status (128 + signal when killed).
+int run_child(const std::string& self, const std::vector<std::string>& args, const std::string& log_path) {
+  int fds[2];
+  if (pipe(fds) != 0) throw Error("pipe() failed: " + std::string(std::strerror(errno)));
+  std::cout.flush();
+  const pid_t pid = fork();
+  if (pid < 0) throw Error("fork() failed: " + std::string(std::strerror(errno)));
+  if (pid == 0) {
+    dup2(fds[1], 1);
+    dup2(fds[1], 2);
+    close(fds[0]);
+    close(fds[1]);
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(self.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(self.c_str(), argv.data());
+    std::fprintf(stderr, "cannot run %s: %s\n", self.c_str(), std::strerror(errno));
+    _exit(127);
+  }
+  close(fds[1]);
+  std::ofstream log(log_path);
+  char buf[4096];
+  ssize_t n;
+  while ((n = read(fds[0], buf, sizeof buf)) > 0 || (n < 0 && errno == EINTR)) {
+    if (n <= 0) continue;
+    std::cout.write(buf, n);
+    std::cout.flush();
+    log.write(buf, n);
+  }
+  close(fds[0]);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+}
+
+}  // namespace
+
+PipelineSteps::PipelineSteps(std::string out, std::string self) : out_(std::move(out)), self_(std::move(self)) {
+  fs::create_directories(fs::path(out_) / "logs");
+  const fs::path rec = fs::path(out_) / kRecord;
+  record_ = nlohmann::json::object();
+  if (fs::exists(rec)) {
+    try {
+      std::ifstream f(rec);
+      record_ = nlohmann::json::parse(f);
+    } catch (const std::exception& e) {
+      std::cout << "note: " << rec.string() << " is unreadable (" << e.what() << "); every step runs again\n";
+      record_ = nlohmann::json::object();
+    }
+  }
+}
+
+PipelineSteps::Result PipelineSteps::run(const std::string& name, const std::vector<std::string>& args,
+                                         const std::string& output, const std::string& extra_key) {
+  std::string joined;
+  for (const auto& a : args) joined += a + '\x1f';
+  Result r;
+  r.key = io::sha256_hex(joined + '\x1e' + extra_key);
+  const auto& prev = record_.value(name, nlohmann::json::object());
+  if (prev.value("key", "") == r.key && fs::exists(output)) {
+    r.skipped = true;
+    r.seconds = prev.value("seconds", 0.0);
+    std::cout << "== " << name << ": done in an earlier run (" << std::fixed << std::setprecision(0) << r.seconds
+              << " s), kept: " << output << std::endl;
+    return r;
+  }
+  std::string shown;
+  for (const auto& a : args) shown += " " + a;
+  std::cout << "== " << name << ": stylerf" << shown << std::endl;
+  const std::string log = (fs::path(out_) / "logs" / (name + ".log")).string();
+  const auto t0 = std::chrono::steady_clock::now();
+  const int rc = run_child(self_, args, log);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (rc != 0)
+    throw Error("step '" + name + "' failed (exit status " + std::to_string(rc) + "); its output is in " + log);
+  record_[name] = {{"key", r.key}, {"seconds", r.seconds}};
+  host::write_file_atomic((fs::path(out_) / kRecord).string(), record_.dump(2) + "\n");
+  return r;
+}
+
+}  // namespace stylerf::cli
