@@ -12,7 +12,6 @@
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
 //  - the AdaIN teacher: its target is relu3_1 of 2D AdaIN's output, its loss agrees with a double reference
 //    and central differences, and in training it changes the stylizer's update, not the step's losses;
-//  - style augmentation in training, and its config;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -857,52 +856,6 @@ TEST_CASE("the AdaIN teacher: relu3_1 of 2D AdaIN as a target; its loss and grad
     testing::expect_error(
         [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, paper, nullptr); },
         "--adain-teacher needs the fast profile");
-  }
-}
-
-TEST_CASE("style_augment: the steps train on augmented styles; the config keeps it; old configs read it off") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(2);
-  cfg.style_size = cfg.style_crop;  // the whole image: no random crop, so only the augmentation differs
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  cfg.style_augment = true;
-  train::StyleTrainer augmented(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto a1 = plain.step(), b1 = augmented.step();
-  CHECK(a1.style_name == b1.style_name);  // the same style drawn, then augmented
-  CHECK(b1.style != a1.style);            // a flipped / reordered style has other statistics to match
-  CHECK(std::isfinite(b1.style + b1.content + augmented.step().style));
-  CHECK(augmented.model().first_nonfinite().empty());
-  check_option_kept(cfg, "style_augment", &train::StyleTrainConfig::style_augment, false);
-}
-
-TEST_CASE("style_crop_min: steps train on crops of other sides; the config keeps it; bad values are refused") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(6);
-  cfg.style_size = cfg.style_crop;  // the whole image without the option: only the crop side differs
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  cfg.style_crop_min = 16;
-  train::StyleTrainer parts(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  // Each crop's side is one of 16, 24, 32 (seeded draws: over six steps some are parts of the image), whose
-  // statistics the style loss then asks for instead of the whole's.
-  std::set<int> sides;
-  for (int i = 0; i < 6; ++i) {
-    const auto a = plain.step(), b = parts.step();
-    CHECK(a.style_side == 32);
-    CHECK(std::isfinite(b.style + b.content));
-    sides.insert(b.style_side);
-  }
-  CHECK(sides.size() >= 2);
-  CHECK(*sides.begin() >= 16);
-  CHECK(*sides.rbegin() <= 32);
-  CHECK(*sides.begin() < 32);
-  CHECK(parts.model().first_nonfinite().empty());
-  check_option_kept(cfg, "style_crop_min", &train::StyleTrainConfig::style_crop_min, 0);
-  for (int bad : {8, 20, 40}) {
-    CAPTURE(bad);
-    cfg.style_crop_min = bad;
-    testing::expect_error(
-        [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr); },
-        "--style-crop-min");
   }
 }
 

@@ -32,12 +32,12 @@ int run_train_style(int argc, char** argv) {
               warm_maps_name = "vgg", style_decoder_name = "stage2";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0, snapshot_every = 0;
-  int patch = 256, style_size = 512, style_crop_min = 0;
+  int patch = 256, style_size = 512;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f,
         adain_teacher = 0.0f;
   uint64_t seed = 0;
-  bool resume = false, force = false, timing = false, style_augment = false;
+  bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("features", po::value(&features_path), "feature-stage checkpoint")(
       "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
@@ -50,10 +50,6 @@ int run_train_style(int argc, char** argv) {
       "style-size", po::value(&style_size)->default_value(512),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
-      "style-crop-min", po::value(&style_crop_min)->default_value(0),
-      "N > 0: each step's crop side is drawn from [N, 256] (multiples of 8) and cut without rescaling: with "
-      "--style-size 256, parts of each painting at the scale inference reads it, so ~100 training styles give "
-      "the stylizer many inputs rather than the same ~100 (not the paper's); 0: every crop 256")(
       "sict", po::value(&sict_name)->default_value("volume-adaptive"),
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
@@ -70,9 +66,6 @@ int run_train_style(int argc, char** argv) {
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
       "not the paper's; README)")(
-      "style-augment", po::bool_switch(&style_augment),
-      "each step's style image is one of its 48 flips, 90-degree turns and colour-channel orders, drawn at random, "
-      "so that a few hundred training styles teach reading any style rather than those styles (not the paper's)")(
       "adain-teacher", po::value(&adain_teacher)->default_value(0.0f),
       "W > 0: the loss adds W x the MSE between DST's output map and relu3_1 of 2D AdaIN of the true patch with "
       "the step's style, a target for every map pixel (not the paper's loss; 2D and rendered steps); 0: off, the "
@@ -183,8 +176,6 @@ int run_train_style(int argc, char** argv) {
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
     cfg.adain_teacher = adain_teacher;
-    cfg.style_augment = style_augment;
-    cfg.style_crop_min = style_crop_min;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.decoder_warm_style = decoder_warm_style;
@@ -210,9 +201,7 @@ int run_train_style(int argc, char** argv) {
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << "\n"
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
-            << " held out; style images resized to " << cfg.style_size << " then cropped to "
-            << (cfg.style_crop_min > 0 ? std::to_string(cfg.style_crop_min) + ".." : std::string()) << cfg.style_crop
-            << (cfg.style_augment ? ", each step's flipped / turned / channel-reordered at random" : "") << "\n"
+            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style
             << (cfg.adain_teacher > 0 ? " + AdaIN teacher (DST output vs relu3_1 of 2D AdaIN, MSE) x" +

@@ -48,8 +48,6 @@ json StyleTrainConfig::to_json() const {
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
           {"adain_teacher", adain_teacher},
-          {"style_augment", style_augment},
-          {"style_crop_min", style_crop_min},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -77,8 +75,6 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.adain_teacher = j.value("adain_teacher", 0.0f);  // absent before the option existed
-  c.style_augment = j.value("style_augment", false);  // absent before the option existed
-  c.style_crop_min = j.value("style_crop_min", 0);  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -137,10 +133,6 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
-  if (cfg_.style_crop_min != 0 && (cfg_.style_crop_min < 16 || cfg_.style_crop_min % 8 || cfg_.style_crop_min > cfg_.style_crop))
-    throw Error("train-style: --style-crop-min " + std::to_string(cfg_.style_crop_min) +
-                " must be a multiple of 8 from 16 (relu4_1 then has 2 x 2 positions for its statistics) to the crop, " +
-                std::to_string(cfg_.style_crop) + " (0: every crop at that side)");
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   init(log);
   init_running_stats(log);
@@ -381,13 +373,7 @@ StyleStepStats StyleTrainer::step() {
   const std::string& path = styles_.train[pick(rng_)];
   auto source = style_sources_.find(path);
   if (source == style_sources_.end()) source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
-  io::Image augmented;
-  if (cfg_.style_augment) {
-    augmented = source->second;
-    style::augment_style_image(augmented, rng_);
-  }
-  const int side = cfg_.style_crop_min > 0 ? style::draw_crop_side(cfg_.style_crop_min, cfg_.style_crop, rng_) : cfg_.style_crop;
-  const Tensor simg = style::crop_style_image(cfg_.style_augment ? augmented : source->second, side, &rng_, path);
+  const Tensor simg = style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
   const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
   model_.zero_grad();
   StyleStepStats st;
@@ -399,7 +385,6 @@ StyleStepStats StyleTrainer::step() {
     st = k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
   }
   st.style_name = stem(path);
-  st.style_side = side;
   if (!st.skipped) {
     if (!std::isfinite(st.content + st.style + st.teacher))
       throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +

@@ -32,14 +32,6 @@
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
 //    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics;
-//  - style_augment (off by default): each step's style image is one of 48 flips, turns and channel orders
-//    of it (style::augment_style_image): with ~100 styles met tens of times each, the stylizer otherwise
-//    learns the training styles rather than how to read a new one;
-//  - style_crop_min > 0 (off by default): each step's style crop has a side drawn from [style_crop_min,
-//    style_crop], cut from the resized image without rescaling: with style_size == style_crop, parts of a
-//    painting at the scale inference reads it, each with statistics of its own, where the whole image
-//    would be the same ~100 inputs met tens of times each (the paper's 512 -> 256 crop does this at twice
-//    inference's scale);
 //  - adain_teacher > 0 (off by default): the 2D and rendered steps add a dense target for DST's output,
 //    relu3_1 of 2D AdaIN of the true patch with the step's style (lib/train/adain_teacher.hpp).
 #pragma once
@@ -82,8 +74,6 @@ struct StyleTrainConfig {
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
-  bool style_augment = false;   // each step's style image flipped / turned / channel-reordered at random (style_image.hpp)
-  int style_crop_min = 0;       // > 0: each step's crop side is drawn from [style_crop_min, style_crop] (multiples of 8)
   float adain_teacher = 0.0f;   // > 0: adds this x the MSE of DST's output to relu3_1 of 2D AdaIN (adain_teacher.hpp)
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
@@ -113,7 +103,6 @@ struct StyleStepStats {
   double teacher = 0;     // the AdaIN teacher's term (weighted; 0 without adain_teacher)
   int64_t rays = 0, kept = 0;
   std::string style_name;
-  int style_side = 0;     // the side of the step's style crop
 };
 
 struct HoldoutLoss {
