@@ -10,8 +10,6 @@
 //    changed, everything else bit-identical, trainer state dropped; other runs and fields refused;
 //  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
-//  - the AdaIN teacher: its target is relu3_1 of 2D AdaIN's output, its loss agrees with a double reference
-//    and central differences, and in training it changes the stylizer's update, not the step's losses;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -29,7 +27,6 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
-#include "lib/train/adain_teacher.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/train/style_average.hpp"
 #include "lib/train/style_losses.hpp"
@@ -772,91 +769,6 @@ TEST_CASE("snapshots of a run and their average: the mean of what training chang
   io::save_checkpoint(moved_path, moved);
   testing::expect_error([&] { train::average_style_checkpoints({moved_path, in[1]}); },
                         "moved_field.ckpt: frozen tensor '" + field_tensor + "' differs");
-}
-
-TEST_CASE("the AdaIN teacher: relu3_1 of 2D AdaIN as a target; its loss and gradient; it steers the stylizer") {
-  SUBCASE("the target is relu3_1 of adain_stylize's output, as rows") {
-    auto adain = style::AdainModel::load_default();
-    nn::VggEncoder vgg = nn::VggEncoder::load_default();
-    const Tensor content = train::load_style_image(testing::image_file_or_procedural("scenes/llff/fern/images_8/image000.png", "content"), 32, 32, nullptr);
-    const Tensor simg = train::load_style_image(style_dir() + "/style_1.png", 32, 32, nullptr);
-    const auto teacher = train::AdainTeacher::load_default();
-    const Tensor t = teacher.target_rows(vgg, vgg.forward(content, 4, false)[3], vgg.forward(simg, 4, false)[3]);
-    const Tensor ref = nn::image_to_rows(vgg.forward(style::adain_stylize(adain, content, simg, 1.0f), 3, false)[2]);
-    REQUIRE(t.shape() == host::Shape{64, 256});
-    REQUIRE(ref.shape() == t.shape());
-    const auto a = t.to_host(), b = ref.to_host();
-    CHECK(max_abs(b) > 0.1);
-    double worst = 0;
-    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, double(std::abs(a[i] - b[i])));
-    CHECK(worst <= 1e-5 * max_abs(b));
-    testing::expect_error([&] { (void)teacher.target_rows(vgg, vgg.forward(content, 3, false)[2], vgg.forward(simg, 4, false)[3]); },
-                          "relu4_1 maps");
-  }
-  SUBCASE("the loss: a double reference, central differences, zero weights, bad shapes") {
-    const int R = 5, C = 3;
-    const auto y = testing::random_normal(R * C, 11), t = testing::random_normal(R * C, 12);
-    const std::vector<float> a = {0.0f, 0.5f, 1.0f, 0.25f, 1.0f};
-    auto reference = [&](const std::vector<float>& yv, const std::vector<float>* w) {
-      double num = 0, den = 0;
-      for (int r = 0; r < R; ++r) {
-        const double wr = w ? double((*w)[size_t(r)]) : 1.0;
-        den += wr * C;
-        for (int c = 0; c < C; ++c) num += wr * std::pow(double(yv[size_t(r * C + c)]) - double(t[size_t(r * C + c)]), 2);
-      }
-      return 3.0 * num / den;
-    };
-    const Tensor tt = Tensor::from_host(t, {R, C});
-    for (const std::vector<float>* w : {static_cast<const std::vector<float>*>(nullptr), &a}) {
-      const auto l = train::teacher_loss(Tensor::from_host(y, {R, C}), tt, w, 3.0f);
-      CHECK(l.value == doctest::Approx(reference(y, w)).epsilon(1e-6));
-      const auto g = l.dy.to_host();
-      for (size_t i = 0; i < y.size(); ++i) {
-        const double h = 1e-3;
-        auto yp = y, ym = y;
-        yp[i] += float(h);
-        ym[i] -= float(h);
-        const double fd = (reference(yp, w) - reference(ym, w)) / (double(yp[i]) - double(ym[i]));
-        CHECK(double(g[i]) == doctest::Approx(fd).epsilon(1e-3).scale(1e-6));
-      }
-      if (w) CHECK(g[0] == 0.0f);  // a transparent ray is taught nothing
-    }
-    const std::vector<float> none(R, 0.0f);
-    const auto z = train::teacher_loss(Tensor::from_host(y, {R, C}), tt, &none, 3.0f);
-    CHECK(z.value == 0.0);
-    CHECK(max_abs(z.dy.to_host()) == 0.0);
-    testing::expect_error([&] { (void)train::teacher_loss(Tensor::from_host(y, {C, R}), tt, nullptr, 1.0f); }, "same [rays, channels]");
-    const std::vector<float> short_w(R - 1, 1.0f);
-    testing::expect_error([&] { (void)train::teacher_loss(Tensor::from_host(y, {R, C}), tt, &short_w, 1.0f); }, "row weights");
-  }
-  SUBCASE("in training: the same losses, another stylizer update, in 2D and rendered steps; the config keeps it") {
-    const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-    auto cfg = small_config(2);
-    cfg.warm_start = 1;
-    cfg.warm_maps = train::WarmMaps::Rendered;
-    train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    cfg.adain_teacher = 2.0f;
-    train::StyleTrainer taught(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    const auto p1 = plain.step(), t1 = taught.step();
-    CHECK(t1.warm);
-    CHECK(p1.teacher == 0.0);
-    CHECK(t1.teacher > 0.0);
-    CHECK(std::isfinite(t1.teacher));
-    CHECK(t1.style == doctest::Approx(p1.style).epsilon(1e-5));  // the same forward: the teacher only adds a term
-    CHECK(t1.content == doctest::Approx(p1.content).epsilon(1e-5));
-    CHECK(taught.model().dst.fc_w.value.to_host() != plain.model().dst.fc_w.value.to_host());
-    const auto t2 = taught.step();
-    CHECK_FALSE(t2.warm);
-    CHECK(t2.teacher > 0.0);
-    CHECK(std::isfinite(t2.teacher + t2.style + t2.content));
-    CHECK(taught.model().first_nonfinite().empty());
-    check_option_kept(cfg, "adain_teacher", &train::StyleTrainConfig::adain_teacher, 0.0f);
-    auto paper = cfg;
-    paper.warm_start = 0;  // refused for the paper profile on its own account
-    testing::expect_error(
-        [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, paper, nullptr); },
-        "--adain-teacher needs the fast profile");
-  }
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

@@ -166,7 +166,5 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--decoder-warm 5 --decoder-warm-style -1", "--decoder-warm-style must be a positive number");
   expect(train + "--decoder-warm-style 1", "--decoder-warm-style needs --decoder-warm N > 0");
   expect(train + "--style-size 128", "--style-size must be in [256, 4096] (the crop is 256), got 128");
-  expect(train + "--adain-teacher -1", "--adain-teacher must be a number >= 0");
-  expect(train + "--adain-teacher nan", "--adain-teacher must be a number >= 0");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

@@ -34,8 +34,7 @@ int run_train_style(int argc, char** argv) {
       decoder_warm = 0, snapshot_every = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f,
-        adain_teacher = 0.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -66,10 +65,6 @@ int run_train_style(int argc, char** argv) {
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
       "not the paper's; README)")(
-      "adain-teacher", po::value(&adain_teacher)->default_value(0.0f),
-      "W > 0: the loss adds W x the MSE between DST's output map and relu3_1 of 2D AdaIN of the true patch with "
-      "the step's style, a target for every map pixel (not the paper's loss; 2D and rendered steps); 0: off, the "
-      "paper's")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f),
       "decoder fine-tuning learning rate; 0 freezes the decoder (after any --decoder-warm, which then needs "
@@ -129,8 +124,6 @@ int run_train_style(int argc, char** argv) {
     throw Error("--decoder-warm-style needs --decoder-warm N > 0");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
-  if (!(adain_teacher >= 0 && std::isfinite(adain_teacher)))
-    throw Error("--adain-teacher must be a number >= 0, got " + std::to_string(adain_teacher));
   if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
@@ -175,7 +168,6 @@ int run_train_style(int argc, char** argv) {
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
-    cfg.adain_teacher = adain_teacher;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.decoder_warm_style = decoder_warm_style;
@@ -203,11 +195,7 @@ int run_train_style(int argc, char** argv) {
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
-            << cfg.weights.style
-            << (cfg.adain_teacher > 0 ? " + AdaIN teacher (DST output vs relu3_1 of 2D AdaIN, MSE) x" +
-                                            std::to_string(cfg.adain_teacher)
-                                      : std::string())
-            << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
+            << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
             << rates.str()
             << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
             << "; grids frozen; "

@@ -172,15 +172,9 @@ std::vector<nn::Param*> StyleModel::stylizer_params() {
   return out;
 }
 
-style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra,
-                                            bool train_decoder) {
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, bool train_decoder) {
   const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true, train_decoder);
-  Tensor dy = nn::rows_to_image_backward(dmap);
-  if (dy_extra.defined()) {
-    host::expect_shape(dy_extra, dy.shape(), "style model backward", "extra gradient at DST's output");
-    nn::axpby(1.0f, dy_extra, 1.0f, dy);
-  }
-  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
+  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, nn::rows_to_image_backward(dmap), true);
   render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
   return g;
 }

@@ -120,11 +120,9 @@ class StyleModel : public nn::Module {
   // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
   Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
-  // dstd) for the style branch (Dst::style_code_backward). dy_extra (optional, [h w, 256]): a gradient of
-  // another loss at DST's output rows, added to the decoder's (train::AdainTeacher's). train_decoder false:
-  // the decoder's parameter gradients are not computed (decode_map_backward).
-  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra = Tensor(),
-                                  bool train_decoder = true);
+  // dstd) for the style branch (Dst::style_code_backward). train_decoder false: the decoder's parameter
+  // gradients are not computed (decode_map_backward).
+  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb, bool train_decoder = true);
 
   // The deferred-vs-per-point proof's other side: DST applied to every kept sample's SICT output (weight
   // 1 each: unzip(T c_i) * std + mean), then the 256 channels composited. Inference only; equals

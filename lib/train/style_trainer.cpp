@@ -47,7 +47,6 @@ json StyleTrainConfig::to_json() const {
           {"decoder_warm_style", decoder_warm_style},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
-          {"adain_teacher", adain_teacher},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -74,7 +73,6 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.decoder_warm_style = j.value("decoder_warm_style", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
-  c.adain_teacher = j.value("adain_teacher", 0.0f);  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -122,9 +120,6 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (cfg_.adain_teacher > 0 && features.profile != model::DecoderProfile::Fast)
-    throw Error("train-style: --adain-teacher needs the fast profile (its target, relu3_1 of 2D AdaIN, is at the fast "
-                "profile's map resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   if (!(cfg_.lr_decoder >= 0))
     throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), got " + std::to_string(cfg_.lr_decoder));
   if (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0))
@@ -157,7 +152,6 @@ void StyleTrainer::init(std::ostream* log) {
   adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
   ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
-  if (cfg_.adain_teacher > 0) teacher_ = std::make_unique<AdainTeacher>(AdainTeacher::load_default());
   if (cfg_.warm_start > 0 && cfg_.decoder_warm + cfg_.warm_start > iteration_) {
     if (cfg_.warm_maps == WarmMaps::Rendered) {
       rendered_maps_ = render_warm_maps(model_.features, *scene_, log);
@@ -231,23 +225,17 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
     return st;
   }
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
-  // decode_styled in two steps: the teacher reads DST's output before decode_rows adds the background.
-  Tensor y = model_.dst.apply(content.c, content.kept_acc, code, &ctx.dst);
-  std::vector<float> acc_rows;
-  if (teacher_ && masked) acc_rows = content.acc.to_host();
-  const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc_rows : nullptr);
-  const Tensor rgb = model_.decode_rows(std::move(y), content.acc, h, w, &code, &ctx);
+  const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, teach.dy, !decoder_frozen());
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, !decoder_frozen());
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
   st.content = lv.content;
   st.style = lv.style;
-  st.teacher = teach.value;
   return st;
 }
 
@@ -291,7 +279,6 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
     }
   }
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
-  const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc : nullptr);  // before the background
   model::StyleModel::Context mctx;  // only its decoder part is used
   const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
                               : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
@@ -300,15 +287,13 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true, !decoder_frozen()));
-  if (teach.dy.defined()) nn::axpby(1.0f, teach.dy, 1.0f, dy);
+  const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true, !decoder_frozen()));
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
   // The running statistics are left alone: they describe 3D samples, which these 2D maps only resemble.
   st.content = lv.content;
   st.style = lv.style;
-  st.teacher = teach.value;
   st.rays = R;
   return st;
 }
@@ -329,12 +314,6 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   st.style = loss.style;
   st.rays = rgb.numel() / 3;
   return st;
-}
-
-TeacherLoss StyleTrainer::teacher_term(const Tensor& y, const nn::VggFeatures& truth, const nn::VggFeatures& style_taps,
-                                       const std::vector<float>* row_weights) {
-  if (!teacher_) return {};
-  return teacher_loss(y, teacher_->target_rows(vgg_, truth[3], style_taps[3]), row_weights, cfg_.adain_teacher);
 }
 
 void StyleTrainer::set_group_lr(const std::string& group, float lr) {
@@ -386,7 +365,7 @@ StyleStepStats StyleTrainer::step() {
   }
   st.style_name = stem(path);
   if (!st.skipped) {
-    if (!std::isfinite(st.content + st.style + st.teacher))
+    if (!std::isfinite(st.content + st.style))
       throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
                   "); try lower learning rates or another --seed");
     set_step_lrs(k, st.decoder_warm);
@@ -466,7 +445,7 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
 // ---- run loop ----------------------------------------------------------------------------------------------
 StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
   StyleRunSummary sum;
-  double win_s = 0, win_c = 0, win_st = 0, win_t = 0;
+  double win_s = 0, win_c = 0, win_st = 0;
   int win_n = 0, win_l = 0, win_skip = 0;
   double next_refit_s = 0;
   auto save = [&] {
@@ -492,7 +471,7 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
     if (st.skipped) {
       ++win_skip;
     } else {
-      win_c += st.content, win_st += st.style, win_t += st.teacher, ++win_l;
+      win_c += st.content, win_st += st.style, ++win_l;
     }
     const int total = trainer.config().iters;
     if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
@@ -501,12 +480,11 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
       l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
         << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content', its style term in 'style')" : "");
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
-      if (win_l && trainer.config().adain_teacher > 0) l << "  teacher " << win_t / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
         << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
       *opt.log << l.str() << std::endl;
-      win_s = win_c = win_st = win_t = 0;
+      win_s = win_c = win_st = 0;
       win_n = win_l = win_skip = 0;
     }
     if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);

@@ -31,9 +31,7 @@
 //  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
-//    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics;
-//  - adain_teacher > 0 (off by default): the 2D and rendered steps add a dense target for DST's output,
-//    relu3_1 of 2D AdaIN of the true patch with the step's style (lib/train/adain_teacher.hpp).
+//    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics.
 #pragma once
 #include <iosfwd>
 #include <memory>
@@ -51,7 +49,6 @@
 #include "lib/nn/vgg.hpp"
 #include "lib/nn/weight_average.hpp"
 #include "lib/scene/scene.hpp"
-#include "lib/train/adain_teacher.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
 
@@ -74,7 +71,6 @@ struct StyleTrainConfig {
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
-  float adain_teacher = 0.0f;   // > 0: adds this x the MSE of DST's output to relu3_1 of 2D AdaIN (adain_teacher.hpp)
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
   int finite_check_every = 50;
@@ -100,7 +96,6 @@ struct StyleStepStats {
   bool decoder_warm = false;  // a decoder warm-up step (content = its inversion loss, style 0)
   bool skipped = false;   // the patch had no opaque position (nothing to learn from)
   double content = 0, style = 0, seconds = 0;
-  double teacher = 0;     // the AdaIN teacher's term (weighted; 0 without adain_teacher)
   int64_t rays = 0, kept = 0;
   std::string style_name;
 };
@@ -141,10 +136,6 @@ class StyleTrainer {
   StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
-  // The teacher's term for DST's output rows y of a patch (null without adain_teacher): call it before
-  // the forward whose backward follows (it runs VGG without keeping anything).
-  TeacherLoss teacher_term(const Tensor& y, const nn::VggFeatures& truth, const nn::VggFeatures& style_taps,
-                           const std::vector<float>* row_weights);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
   void set_step_lrs(int k, bool decoder_warm);            // both groups' rates for step k (lr decay, warm-up)
   // lr_decoder 0: after any warm-up the decoder is not trained, and no step computes its weight gradients.
@@ -159,7 +150,6 @@ class StyleTrainer {
   nn::VggEncoder vgg_;
   features::FeatureTargets targets_;  // warm start on VGG maps only
   RenderedWarmMaps rendered_maps_;    // warm start on rendered maps only
-  std::unique_ptr<AdainTeacher> teacher_;  // adain_teacher > 0 only
   double schedule_progress_ = -1;
   double stylizer_start_ = -1;  // the run's progress at the stylizer's first step (its lr decay starts there)
   std::unique_ptr<features::PatchSampler> patches_;
