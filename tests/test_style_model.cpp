@@ -4,8 +4,9 @@
 //  - style training: losses finite, the stylizer and the decoder move, the feature field does not, SICT's
 //    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start (on
 //    VGG maps or on rendered maps, whose mean features and opacities are checked against the field) and
-//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; with a weight
-//    average, the checkpoint holds the average (double reference) and resumes from the last iterate;
+//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; a checkpoint whose
+//    config holds retired options resumes without them, or is refused by name where it cannot (a weight
+//    average);
 //  - snapshots (--snapshot-every) and their uniform average (average-style): the mean of what training
 //    changed, everything else bit-identical, trainer state dropped; other runs and fields refused;
 //  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
@@ -659,38 +660,28 @@ TEST_CASE("decoder_warm_style: the warm-up reports its style term, and the confi
   check_option_kept(cfg, "decoder_warm_style", &train::StyleTrainConfig::decoder_warm_style, 0.0f);
 }
 
-TEST_CASE("the weight average: checkpoints hold the average as the model and resume from the last iterate") {
+TEST_CASE("a checkpoint naming retired options resumes without them, unless its state needs one (named)") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(3);
-  cfg.ema_decay = 0.5f;
-  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  std::vector<double> avg;  // DST's fc weights averaged in double, with the ramp min(0.5, (1 + t) / (10 + t))
-  int updates = 0;
-  while (!t.done()) {
-    if (t.step().skipped) continue;
-    const auto w = t.model().dst.fc_w.value.to_host();
-    const double d = std::min(0.5, double(1 + updates) / double(10 + updates));
-    if (updates == 0)
-      avg = testing::to_double(w);
-    else
-      for (size_t i = 0; i < w.size(); ++i) avg[i] = d * avg[i] + (1 - d) * w[i];
-    ++updates;
-  }
-  REQUIRE(updates >= 2);
-  const auto last = t.model().dst.fc_w.value.to_host();
-  const std::string path = (testing::small_work_dir() / "style_ema.ckpt").string();
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, small_config(1),
+                        nullptr);
+  t.step();
+  const std::string path = (testing::small_work_dir() / "style_retired.ckpt").string();
   t.save(path, {{"name", testing::small_scene().name}});
-  CHECK(t.model().dst.fc_w.value.to_host() == last);  // saving swapped the average back out
-  const auto ck = io::load_checkpoint(path, "style");
-  const auto loaded = model::StyleModel::load(ck);
-  const double scale = max_abs(last);
-  testing::check_close(loaded.dst.fc_w.value.to_host(), avg, 1e-5, 1e-6 * scale, "checkpoint model = average");
-  CHECK(loaded.dst.fc_w.value.to_host() != last);
-  train::StyleTrainer r(testing::small_scene(), ck, nullptr);
-  CHECK(r.config().ema_decay == 0.5f);
-  CHECK(r.model().dst.fc_w.value.to_host() == last);
-  r.set_total_iters(4);
-  CHECK(std::isfinite(r.step().style));
+  auto ck = io::load_checkpoint(path, "style");
+  nlohmann::json& config = ck.meta["trainer"]["config"];
+  REQUIRE_FALSE(config.contains("ema_decay"));
+  // Options that only steered training, as checkpoints of earlier runs hold them: ignored.
+  config["ema_decay"] = 0.0;
+  config["style_augment"] = true;
+  config["adain_teacher"] = 5.0;
+  train::StyleTrainer resumed(testing::small_scene(), ck, nullptr);
+  CHECK(resumed.iteration() == 1);
+  resumed.set_total_iters(2);
+  CHECK(std::isfinite(resumed.step().style));
+  // A weight average: the checkpoint's model is the average, and the last iterate to resume from is gone.
+  config["ema_decay"] = 0.995;
+  testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), ck, nullptr); },
+                        "style_retired.ckpt: its config has ema_decay 0.995");
 }
 
 TEST_CASE("snapshots of a run and their average: the mean of what training changed, all else kept; other runs refused") {

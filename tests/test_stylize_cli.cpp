@@ -153,8 +153,6 @@ TEST_CASE("stylize: bad input gets a clear error") {
                             out + "' ";
   expect(train + "--lr-decay 0", "--lr-decay must be in (0, 1]");
   expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
-  expect(train + "--ema 1", "--ema must be in [0, 1)");
-  expect(train + "--ema -0.1", "--ema must be in [0, 1)");
   expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
   expect(train + "--style-decoder adain", "--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got 'adain'");

@@ -34,7 +34,7 @@ int run_train_style(int argc, char** argv) {
       decoder_warm = 0, snapshot_every = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -77,9 +77,6 @@ int run_train_style(int argc, char** argv) {
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
-      "ema", po::value(&ema)->default_value(0.0f),
-      "D in (0, 1): held-out losses and the checkpoint use an exponential moving average of the weights over "
-      "~1/(1-D) steps (the last iterate is kept for --resume); 0: off, the paper's")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
@@ -124,7 +121,6 @@ int run_train_style(int argc, char** argv) {
     throw Error("--decoder-warm-style needs --decoder-warm N > 0");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
-  if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
   const auto warm_maps = train::parse_warm_maps(warm_maps_name);
@@ -164,7 +160,6 @@ int run_train_style(int argc, char** argv) {
     cfg.lr_stylizer = lr_stylizer;
     cfg.lr_decoder = lr_decoder;
     cfg.lr_decay_ratio = lr_decay;
-    cfg.ema_decay = ema;
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
@@ -196,9 +191,7 @@ int run_train_style(int argc, char** argv) {
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << rates.str()
-            << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
-            << "; grids frozen; "
+            << rates.str() << "; grids frozen; "
             << trained_params / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"

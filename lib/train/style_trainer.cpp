@@ -38,7 +38,6 @@ json StyleTrainConfig::to_json() const {
           {"beta1", beta1},
           {"beta2", beta2},
           {"lr_decay_ratio", lr_decay_ratio},
-          {"ema_decay", ema_decay},
           {"content_weight", weights.content},
           {"style_weight", weights.style},
           {"warm_start", warm_start},
@@ -64,7 +63,6 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.beta1 = j.at("beta1").get<float>();
   c.beta2 = j.at("beta2").get<float>();
   c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
-  c.ema_decay = j.value("ema_decay", 0.0f);  // absent from checkpoints written before the option existed
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
@@ -111,6 +109,16 @@ Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
     for (int64_t c = 0; c < C; ++c) v[size_t(r * C + c)] *= factor[size_t(r)];
   return Tensor::from_host(v, {R, C}, "scaled rows");
 }
+
+// Options retired as neutral or worse (docs/experiments.md) may still be in a checkpoint's config: those
+// that only steered training are ignored on resume (the rest of the run trains without them); one that
+// left state this trainer cannot continue is refused, naming the file and the field.
+void refuse_retired_state(const json& config, const std::string& path) {
+  if (config.value("ema_decay", 0.0f) > 0)
+    throw Error("checkpoint " + path + ": its config has ema_decay " + config.at("ema_decay").dump() +
+                ": its model is a weight average, which train-style no longer keeps (docs/experiments.md), so the "
+                "run cannot be resumed; the checkpoint still stylises and evaluates as it is");
+}
 }  // namespace
 
 // ---- trainer ----------------------------------------------------------------------------------------------
@@ -136,6 +144,7 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
 StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log) : scene_(&scene) {
   try {
     const json& t = ck.meta.at("trainer");
+    refuse_retired_state(t.at("config"), ck.path);
     cfg_ = StyleTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
     styles_ = StyleSet::from_json(ck.meta.at("styles"));
@@ -145,12 +154,10 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, 
   model_ = model::StyleModel::load(ck);
   init(log);
   adam_.load(ck, "", model_.params());
-  ema_.load(ck, "", model_.params());
 }
 
 void StyleTrainer::init(std::ostream* log) {
   adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
-  ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
   if (cfg_.warm_start > 0 && cfg_.decoder_warm + cfg_.warm_start > iteration_) {
     if (cfg_.warm_maps == WarmMaps::Rendered) {
@@ -374,7 +381,6 @@ StyleStepStats StyleTrainer::step() {
     // first ~100 updates up to ~3x their intended size).
     // A frozen decoder (lr_decoder 0) is left out: its moments from a warm-up would otherwise keep moving it.
     adam_.step(st.decoder_warm ? model_.decoder_params() : decoder_frozen() ? model_.stylizer_params() : model_.params());
-    ema_.update(model_.params());
   }
   iteration_ = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {
@@ -390,7 +396,6 @@ StyleStepStats StyleTrainer::step() {
 HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
   HoldoutLoss h;
   if (styles_.holdout.empty()) return h;
-  const nn::AveragedWeightsScope averaged(ema_, model_.params());
   const int s = model_.stride();
   const int W = scene_->width(), H = scene_->height();
   const features::Patch p = patches_->at(0, ((W - patches_->width()) / 2) / 4 * 4, ((H - patches_->height()) / 2) / 4 * 4, s);
@@ -430,11 +435,7 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
                 "; checkpoint " + path + " not written");
   io::Checkpoint ck;
   ck.kind = "style";
-  {
-    const nn::AveragedWeightsScope averaged(ema_, model_.params());  // the model users get: the average
-    model_.save(ck);
-  }
-  ema_.save(ck, "", model_.params());  // the last iterate, to resume training from
+  model_.save(ck);
   ck.meta["scene"] = scene_meta;
   ck.meta["styles"] = styles_.to_json();
   ck.meta["trainer"] = {{"config", cfg_.to_json()}, {"iteration", iteration_}};

@@ -13,9 +13,6 @@
 //  - SICT's running statistics start from the statistics of the kept samples of a few training patches
 //    (measured before the first step) instead of (0, 1): at momentum 1e-4 they would need ~10k steps to
 //    leave their initial values, and inference uses nothing else;
-//  - ema_decay > 0 (off by default, as in the paper): an exponential moving average of the trained weights
-//    is what the held-out evaluation measures and what checkpoints hold as the model (the last iterate is
-//    kept beside it for --resume); one style a step makes the last iterate noisy;
 //  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
@@ -47,7 +44,6 @@
 #include "lib/style/style_image.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
-#include "lib/nn/weight_average.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
@@ -63,7 +59,6 @@ struct StyleTrainConfig {
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;  // lr_decoder 0: the decoder is frozen (after any warm-up)
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
-  float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
   float lr_decoder_warm = 0.0f; // the decoder's lr during those steps (0: lr_decoder)
@@ -109,7 +104,8 @@ class StyleTrainer {
  public:
   StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles, const StyleTrainConfig& cfg,
                std::ostream* log);
-  // Resumes from a style checkpoint written by save().
+  // Resumes from a style checkpoint written by save(). One of a run that averaged its weights (the
+  // retired ema_decay, docs/experiments.md) holds the average as its model: it is refused, naming the file.
   StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log);
 
   StyleStepStats step();
@@ -124,7 +120,7 @@ class StyleTrainer {
   model::StyleModel& model() { return model_; }
   const nn::Adam& optimizer() const { return adam_; }
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
-  // max_styles of them), SICT in inference mode; with ema_decay > 0, of the averaged weights.
+  // max_styles of them), SICT in inference mode.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
   void save(const std::string& path, const nlohmann::json& scene_meta);
 
@@ -146,7 +142,6 @@ class StyleTrainer {
   StyleSet styles_;
   model::StyleModel model_;
   nn::Adam adam_;
-  nn::WeightAverage ema_;
   nn::VggEncoder vgg_;
   features::FeatureTargets targets_;  // warm start on VGG maps only
   RenderedWarmMaps rendered_maps_;    // warm start on rendered maps only
