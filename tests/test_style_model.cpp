@@ -7,8 +7,6 @@
 //    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; a checkpoint whose
 //    config holds retired options resumes without them, or is refused by name where it cannot (a weight
 //    average);
-//  - snapshots (--snapshot-every) and their uniform average (average-style): the mean of what training
-//    changed, everything else bit-identical, trainer state dropped; other runs and fields refused;
 //  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
@@ -18,7 +16,6 @@
 
 #include <cmath>
 #include <fstream>
-#include <set>
 #include <sstream>
 
 #include "host/error.hpp"
@@ -29,7 +26,6 @@
 #include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
 #include "lib/train/reconstruction_loss.hpp"
-#include "lib/train/style_average.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/style_trainer.hpp"
 #include "tests/small_scene.hpp"
@@ -682,84 +678,6 @@ TEST_CASE("a checkpoint naming retired options resumes without them, unless its 
   config["ema_decay"] = 0.995;
   testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), ck, nullptr); },
                         "style_retired.ckpt: its config has ema_decay 0.995");
-}
-
-TEST_CASE("snapshots of a run and their average: the mean of what training changed, all else kept; other runs refused") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  const fs::path dir = testing::small_work_dir() / "snapshots";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  auto run = [&](uint64_t seed, const std::string& path, int snapshot_every) {
-    auto cfg = small_config(4);
-    cfg.seed = seed;
-    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    train::StyleRunOptions ro;
-    ro.checkpoint = path;
-    ro.snapshot_every = snapshot_every;
-    ro.eval_every = 0;
-    ro.scene_meta = {{"name", testing::small_scene().name}};
-    train::run_style_training(t, ro);
-  };
-  const std::string out = (dir / "s.ckpt").string();
-  run(4, out, 2);
-  CHECK(train::snapshot_path(out, 2) == (dir / "s.it2.ckpt").string());
-  for (int k = 1; k <= 4; ++k) CHECK(fs::exists(train::snapshot_path(out, k)) == (k % 2 == 0));
-  const std::vector<std::string> in = {train::snapshot_path(out, 2), train::snapshot_path(out, 4)};
-  const io::Checkpoint a = io::load_checkpoint(in[0], "style"), b = io::load_checkpoint(in[1], "style");
-  const io::Checkpoint avg = train::average_style_checkpoints(in);
-
-  // Tensors the two snapshots share stay bit-identical; those training changed (the stylizer, the stage-2
-  // decoder, SICT's running statistics) are their mean; optimiser state and the trainer's are gone.
-  std::set<std::string> changed;
-  for (const auto& [name, t] : avg.tensors) {
-    CAPTURE(name);
-    REQUIRE(name.rfind("adam.", 0) != 0);
-    const auto& ta = a.get(name).data;
-    const auto& tb = b.get(name).data;
-    if (ta == tb) {
-      CHECK(t.data == tb);
-      continue;
-    }
-    changed.insert(name);
-    std::vector<double> mean(ta.size());
-    for (size_t k = 0; k < ta.size(); ++k) mean[k] = (double(ta[k]) + double(tb[k])) / 2;
-    testing::check_close(t.data, mean, 1e-6, 1e-12, "average of two snapshots");
-  }
-  model::StyleModel mb = model::StyleModel::load(b);
-  CHECK(changed.count(mb.dst.fc_w.name) == 1);
-  CHECK(changed.count("model." + mb.features.decoder.params().front()->name) == 1);
-  CHECK(changed.count(mb.sict.running_mean.name) == 1);
-  for (const auto& [name, t] : a.tensors)
-    if (name.rfind("adam.", 0) != 0) CHECK_MESSAGE(avg.tensors.count(name) == 1, name);
-  CHECK(!avg.meta.contains("trainer"));
-  CHECK(!avg.meta.contains("adam"));
-  CHECK(avg.meta.at("styles") == b.meta.at("styles"));
-  const auto& from = avg.meta.at("averaged").at("from");
-  REQUIRE(from.size() == 2);
-  CHECK(from[0].at("iteration") == 2);
-  CHECK(from[1].at("iteration") == 4);
-
-  // It is a model to stylise with: it round-trips and renders finitely; not a run to resume.
-  const std::string avg_path = (dir / "avg.ckpt").string();
-  io::save_checkpoint(avg_path, avg);
-  const io::Checkpoint avg_loaded = io::load_checkpoint(avg_path, "style");
-  check_same_stylized_view(model::StyleModel::load(avg), model::StyleModel::load(avg_loaded), styles.train[0]);
-  testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), avg_loaded, nullptr); }, "no style-trainer state");
-
-  // Refused: one input, an average as input, another run (seed), another feature field.
-  testing::expect_error([&] { train::average_style_checkpoints({in[0]}); }, "two or more");
-  testing::expect_error([&] { train::average_style_checkpoints({in[0], avg_path}); }, "itself an average");
-  const std::string other = (dir / "other.ckpt").string();
-  run(5, other, 0);
-  testing::expect_error([&] { train::average_style_checkpoints({in[0], other}); }, "s.it2.ckpt was trained with another configuration");
-  io::Checkpoint moved = a;
-  const std::string field_tensor = "model." + mb.features.field.params().front()->name;
-  REQUIRE(moved.tensors.count(field_tensor) == 1);
-  moved.tensors.at(field_tensor).data[0] += 1.0f;
-  const std::string moved_path = (dir / "moved_field.ckpt").string();
-  io::save_checkpoint(moved_path, moved);
-  testing::expect_error([&] { train::average_style_checkpoints({moved_path, in[1]}); },
-                        "moved_field.ckpt: frozen tensor '" + field_tensor + "' differs");
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

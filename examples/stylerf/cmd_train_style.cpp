@@ -31,7 +31,7 @@ int run_train_style(int argc, char** argv) {
   std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name = "vgg", style_decoder_name = "stage2";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
-      decoder_warm = 0, snapshot_every = 0;
+      decoder_warm = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f;
@@ -84,9 +84,6 @@ int run_train_style(int argc, char** argv) {
       "eval-every", po::value(&eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
       "eval-styles", po::value(&eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
       "ckpt-every", po::value(&ckpt_every)->default_value(200), "iterations between checkpoints")(
-      "snapshot-every", po::value(&snapshot_every)->default_value(0),
-      "N > 0: also keep the checkpoint of every N-th iteration as <out stem>.it<N><ext>, to average with "
-      "`stylerf average-style` or compare (0: none)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
       "timing", po::bool_switch(&timing), "print per-kernel times at the end");
   po::variables_map vm;
@@ -103,10 +100,8 @@ int run_train_style(int argc, char** argv) {
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
   if (style_size < 256 || style_size > 4096)
     throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(style_size));
-  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0 ||
-      snapshot_every < 0)
-    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles, --ckpt-every and "
-                "--snapshot-every must be >= 0");
+  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
+    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
   if (!(lr_decoder >= 0) || !std::isfinite(lr_decoder))
     throw Error("--lr-decoder must be a positive number, or 0 to freeze the decoder");
@@ -209,7 +204,6 @@ int run_train_style(int argc, char** argv) {
   ro.eval_styles = eval_styles;
   ro.checkpoint = out;
   ro.checkpoint_every = ckpt_every;
-  ro.snapshot_every = snapshot_every;
   ro.time_budget_s = minutes * 60.0;
   ro.scene_meta = scene_meta;
   if (minutes > 0 && !resume) trainer->set_total_iters(1000000);  // refitted from the measured rate

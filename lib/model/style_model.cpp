@@ -358,26 +358,13 @@ void StyleModel::collect_params(std::vector<nn::Param*>& out) {
 
 void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
 
-namespace {
-// SICT, DST and AdaIN's decoder where it draws the maps: the tensors a style checkpoint adds to the feature
-// model's.
-void save_style_parts(StyleModel& m, io::Checkpoint& ck) {
-  m.sict.save(ck, "");
-  m.dst.save(ck, "");
-  if (m.decoder_kind != StyleDecoderKind::Stage2) m.style_decoder.save(ck, "");
-}
-}  // namespace
-
 void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
-  save_style_parts(*this, ck);
+  sict.save(ck, "");
+  dst.save(ck, "");
+  if (decoder_kind != StyleDecoderKind::Stage2) style_decoder.save(ck, "");
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
-}
-
-void StyleModel::save_trained(io::Checkpoint& ck) {
-  save_style_parts(*this, ck);
-  if (decoder_kind == StyleDecoderKind::Stage2) features.decoder.save(ck, "model.");  // as FeatureModel::save names it
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {

@@ -171,9 +171,6 @@ class StyleModel : public nn::Module {
   // Checkpoint kind "style": the feature model's tensors and meta, the stylizer under "style.*", and
   // meta["style_model"] (SICT mode, DST bias).
   void save(io::Checkpoint& ck);
-  // What a style run changes, under the names save() gives them: SICT (with its running statistics), DST
-  // and the fine-tuned decoder (train/style_average.hpp averages exactly these).
-  void save_trained(io::Checkpoint& ck);
   static StyleModel load(const io::Checkpoint& ck);
 };
 

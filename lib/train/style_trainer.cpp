@@ -16,7 +16,6 @@
 #include "lib/nn/ops.hpp"
 #include "lib/train/progress.hpp"
 #include "lib/train/reconstruction_loss.hpp"
-#include "lib/train/style_average.hpp"
 #include "lib/style/style_encoder.hpp"
 
 namespace stylerf::train {
@@ -490,8 +489,6 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
     }
     if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.snapshot_every > 0 && st.iteration % opt.snapshot_every == 0 && !opt.checkpoint.empty())
-      trainer.save(snapshot_path(opt.checkpoint, st.iteration), opt.scene_meta);
     if (opt.time_budget_s > 0) {
       if (sum.seconds >= opt.time_budget_s) break;
       if (sum.iterations >= 5 && sum.seconds >= next_refit_s) {

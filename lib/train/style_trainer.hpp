@@ -162,9 +162,6 @@ struct StyleRunOptions {
   int eval_styles = 0;      // held-out styles in that evaluation (0: all)
   std::string checkpoint;
   int checkpoint_every = 200;
-  // > 0: also keep a checkpoint every this many steps at train::snapshot_path(checkpoint, step), for
-  // averaging after the run (train/style_average.hpp) or comparing stretches of it; not in the time budget.
-  int snapshot_every = 0;
   nlohmann::json scene_meta;
   double time_budget_s = 0;
 };
