@@ -25,7 +25,6 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
-#include "lib/train/reconstruction_loss.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/style_trainer.hpp"
 #include "tests/small_scene.hpp"
@@ -85,18 +84,6 @@ void check_same_stylized_view(const model::StyleModel& m, const model::StyleMode
                                        loaded.style_code(taps, nullptr), cam.width, cam.height);
   CHECK(a == b);
   CHECK(testing::all_finite(a));
-}
-
-// An option's value survives the trainer config's JSON round trip, and a config written before the option
-// existed (its key absent) reads `off`.
-template <class T>
-void check_option_kept(const train::StyleTrainConfig& cfg, const char* key, T train::StyleTrainConfig::*member, T off) {
-  CAPTURE(key);
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).*member == cfg.*member);
-  auto j = cfg.to_json();
-  REQUIRE(j.contains(key));
-  j.erase(key);
-  CHECK(train::StyleTrainConfig::from_json(j).*member == off);
 }
 
 double max_abs(const std::vector<float>& v) {
@@ -602,58 +589,6 @@ TEST_CASE("lr_decoder 0 freezes the decoder after any warm-up: 2D and rendered s
   testing::expect_error(
       [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, negative, nullptr); },
       "learning rate must be >= 0");
-}
-
-TEST_CASE("the decoder warm-up's style term: style_losses' value, and its gradient through VGG added to drgb") {
-  // reconstruction_loss composes parts tested on their own (VGG backward against central differences in
-  // test_vgg, the style loss's in test_loss); this checks the composition: the reported term is
-  // style_losses' with content weight 0, and drgb(W) - drgb(0) is VGG's backward of that term's tap
-  // gradients. (Central differences of the whole float loss do not converge on a random 32x32 image: its
-  // ReLU and max-pool switches make the loss rough at every usable step.)
-  nn::VggEncoder vgg = nn::VggEncoder::load_default();
-  const int H = 32, W = 32;
-  const Tensor target = Tensor::from_host(testing::random_uniform(size_t(3 * H * W), 41, 0.0f, 1.0f), {1, 3, H, W});
-  const Tensor rgb = Tensor::from_host(testing::random_uniform(size_t(3 * H * W), 42, 0.2f, 0.8f), {1, 3, H, W});
-  const nn::VggFeatures target_taps = vgg.forward(target, 4, false);
-  constexpr float kFeature = 0.1f, kStyle = 0.5f;
-  const auto with_style = train::reconstruction_loss(vgg, rgb, target, target_taps, kFeature, kStyle);
-  const auto without = train::reconstruction_loss(vgg, rgb, target, target_taps, kFeature);
-  nn::VggFeatures tap_grads;
-  const auto expect = train::style_losses(vgg.forward(rgb, 4, true), target_taps[3], target_taps, nullptr,
-                                          train::StyleLossWeights{0.0f, kStyle}, &tap_grads);
-  const auto style_drgb = testing::to_double(vgg.backward(tap_grads).to_host());
-  vgg.release();
-  CHECK(with_style.style == doctest::Approx(expect.style).epsilon(1e-6));
-  CHECK(with_style.style > 0.0);
-  CHECK(without.style == 0.0);
-  CHECK(with_style.pixel_mse == without.pixel_mse);
-  CHECK(with_style.feature_mse == without.feature_mse);
-  const auto a = with_style.drgb.to_host(), b = without.drgb.to_host();
-  std::vector<float> diff(a.size());
-  for (size_t i = 0; i < a.size(); ++i) diff[i] = a[i] - b[i];
-  double scale = 0;
-  for (double v : style_drgb) scale = std::max(scale, std::fabs(v));
-  REQUIRE(scale > 0);
-  testing::check_close(diff, style_drgb, 1e-3, 1e-4 * scale, "drgb(W) - drgb(0) = VGG backward of the style term");
-}
-
-TEST_CASE("decoder_warm_style: the warm-up reports its style term, and the config keeps it") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(2);
-  cfg.decoder_warm = 2;
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto a = plain.step();
-  CHECK(a.decoder_warm);
-  CHECK(a.style == 0.0);
-  cfg.decoder_warm_style = 2.0f;
-  train::StyleTrainer styled(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto b = styled.step();
-  CHECK(b.decoder_warm);
-  CHECK(b.style > 0.0);
-  CHECK(std::isfinite(b.style));
-  CHECK(b.content == doctest::Approx(a.content).epsilon(1e-5));  // same seed, same crop, same first decoder
-  CHECK(cfg.decoder_warm_style == 2.0f);
-  check_option_kept(cfg, "decoder_warm_style", &train::StyleTrainConfig::decoder_warm_style, 0.0f);
 }
 
 TEST_CASE("a checkpoint naming retired options resumes without them, unless its state needs one (named)") {

@@ -34,7 +34,7 @@ int run_train_style(int argc, char** argv) {
       decoder_warm = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -71,9 +71,6 @@ int run_train_style(int argc, char** argv) {
       "--lr-decoder-warm): no weight gradients are computed for it")(
       "lr-decoder-warm", po::value(&lr_decoder_warm),
       "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
-      "decoder-warm-style", po::value(&decoder_warm_style),
-      "W > 0: --decoder-warm's loss adds W x the style term (relu1_1..relu4_1 means and stds) of the decoded "
-      "crop against the crop, texture statistics a pixel and feature MSE let the decoder blur (default: none)")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
@@ -110,10 +107,6 @@ int run_train_style(int argc, char** argv) {
   if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
     throw Error("--lr-decoder-warm must be a positive number");
   if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
-  if (vm.count("decoder-warm-style") && !(decoder_warm_style > 0 && std::isfinite(decoder_warm_style)))
-    throw Error("--decoder-warm-style must be a positive number");
-  if (vm.count("decoder-warm-style") && decoder_warm == 0)
-    throw Error("--decoder-warm-style needs --decoder-warm N > 0");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
@@ -160,7 +153,6 @@ int run_train_style(int argc, char** argv) {
     cfg.style_decoder = style_decoder;
     cfg.decoder_warm = decoder_warm;
     cfg.lr_decoder_warm = lr_decoder_warm;
-    cfg.decoder_warm_style = decoder_warm_style;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
@@ -193,8 +185,6 @@ int run_train_style(int argc, char** argv) {
                                    : "")
             << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "");
   if (cfg.decoder_warm > 0 && cfg.lr_decoder_warm > 0) std::cout << " (decoder lr " << cfg.lr_decoder_warm << ")";
-  if (cfg.decoder_warm > 0 && cfg.decoder_warm_style > 0)
-    std::cout << " (inversion + " << cfg.decoder_warm_style << " x the crop's style term)";
   std::cout << std::endl;
 
   train::StyleRunOptions ro;

@@ -42,7 +42,6 @@ json StyleTrainConfig::to_json() const {
           {"warm_start", warm_start},
           {"decoder_warm", decoder_warm},
           {"lr_decoder_warm", lr_decoder_warm},
-          {"decoder_warm_style", decoder_warm_style},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
           {"running_init_patches", running_init_patches},
@@ -67,7 +66,6 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.warm_start = j.at("warm_start").get<int>();
   c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
   c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
-  c.decoder_warm_style = j.value("decoder_warm_style", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
@@ -313,11 +311,9 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   if (model_.decoder_kind == model::StyleDecoderKind::VggAdainRelu4) style::set_relu4_stats(own, style_taps[3]);
   const Tensor rgb = model_.decode_map(style_taps[2], &own, &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
-  const ReconstructionLoss loss =
-      reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight, cfg_.decoder_warm_style);
+  const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight);
   model_.decode_map_backward(dctx, loss.drgb, false);
   st.content = loss.pixel_mse + kFeatureWeight * loss.feature_mse;
-  st.style = loss.style;
   st.rays = rgb.numel() / 3;
   return st;
 }
@@ -478,7 +474,7 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
       const double per_it = win_s / win_n;
       std::ostringstream l;
       l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
-        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content', its style term in 'style')" : "");
+        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "

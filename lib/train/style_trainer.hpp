@@ -19,8 +19,6 @@
 //    that never drew one renders blurred, and the style loss is mostly about fine texture (README).
 //    lr_decoder_warm may set its own rate, e.g. a fast inversion then the paper's slow fine-tuning, meant to
 //    keep the decoder an inverter of relu3_1 (on fern that measured worse than a fast decoder: README);
-//    decoder_warm_style > 0 adds the style stage's style term of the decoded crop against the crop, so that
-//    the inversion learns the texture statistics the style loss measures rather than a blur of them;
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
@@ -62,7 +60,6 @@ struct StyleTrainConfig {
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
   float lr_decoder_warm = 0.0f; // the decoder's lr during those steps (0: lr_decoder)
-  float decoder_warm_style = 0.0f;  // > 0: those steps add this x the style term of the crop (reconstruction_loss)
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
