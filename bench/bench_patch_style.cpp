@@ -1,8 +1,7 @@
 // `stylerf bench patch --stage 3 --profile fast|paper --size 256 [--ckpt CKPT] [--json F]`: one style step
 // (StyleRF stage 3) at size x size pixels, part by part, each timed with the queue drained (best of
 // --repeats after a warm-up step):
-// --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder;
-// --frozen-decoder: the decoder's backward computes its input's gradient only (train-style --lr-decoder 0).
+// --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder.
 //   forward:  render (march, density, weights, keep, compositing of the 32 SICT channels), field (grid
 //             components + basis per kept sample), SICT, DST (style code + apply), decoder, VGG (style
 //             image, true patch, stylised patch; to relu4_1);
@@ -110,8 +109,7 @@ int bench_patch_style(const BenchOptions& opt) {
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
             << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
             << (vgg_adain ? "vgg-adain: VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
-                          : m.features.decoder.spec().describe())
-            << (opt.frozen_decoder ? " (frozen: its backward computes no weight gradients)" : "") << "\n  geometry: " << st.source << "\n  best of " << repeats
+                          : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
             << " after a warm-up step\n";
   const char* names[] = {"render fwd", "field fwd",  "SICT fwd",     "DST fwd",      "decoder fwd", "VGG fwd",
                          "VGG bwd",    "decoder bwd", "DST bwd",      "composite bwd", "SICT bwd",    "optimizer"};
@@ -159,7 +157,7 @@ int bench_patch_style(const BenchOptions& opt) {
     const Tensor drgb = vgg.backward(g);
     vgg.release();
     p[6] = lap(t);
-    const Tensor dmap = m.decode_map_backward(dctx, drgb, true, !opt.frozen_decoder);
+    const Tensor dmap = m.decode_map_backward(dctx, drgb, true);
     p[7] = lap(t);
     const auto ag = m.dst.apply_backward(actx, nn::rows_to_image_backward(dmap), true);
     m.dst.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, false);
@@ -167,7 +165,7 @@ int bench_patch_style(const BenchOptions& opt) {
     model::render_rays_backward(m.features.geo, head, rctx, ag.dc, Tensor(), nullptr);
     p[9] = lap(t) - head.sict_bwd_ms;
     p[10] = head.sict_bwd_ms;
-    adam.step(opt.frozen_decoder ? m.stylizer_params() : m.params(), 1.0f);
+    adam.step(m.params(), 1.0f);
     p[11] = lap(t);
     samples = r.samples;
     kept = r.kept;
@@ -180,7 +178,7 @@ int bench_patch_style(const BenchOptions& opt) {
   // against 2x for a trained stack).
   const double tail = vgg_adain ? 2.0 * 9.0 * (3.0 * 256 * 256 * h * w + 256.0 * 512 * (h / 2) * (w / 2)) : 0.0;
   const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) : stack_flops(m.features.decoder, h, w);
-  const double dec = tail + stack, dec_bwd = tail + (opt.frozen_decoder ? 1 : 2) * stack;
+  const double dec = tail + stack, dec_bwd = tail + 2 * stack;
   const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
   // SICT per point: q/k/v 2*256*96, attention ~ 4 * 32 * 32 (logits and weighted sum); backward ~2x.
   const double sict = double(kept) * (2.0 * 256 * 96 + 4.0 * 32 * 32);
@@ -209,7 +207,6 @@ int bench_patch_style(const BenchOptions& opt) {
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
                         {"style_decoder", model::style_decoder_name(decoder_kind)},
-                        {"frozen_decoder", opt.frozen_decoder},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};

@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
-#include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -66,9 +65,7 @@ int run_train_style(int argc, char** argv) {
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
       "not the paper's; README)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
-      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f),
-      "decoder fine-tuning learning rate; 0 freezes the decoder (after any --decoder-warm, which then needs "
-      "--lr-decoder-warm): no weight gradients are computed for it")(
+      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
       "lr-decoder-warm", po::value(&lr_decoder_warm),
       "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
@@ -100,10 +97,7 @@ int run_train_style(int argc, char** argv) {
   if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
-  if (!(lr_decoder >= 0) || !std::isfinite(lr_decoder))
-    throw Error("--lr-decoder must be a positive number, or 0 to freeze the decoder");
-  if (lr_decoder == 0 && decoder_warm > 0 && !vm.count("lr-decoder-warm"))
-    throw Error("--lr-decoder 0 freezes the decoder: --decoder-warm then needs its own --lr-decoder-warm");
+  if (!(lr_decoder > 0) || !std::isfinite(lr_decoder)) throw Error("--lr-decoder must be a positive number");
   if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
     throw Error("--lr-decoder-warm must be a positive number");
   if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
@@ -159,17 +153,6 @@ int run_train_style(int argc, char** argv) {
   }
   const auto& cfg = trainer->config();
   auto& m = trainer->model();
-  int64_t trained_params = m.param_count();
-  if (cfg.lr_decoder == 0)  // frozen after any warm-up: the stylizer's alone
-    for (const auto* p : m.decoder_params()) trained_params -= p->value.numel();
-  const std::string decay =
-      cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string();
-  std::ostringstream rates;  // the decay is said once, after the last rate that decays
-  rates << "  Adam lr stylizer " << cfg.lr_stylizer;
-  if (cfg.lr_decoder > 0)
-    rates << ", decoder " << cfg.lr_decoder << decay;
-  else
-    rates << decay << ", decoder frozen";
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
@@ -178,8 +161,9 @@ int run_train_style(int argc, char** argv) {
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << rates.str() << "; grids frozen; "
-            << trained_params / 1e6 << "M trained parameters"
+            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
+            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << "; grids frozen; " << m.param_count() / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")

@@ -151,11 +151,10 @@ Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, D
   return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
 }
 
-Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder) {
-  if (decoder_kind == StyleDecoderKind::Stage2)
-    return features.decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
+Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
+  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
   // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
-  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
+  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx);
   if (!need_dx) return Tensor();
   if (decoder_kind == StyleDecoderKind::VggAdainRelu4) d41 = nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
   return vgg_tail.backward(ctx.tail, d41);
@@ -165,15 +164,8 @@ std::vector<nn::Param*> StyleModel::decoder_params() {
   return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
 }
 
-std::vector<nn::Param*> StyleModel::stylizer_params() {
-  std::vector<nn::Param*> out;
-  sict.collect_params(out);
-  dst.collect_params(out);
-  return out;
-}
-
-style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, bool train_decoder) {
-  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true, train_decoder);
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
+  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
   style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, nn::rows_to_image_backward(dmap), true);
   render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
   return g;

@@ -108,13 +108,17 @@ Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
 }
 
 // Options retired as neutral or worse (docs/experiments.md) may still be in a checkpoint's config: those
-// that only steered training are ignored on resume (the rest of the run trains without them); one that
-// left state this trainer cannot continue is refused, naming the file and the field.
+// that only steered training are ignored on resume (the rest of the run trains without them); a run this
+// trainer cannot continue as it ran (a weight average, a frozen decoder) is refused, naming the file and field.
 void refuse_retired_state(const json& config, const std::string& path) {
   if (config.value("ema_decay", 0.0f) > 0)
     throw Error("checkpoint " + path + ": its config has ema_decay " + config.at("ema_decay").dump() +
                 ": its model is a weight average, which train-style no longer keeps (docs/experiments.md), so the "
                 "run cannot be resumed; the checkpoint still stylises and evaluates as it is");
+  if (config.value("lr_decoder", 1.0f) == 0)
+    throw Error("checkpoint " + path + ": its config has lr_decoder 0: a frozen decoder, which train-style no longer "
+                "supports (docs/experiments.md), so the run cannot be resumed as it ran; the checkpoint still "
+                "stylises and evaluates as it is");
 }
 }  // namespace
 
@@ -125,11 +129,8 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (!(cfg_.lr_decoder >= 0))
-    throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), got " + std::to_string(cfg_.lr_decoder));
-  if (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0))
-    throw Error("train-style: a frozen decoder's warm-up needs its own rate (--lr-decoder-warm): at --lr-decoder 0 the "
-                "warm-up would not train it");
+  if (!(cfg_.lr_decoder > 0))
+    throw Error("train-style: the decoder's learning rate must be > 0, got " + std::to_string(cfg_.lr_decoder));
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
@@ -235,7 +236,7 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, !decoder_frozen());
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
   st.content = lv.content;
@@ -291,7 +292,7 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true, !decoder_frozen()));
+  const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
@@ -374,8 +375,7 @@ StyleStepStats StyleTrainer::step() {
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).
-    // A frozen decoder (lr_decoder 0) is left out: its moments from a warm-up would otherwise keep moving it.
-    adam_.step(st.decoder_warm ? model_.decoder_params() : decoder_frozen() ? model_.stylizer_params() : model_.params());
+    adam_.step(st.decoder_warm ? model_.decoder_params() : model_.params());
   }
   iteration_ = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {

@@ -54,7 +54,7 @@ struct StyleTrainConfig {
   int iters = 25000;
   int patch = 256;
   int style_size = 512, style_crop = 256;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;  // lr_decoder 0: the decoder is frozen (after any warm-up)
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
   StyleLossWeights weights;
@@ -102,7 +102,8 @@ class StyleTrainer {
   StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles, const StyleTrainConfig& cfg,
                std::ostream* log);
   // Resumes from a style checkpoint written by save(). One of a run that averaged its weights (the
-  // retired ema_decay, docs/experiments.md) holds the average as its model: it is refused, naming the file.
+  // retired ema_decay, docs/experiments.md) holds the average as its model, and one of a run with a frozen
+  // decoder (lr_decoder 0) cannot go on as it ran: both are refused, naming the file and the field.
   StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log);
 
   StyleStepStats step();
@@ -131,8 +132,6 @@ class StyleTrainer {
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
   void set_step_lrs(int k, bool decoder_warm);            // both groups' rates for step k (lr decay, warm-up)
-  // lr_decoder 0: after any warm-up the decoder is not trained, and no step computes its weight gradients.
-  bool decoder_frozen() const { return cfg_.lr_decoder == 0; }
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
