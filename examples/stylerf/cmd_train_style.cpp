@@ -33,7 +33,7 @@ int run_train_style(int argc, char** argv) {
       decoder_warm = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, lr_decay = 1.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
@@ -66,8 +66,6 @@ int run_train_style(int argc, char** argv) {
       "not the paper's; README)")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
-      "lr-decoder-warm", po::value(&lr_decoder_warm),
-      "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
@@ -98,9 +96,6 @@ int run_train_style(int argc, char** argv) {
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
   if (!(lr_decoder > 0) || !std::isfinite(lr_decoder)) throw Error("--lr-decoder must be a positive number");
-  if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
-    throw Error("--lr-decoder-warm must be a positive number");
-  if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
@@ -146,7 +141,6 @@ int run_train_style(int argc, char** argv) {
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
     cfg.decoder_warm = decoder_warm;
-    cfg.lr_decoder_warm = lr_decoder_warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
@@ -167,9 +161,8 @@ int run_train_style(int argc, char** argv) {
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")
-            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "");
-  if (cfg.decoder_warm > 0 && cfg.lr_decoder_warm > 0) std::cout << " (decoder lr " << cfg.lr_decoder_warm << ")";
-  std::cout << std::endl;
+            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "")
+            << std::endl;
 
   train::StyleRunOptions ro;
   ro.log = &std::cout;

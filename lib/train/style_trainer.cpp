@@ -41,7 +41,6 @@ json StyleTrainConfig::to_json() const {
           {"style_weight", weights.style},
           {"warm_start", warm_start},
           {"decoder_warm", decoder_warm},
-          {"lr_decoder_warm", lr_decoder_warm},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
           {"running_init_patches", running_init_patches},
@@ -65,7 +64,6 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
   c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
-  c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
@@ -342,9 +340,8 @@ void StyleTrainer::set_step_lrs(int k, bool decoder_warm) {
   const double stylizer_progress =
       stylizer_start_ < 0 ? 0.0 : std::clamp((progress - stylizer_start_) / std::max(1e-9, 1.0 - stylizer_start_), 0.0, 1.0);
   const double decay = double(cfg_.lr_decay_ratio);
-  const float decoder_lr = decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder;
   set_group_lr("stylizer", float(double(cfg_.lr_stylizer) * std::pow(decay, stylizer_progress)));
-  set_group_lr("decoder", float(double(decoder_lr) * std::pow(decay, progress)));
+  set_group_lr("decoder", float(double(cfg_.lr_decoder) * std::pow(decay, progress)));
 }
 
 StyleStepStats StyleTrainer::step() {

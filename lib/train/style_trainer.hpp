@@ -16,9 +16,7 @@
 //  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
-//    that never drew one renders blurred, and the style loss is mostly about fine texture (README).
-//    lr_decoder_warm may set its own rate, e.g. a fast inversion then the paper's slow fine-tuning, meant to
-//    keep the decoder an inverter of relu3_1 (on fern that measured worse than a fast decoder: README);
+//    that never drew one renders blurred, and the style loss is mostly about fine texture (README);
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
@@ -59,7 +57,6 @@ struct StyleTrainConfig {
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
-  float lr_decoder_warm = 0.0f; // the decoder's lr during those steps (0: lr_decoder)
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
