@@ -18,8 +18,6 @@ struct BenchOptions {
   // style decoder (stage2 | vgg-adain | vgg-adain-relu4).
   std::string ckpt, profile = "fast", style_decoder = "stage2";
   int stage = 2, size = 256;
-  bool adain_teacher = false;  // bench patch --stage 3: time train-style --adain-teacher's extra work as well
-  bool frozen_decoder = false; // bench patch --stage 3: the decoder's backward without weight gradients (--lr-decoder 0)
   // bench render only: the scene (default: the checkpoint's), held-out views to render, training steps to
   // time, and the early-termination thresholds to compare (empty: the default only).
   std::string scene;

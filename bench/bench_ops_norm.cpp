@@ -3,8 +3,7 @@
 // GB/s = (bytes of each tensor read once + each tensor written once) / time, a lower bound on traffic
 // (the statistics pass reads x twice, and backward ops that recompute statistics read inputs again).
 // Sizes: a [1,256,256,256] feature map (64 MiB), AdaIN at VGG relu4_1 of a 512x512 image
-// ([1,512,64,64]) with a style of another size, 1e7-parameter Adam, and the weight average's update over
-// the style stage's 3.45M trained parameters (train-style --ema: its cost per step).
+// ([1,512,64,64]) with a style of another size, 1e7-parameter Adam.
 // Two figures per op: wall time of the whole call (which includes allocating and first-touching any
 // fresh output tensor: the ops return new tensors) and the kernels alone (profiling events).
 // --quick: feature maps a quarter per side, 1e6-parameter Adam, one repetition.
@@ -19,7 +18,6 @@
 #include "host/runtime.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
-#include "lib/nn/weight_average.hpp"
 
 namespace stylerf::bench {
 namespace {
@@ -87,14 +85,6 @@ void bench_ops_norm(const BenchOptions& opt) {
     int step = 0;
     row("adam_step", "[" + std::to_string(n) + "]", 7.0 * n * 4,
         best_of(reps, [&] { nn::adam_step(p, gr, m, v, ++step, {}); }));
-  }
-  {
-    const int n = 3451010;  // the style stage's stylizer + decoder (train-style prints 3.45101M)
-    nn::Param p("style weights", 0, Tensor::full({n}, 1.0f));
-    nn::WeightAverage avg(0.995f);
-    avg.update({&p});  // the first update copies; the timed ones blend
-    row("weight_average_update", "[" + std::to_string(n) + "]", 3.0 * n * 4,
-        best_of(reps, [&] { avg.update({&p}); }));
   }
 }
 

@@ -1,10 +1,7 @@
 // `stylerf bench patch --stage 3 --profile fast|paper --size 256 [--ckpt CKPT] [--json F]`: one style step
 // (StyleRF stage 3) at size x size pixels, part by part, each timed with the queue drained (best of
 // --repeats after a warm-up step):
-// --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder;
-// --adain-teacher adds the row "AdaIN teacher": train-style --adain-teacher's target (AdaIN of the true
-// patch's relu4_1, AdaIN's decoder, VGG to relu3_1) and its loss, counted in the step.
-// --frozen-decoder: the decoder's backward computes its input's gradient only (train-style --lr-decoder 0).
+// --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder.
 //   forward:  render (march, density, weights, keep, compositing of the 32 SICT channels), field (grid
 //             components + basis per kept sample), SICT, DST (style code + apply), decoder, VGG (style
 //             image, true patch, stylised patch; to relu4_1);
@@ -25,11 +22,8 @@
 #include "lib/io/checkpoint.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/nn/adam.hpp"
-#include "lib/nn/decoder.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
-#include "lib/nn/ops.hpp"
-#include "lib/train/adain_teacher.hpp"
 #include "lib/train/style_losses.hpp"
 
 namespace stylerf::bench {
@@ -99,8 +93,6 @@ int bench_patch_style(const BenchOptions& opt) {
   const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
-  std::unique_ptr<train::AdainTeacher> teacher;
-  if (opt.adain_teacher) teacher = std::make_unique<train::AdainTeacher>(train::AdainTeacher::load_default());
   int w = 0, h = 0;
   const scene::Rays rays = model::block_rays(st.scene, st.cam, m.stride(), w, h);
   const int64_t R = int64_t(w) * h;
@@ -117,18 +109,16 @@ int bench_patch_style(const BenchOptions& opt) {
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
             << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
             << (vgg_adain ? "vgg-adain: VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
-                          : m.features.decoder.spec().describe())
-            << (opt.frozen_decoder ? " (frozen: its backward computes no weight gradients)" : "") << "\n  geometry: " << st.source << "\n  best of " << repeats
+                          : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
             << " after a warm-up step\n";
   const char* names[] = {"render fwd", "field fwd",  "SICT fwd",     "DST fwd",      "decoder fwd", "VGG fwd",
-                         "VGG bwd",    "decoder bwd", "DST bwd",      "composite bwd", "SICT bwd",    "optimizer",
-                         "AdaIN teacher"};
-  const int kParts = teacher ? 13 : 12;
-  std::vector<double> best(size_t(kParts), 1e300);
+                         "VGG bwd",    "decoder bwd", "DST bwd",      "composite bwd", "SICT bwd",    "optimizer"};
+  constexpr int kParts = 12;
+  std::vector<double> best(kParts, 1e300);
   double best_total = 1e300;
   int64_t samples = 0, kept = 0;
   for (int rep = 0; rep <= repeats; ++rep) {
-    double p[13] = {};
+    double p[kParts] = {};
     auto lap = [&](double& t) {
       rt.finish();
       const double n = now_ms();
@@ -160,37 +150,22 @@ int bench_patch_style(const BenchOptions& opt) {
     const Tensor rgb = m.decode_map(nn::rows_to_image(y, h, w), &code, &dctx);
     p[4] = lap(t);
     const nn::VggFeatures ft = vgg.forward(gt, 4, false);
-    const double vgg_true_ms = lap(t);
-    double teacher_ms = 0;
-    train::TeacherLoss teach;
-    if (teacher) {
-      teach = train::teacher_loss(y, teacher->target_rows(vgg, ft[3], st_taps[3]), nullptr, 1.0f);
-      teacher_ms = lap(t);
-    }
     const nn::VggFeatures fo = vgg.forward(rgb, 4, true);
     nn::VggFeatures g;
     train::style_losses(fo, ft[3], st_taps, nullptr, {}, &g);
-    p[5] = lap(t) + vgg_style_ms + vgg_true_ms;
+    p[5] = lap(t) + vgg_style_ms;
     const Tensor drgb = vgg.backward(g);
     vgg.release();
     p[6] = lap(t);
-    const Tensor dmap = m.decode_map_backward(dctx, drgb, true, !opt.frozen_decoder);
+    const Tensor dmap = m.decode_map_backward(dctx, drgb, true);
     p[7] = lap(t);
-    Tensor dy = nn::rows_to_image_backward(dmap);
-    if (teacher) {
-      const double t_add = now_ms();
-      nn::axpby(1.0f, teach.dy, 1.0f, dy);
-      rt.finish();
-      teacher_ms += now_ms() - t_add;
-      p[12] = teacher_ms;
-    }
-    const auto ag = m.dst.apply_backward(actx, dy, true);
+    const auto ag = m.dst.apply_backward(actx, nn::rows_to_image_backward(dmap), true);
     m.dst.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, false);
     p[8] = lap(t);
     model::render_rays_backward(m.features.geo, head, rctx, ag.dc, Tensor(), nullptr);
     p[9] = lap(t) - head.sict_bwd_ms;
     p[10] = head.sict_bwd_ms;
-    adam.step(opt.frozen_decoder ? m.stylizer_params() : m.params(), 1.0f);
+    adam.step(m.params(), 1.0f);
     p[11] = lap(t);
     samples = r.samples;
     kept = r.kept;
@@ -203,22 +178,15 @@ int bench_patch_style(const BenchOptions& opt) {
   // against 2x for a trained stack).
   const double tail = vgg_adain ? 2.0 * 9.0 * (3.0 * 256 * 256 * h * w + 256.0 * 512 * (h / 2) * (w / 2)) : 0.0;
   const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) : stack_flops(m.features.decoder, h, w);
-  const double dec = tail + stack, dec_bwd = tail + (opt.frozen_decoder ? 1 : 2) * stack;
+  const double dec = tail + stack, dec_bwd = tail + 2 * stack;
   const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
   // SICT per point: q/k/v 2*256*96, attention ~ 4 * 32 * 32 (logits and weighted sum); backward ~2x.
   const double sict = double(kept) * (2.0 * 256 * 96 + 4.0 * 32 * 32);
   const double L = 64.0 * 64.0;  // relu3_1 positions of the 256 x 256 style
   const double dst = L * 2.0 * (256 * 128 + 128 * 64 + 64 * 32) + L * 2.0 * 32 * 32 + 2.0 * 1024 * 1024 +
                      double(R) * 2.0 * (32 * 256 + 256);
-  // The teacher: AdaIN's decoder from relu4_1 (1/8 of the patch), VGG's first five convs (to relu3_1).
-  double teacher_flops = 0;
-  if (teacher) {
-    const int layers[][3] = {{3, 64, 1}, {64, 64, 1}, {64, 128, 2}, {128, 128, 2}, {128, 256, 4}};
-    for (const auto& l : layers) teacher_flops += 2.0 * l[0] * l[1] * 9.0 * double(S / l[2]) * double(S / l[2]);
-    teacher_flops += stack_flops(nn::load_adain_decoder(), S / 8, S / 8);
-  }
-  const double flops[13] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), dec_bwd,
-                            2 * dst, 0, 2 * sict, 0, teacher_flops};
+  const double flops[kParts] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), dec_bwd,
+                                2 * dst, 0, 2 * sict, 0};
   nlohmann::json rows = nlohmann::json::array();
   std::cout << std::left << std::setw(14) << "part" << std::right << std::setw(10) << "s" << std::setw(12) << "GFLOP"
             << std::setw(12) << "GFLOP/s" << "\n";
@@ -238,8 +206,7 @@ int bench_patch_style(const BenchOptions& opt) {
             << kept << " (SICT points)\n";
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
-                        {"style_decoder", model::style_decoder_name(decoder_kind)}, {"adain_teacher", bool(teacher)},
-                        {"frozen_decoder", opt.frozen_decoder},
+                        {"style_decoder", model::style_decoder_name(decoder_kind)},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};

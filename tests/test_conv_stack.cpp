@@ -2,8 +2,7 @@
 //  - a stack from a spec: forward against a double-precision reference (convs, ReLU, x2 upsampling),
 //    backward (input and every weight and bias) against central differences of that reference;
 //  - the module convention: grads accumulate (two backward calls give twice one), need_dx = false
-//    leaves the parameter gradients unchanged, need_params = false (a frozen stack) gives the same dx and
-//    leaves every parameter gradient untouched, contexts are per call;
+//    leaves the parameter gradients unchanged, contexts are per call;
 //  - hard sizes: a 1x1 input (zero padding runs it; reflect padding refuses it with an error naming the
 //    layer, before launching anything), 2x2 (the smallest reflect input), a 1-pixel side after nothing;
 //  - files: save/load round trips (AdaIN's Sequential keys, both paddings), checkpoints through
@@ -164,7 +163,7 @@ TEST_CASE("conv stack: a 1x1 input runs with zero padding and is refused with re
   CHECK(ctx.inputs[1].shape() == host::Shape{1, 4, 4, 4});
 }
 
-TEST_CASE("conv stack: gradients accumulate over backward calls; need_dx = false; need_params = false; per-call contexts") {
+TEST_CASE("conv stack: gradients accumulate over backward calls; need_dx = false; per-call contexts") {
   const ConvStackSpec spec = spec_of({3, 4, 4, 3}, {false, true, false}, Padding::Reflect);
   ConvStack s(spec, 7);
   auto x1 = testing::random_normal(3 * 4 * 5, 1), x2 = testing::random_normal(3 * 4 * 5, 2);
@@ -200,18 +199,6 @@ TEST_CASE("conv stack: gradients accumulate over backward calls; need_dx = false
     for (size_t k = 0; k < want.size(); ++k) want[k] = double(once[i][k]) + second[i][k];
     check_close(params[i]->grad.to_host(), want, 1e-6, 1e-6, "sum of two inputs " + params[i]->name);
   }
-
-  // A frozen stack (need_params = false): the same dx as a trained one's, bit for bit (the data gradient
-  // does not depend on the weight gradient), and no parameter gradient touched.
-  s.zero_grad();
-  const auto dx_trained = s.backward(c1, g1).to_host();
-  std::vector<std::vector<float>> before;
-  for (nn::Param* p : s.params()) before.push_back(p->grad.to_host());
-  const Tensor dx_frozen = s.backward(c1, g1, /*need_dx=*/true, /*need_params=*/false);
-  check_close(dx_frozen.to_host(), to_double(dx_trained), 0.0, 1e-30, "frozen dx");
-  for (size_t i = 0; i < params.size(); ++i)
-    check_close(params[i]->grad.to_host(), to_double(before[i]), 0.0, 1e-30, "frozen leaves " + params[i]->name);
-  CHECK_FALSE(s.backward(c1, g1, /*need_dx=*/false, /*need_params=*/false).defined());
 
   // Misuse: an empty context, a context of another stack, a dy of the wrong shape.
   testing::expect_error([&] { s.backward(ConvStack::Ctx(), g1); }, "the context does not come from this stack");

@@ -1,7 +1,6 @@
 // The module convention (lib/nn/module.hpp) and Adam over named parameters (lib/nn/adam.hpp): gradient
 // accumulation, per-group learning rates, moments keyed by name through save/load and a remap, params
-// without gradients skipped, checkpoint round trip by name, non-finite detection, clear errors; the weight
-// average (lib/nn/weight_average.hpp) against a double reference, its swap and its checkpoint round trip.
+// without gradients skipped, checkpoint round trip by name, non-finite detection, clear errors.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -11,7 +10,6 @@
 #include "lib/io/checkpoint.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/module.hpp"
-#include "lib/nn/weight_average.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -112,67 +110,4 @@ TEST_CASE("Module: the first non-finite parameter or buffer is named") {
   CHECK(m.first_nonfinite() == "running");
   m.net.value = Tensor::full({2, 3}, INFINITY);
   CHECK(m.first_nonfinite() == "net");
-}
-
-TEST_CASE("WeightAverage: the ramped moving average against a double reference; swap; resume restores both") {
-  TwoParams a;
-  nn::WeightAverage avg(0.9f);
-  CHECK(avg.next_decay() == doctest::Approx(0.1));  // (1 + 0) / (10 + 0): the ramp starts near the value
-  std::vector<double> ref;  // the grid's average, in double
-  const int steps = 40;     // past the ramp ((1 + t) / (10 + t) reaches 0.9 at t = 80: both regimes below)
-  for (int t = 0; t < steps; ++t) {
-    const auto g = testing::random_normal(4, uint64_t(500 + t));
-    a.grid.value = Tensor::from_host(g, {4});
-    const double d = std::min(0.9, double(1 + t) / double(10 + t));
-    if (t == 0)
-      ref = testing::to_double(g);
-    else
-      for (size_t i = 0; i < 4; ++i) ref[i] = d * ref[i] + (1 - d) * g[i];
-    avg.update(a.params());
-  }
-  CHECK(avg.updates() == steps);
-  testing::check_close(avg.average("grid").to_host(), ref, 1e-5, 1e-6, "grid average");
-  CHECK_FALSE(avg.average("absent").defined());
-
-  // swap exchanges handles: twice restores; the scope guard swaps back at its end.
-  const auto last = a.grid.value.to_host();
-  {
-    const nn::AveragedWeightsScope in(avg, a.params());
-    testing::check_close(a.grid.value.to_host(), ref, 1e-5, 1e-6, "swapped-in average");
-  }
-  CHECK(a.grid.value.to_host() == last);
-
-  // Checkpoint: the model saved with the average swapped in, the training value beside it.
-  const auto dir = std::filesystem::temp_directory_path() / "stylerf_test_weight_average";
-  std::filesystem::create_directories(dir);
-  io::Checkpoint ck;
-  ck.kind = "test";
-  {
-    const nn::AveragedWeightsScope in(avg, a.params());
-    a.save(ck, "m.");
-  }
-  avg.save(ck, "", a.params());
-  const std::string path = (dir / "avg.ckpt").string();
-  io::save_checkpoint(path, ck);
-  const auto back = io::load_checkpoint(path, "test");
-  TwoParams b;
-  b.load(back, "m.");
-  testing::check_close(b.grid.value.to_host(), ref, 1e-5, 1e-6, "loaded model = average");
-  nn::WeightAverage bavg(0.9f);
-  bavg.load(back, "", b.params());
-  CHECK(bavg.updates() == steps);
-  CHECK(b.grid.value.to_host() == last);  // training resumes from the last iterate
-  CHECK(bavg.average("grid").to_host() == avg.average("grid").to_host());
-
-  // Off: nothing moves, nothing is stored; a decay outside [0, 1) is refused; a checkpoint without the
-  // state cannot resume an averaged run.
-  nn::WeightAverage off(0.0f);
-  off.update(a.params());
-  CHECK_FALSE(off.average("grid").defined());
-  testing::expect_error([] { nn::WeightAverage bad(1.0f); }, "decay must be in [0, 1)");
-  testing::expect_error([] { nn::WeightAverage bad(-0.5f); }, "decay must be in [0, 1)");
-  io::Checkpoint bare;
-  bare.path = "bare.ckpt";
-  testing::expect_error([&] { bavg.load(bare, "", b.params()); }, "bare.ckpt has no weight-average state");
-  std::filesystem::remove_all(dir);
 }

@@ -4,15 +4,11 @@
 //  - style training: losses finite, the stylizer and the decoder move, the feature field does not, SICT's
 //    running statistics move; checkpoints round-trip (identical renders) and resume; the 2D warm start (on
 //    VGG maps or on rendered maps, whose mean features and opacities are checked against the field) and
-//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; with a weight
-//    average, the checkpoint holds the average (double reference) and resumes from the last iterate;
-//  - snapshots (--snapshot-every) and their uniform average (average-style): the mean of what training
-//    changed, everything else bit-identical, trainer state dropped; other runs and fields refused;
+//    the ablation switches (vanilla IN, no SICT normalisation, DST without bias) train; a checkpoint whose
+//    config holds retired options resumes without them, or is refused by name where it cannot (a weight
+//    average, a frozen decoder);
 //  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
-//  - the AdaIN teacher: its target is relu3_1 of 2D AdaIN's output, its loss agrees with a double reference
-//    and central differences, and in training it changes the stylizer's update, not the step's losses;
-//  - style augmentation in training, and its config;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -20,7 +16,6 @@
 
 #include <cmath>
 #include <fstream>
-#include <set>
 #include <sstream>
 
 #include "host/error.hpp"
@@ -30,9 +25,6 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
-#include "lib/train/adain_teacher.hpp"
-#include "lib/train/reconstruction_loss.hpp"
-#include "lib/train/style_average.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/style_trainer.hpp"
 #include "tests/small_scene.hpp"
@@ -92,18 +84,6 @@ void check_same_stylized_view(const model::StyleModel& m, const model::StyleMode
                                        loaded.style_code(taps, nullptr), cam.width, cam.height);
   CHECK(a == b);
   CHECK(testing::all_finite(a));
-}
-
-// An option's value survives the trainer config's JSON round trip, and a config written before the option
-// existed (its key absent) reads `off`.
-template <class T>
-void check_option_kept(const train::StyleTrainConfig& cfg, const char* key, T train::StyleTrainConfig::*member, T off) {
-  CAPTURE(key);
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).*member == cfg.*member);
-  auto j = cfg.to_json();
-  REQUIRE(j.contains(key));
-  j.erase(key);
-  CHECK(train::StyleTrainConfig::from_json(j).*member == off);
 }
 
 double max_abs(const std::vector<float>& v) {
@@ -322,7 +302,7 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
     x = map8.to_host();
     const Tensor rgb = m.decode_map(map8, &code, &ctx);
     const auto g = testing::random_normal(size_t(rgb.numel()), 8);
-    const auto dmap = m.decode_map_backward(ctx, Tensor::from_host(g, rgb.shape()), true, false).to_host();
+    const auto dmap = m.decode_map_backward(ctx, Tensor::from_host(g, rgb.shape()), true).to_host();
     const auto v = testing::random_normal(x.size(), 9);
     auto loss = [&](double e) {
       std::vector<float> xe(x.size());
@@ -525,14 +505,13 @@ TEST_CASE("after a decoder warm-up the stylizer's lr decays from lr_stylizer at 
   CHECK(later > 0.02 * cfg.lr_stylizer);
 }
 
-TEST_CASE("the decoder warm-up steps the decoder only, at lr_decoder_warm; the steps after it step all at lr_decoder") {
+TEST_CASE("the decoder warm-up steps the decoder only; it and the steps after it step the decoder at lr_decoder") {
   // Adam's first move of a weight is about lr (m / sqrt(v) = +-1) and its second at most ~1.001 lr, so the
   // largest decoder move of each step tells the rate it was taken at.
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
   auto cfg = small_config(2);
   cfg.decoder_warm = 1;
   cfg.warm_start = 1;
-  cfg.lr_decoder_warm = 20 * cfg.lr_decoder;
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto largest_move = [&] {
     const auto w0 = t.model().features.decoder.layers().front().w.value.to_host();
@@ -550,360 +529,44 @@ TEST_CASE("the decoder warm-up steps the decoder only, at lr_decoder_warm; the s
   const double after = largest_move();
   CHECK(t.optimizer().updates(decoder) == 2);
   CHECK(t.optimizer().updates(stylizer) == 1);
-  CHECK(warm == doctest::Approx(cfg.lr_decoder_warm).epsilon(0.05).scale(0));
+  CHECK(warm == doctest::Approx(cfg.lr_decoder).epsilon(0.05).scale(0));
   CHECK(after <= 1.01 * cfg.lr_decoder);
   CHECK(after > 0.2 * cfg.lr_decoder);
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decoder_warm == cfg.lr_decoder_warm);
-  auto j = cfg.to_json();
-  j.erase("lr_decoder_warm");  // a checkpoint written before the option existed: the warm-up used lr_decoder
-  CHECK(train::StyleTrainConfig::from_json(j).lr_decoder_warm == 0.0f);
 }
 
-TEST_CASE("lr_decoder 0 freezes the decoder after any warm-up: 2D and rendered steps leave it, the stylizer trains") {
+TEST_CASE("a checkpoint naming retired options resumes without them, unless its state needs one (named)") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(4);
-  cfg.decoder_warm = 1;
-  cfg.lr_decoder_warm = 1e-3f;
-  cfg.warm_start = 1;  // then 1 2D step and 2 rendered steps
-  cfg.lr_decoder = 0;
-  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  auto decoder_weights = [&] {
-    std::vector<float> all;
-    for (nn::Param* p : t.model().decoder_params()) {
-      const auto v = p->value.to_host();
-      all.insert(all.end(), v.begin(), v.end());
-    }
-    return all;
-  };
-  const auto untrained = decoder_weights();
-  const std::string decoder = t.model().features.decoder.layers().front().w.name;
-  REQUIRE(t.step().decoder_warm);
-  const auto warmed = decoder_weights();
-  CHECK(warmed != untrained);  // the warm-up trains it, at its own rate
-  const auto fc0 = t.model().dst.fc_w.value.to_host();
-  for (int k = 0; k < 3; ++k) {
-    const auto s = t.step();
-    CHECK_FALSE(s.skipped);
-    CHECK(std::isfinite(s.style + s.content));
-    // No weight gradient was computed: the step's zeroed decoder gradients are still zero (a trained
-    // decoder's would not be; its rate of 0 alone would hide that work).
-    for (nn::Param* p : t.model().decoder_params()) {
-      CAPTURE(p->name);
-      CHECK(max_abs(p->grad.to_host()) == 0.0);
-    }
-  }
-  // Left exactly as the warm-up left it: no gradient computed, no Adam update (its moments would move it).
-  CHECK(decoder_weights() == warmed);
-  CHECK(t.optimizer().updates(decoder) == 1);
-  CHECK(t.model().dst.fc_w.value.to_host() != fc0);
-  CHECK(t.optimizer().updates(t.model().dst.fc_w.name) == 3);
-  CHECK(t.model().first_nonfinite().empty());
-
-  auto no_rate = cfg;
-  no_rate.lr_decoder_warm = 0;  // a warm-up of a frozen decoder at rate 0 would do nothing
-  testing::expect_error(
-      [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, no_rate, nullptr); },
-      "a frozen decoder's warm-up needs its own rate");
-  auto negative = cfg;
-  negative.lr_decoder = -1e-5f;
-  testing::expect_error(
-      [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, negative, nullptr); },
-      "learning rate must be >= 0");
-}
-
-TEST_CASE("the decoder warm-up's style term: style_losses' value, and its gradient through VGG added to drgb") {
-  // reconstruction_loss composes parts tested on their own (VGG backward against central differences in
-  // test_vgg, the style loss's in test_loss); this checks the composition: the reported term is
-  // style_losses' with content weight 0, and drgb(W) - drgb(0) is VGG's backward of that term's tap
-  // gradients. (Central differences of the whole float loss do not converge on a random 32x32 image: its
-  // ReLU and max-pool switches make the loss rough at every usable step.)
-  nn::VggEncoder vgg = nn::VggEncoder::load_default();
-  const int H = 32, W = 32;
-  const Tensor target = Tensor::from_host(testing::random_uniform(size_t(3 * H * W), 41, 0.0f, 1.0f), {1, 3, H, W});
-  const Tensor rgb = Tensor::from_host(testing::random_uniform(size_t(3 * H * W), 42, 0.2f, 0.8f), {1, 3, H, W});
-  const nn::VggFeatures target_taps = vgg.forward(target, 4, false);
-  constexpr float kFeature = 0.1f, kStyle = 0.5f;
-  const auto with_style = train::reconstruction_loss(vgg, rgb, target, target_taps, kFeature, kStyle);
-  const auto without = train::reconstruction_loss(vgg, rgb, target, target_taps, kFeature);
-  nn::VggFeatures tap_grads;
-  const auto expect = train::style_losses(vgg.forward(rgb, 4, true), target_taps[3], target_taps, nullptr,
-                                          train::StyleLossWeights{0.0f, kStyle}, &tap_grads);
-  const auto style_drgb = testing::to_double(vgg.backward(tap_grads).to_host());
-  vgg.release();
-  CHECK(with_style.style == doctest::Approx(expect.style).epsilon(1e-6));
-  CHECK(with_style.style > 0.0);
-  CHECK(without.style == 0.0);
-  CHECK(with_style.pixel_mse == without.pixel_mse);
-  CHECK(with_style.feature_mse == without.feature_mse);
-  const auto a = with_style.drgb.to_host(), b = without.drgb.to_host();
-  std::vector<float> diff(a.size());
-  for (size_t i = 0; i < a.size(); ++i) diff[i] = a[i] - b[i];
-  double scale = 0;
-  for (double v : style_drgb) scale = std::max(scale, std::fabs(v));
-  REQUIRE(scale > 0);
-  testing::check_close(diff, style_drgb, 1e-3, 1e-4 * scale, "drgb(W) - drgb(0) = VGG backward of the style term");
-}
-
-TEST_CASE("decoder_warm_style: the warm-up reports its style term, and the config keeps it") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(2);
-  cfg.decoder_warm = 2;
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto a = plain.step();
-  CHECK(a.decoder_warm);
-  CHECK(a.style == 0.0);
-  cfg.decoder_warm_style = 2.0f;
-  train::StyleTrainer styled(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto b = styled.step();
-  CHECK(b.decoder_warm);
-  CHECK(b.style > 0.0);
-  CHECK(std::isfinite(b.style));
-  CHECK(b.content == doctest::Approx(a.content).epsilon(1e-5));  // same seed, same crop, same first decoder
-  CHECK(cfg.decoder_warm_style == 2.0f);
-  check_option_kept(cfg, "decoder_warm_style", &train::StyleTrainConfig::decoder_warm_style, 0.0f);
-}
-
-TEST_CASE("the weight average: checkpoints hold the average as the model and resume from the last iterate") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(3);
-  cfg.ema_decay = 0.5f;
-  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  std::vector<double> avg;  // DST's fc weights averaged in double, with the ramp min(0.5, (1 + t) / (10 + t))
-  int updates = 0;
-  while (!t.done()) {
-    if (t.step().skipped) continue;
-    const auto w = t.model().dst.fc_w.value.to_host();
-    const double d = std::min(0.5, double(1 + updates) / double(10 + updates));
-    if (updates == 0)
-      avg = testing::to_double(w);
-    else
-      for (size_t i = 0; i < w.size(); ++i) avg[i] = d * avg[i] + (1 - d) * w[i];
-    ++updates;
-  }
-  REQUIRE(updates >= 2);
-  const auto last = t.model().dst.fc_w.value.to_host();
-  const std::string path = (testing::small_work_dir() / "style_ema.ckpt").string();
-  t.save(path, {{"name", testing::small_scene().name}});
-  CHECK(t.model().dst.fc_w.value.to_host() == last);  // saving swapped the average back out
-  const auto ck = io::load_checkpoint(path, "style");
-  const auto loaded = model::StyleModel::load(ck);
-  const double scale = max_abs(last);
-  testing::check_close(loaded.dst.fc_w.value.to_host(), avg, 1e-5, 1e-6 * scale, "checkpoint model = average");
-  CHECK(loaded.dst.fc_w.value.to_host() != last);
-  train::StyleTrainer r(testing::small_scene(), ck, nullptr);
-  CHECK(r.config().ema_decay == 0.5f);
-  CHECK(r.model().dst.fc_w.value.to_host() == last);
-  r.set_total_iters(4);
-  CHECK(std::isfinite(r.step().style));
-}
-
-TEST_CASE("snapshots of a run and their average: the mean of what training changed, all else kept; other runs refused") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  const fs::path dir = testing::small_work_dir() / "snapshots";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  auto run = [&](uint64_t seed, const std::string& path, int snapshot_every) {
-    auto cfg = small_config(4);
-    cfg.seed = seed;
-    train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    train::StyleRunOptions ro;
-    ro.checkpoint = path;
-    ro.snapshot_every = snapshot_every;
-    ro.eval_every = 0;
-    ro.scene_meta = {{"name", testing::small_scene().name}};
-    train::run_style_training(t, ro);
-  };
-  const std::string out = (dir / "s.ckpt").string();
-  run(4, out, 2);
-  CHECK(train::snapshot_path(out, 2) == (dir / "s.it2.ckpt").string());
-  for (int k = 1; k <= 4; ++k) CHECK(fs::exists(train::snapshot_path(out, k)) == (k % 2 == 0));
-  const std::vector<std::string> in = {train::snapshot_path(out, 2), train::snapshot_path(out, 4)};
-  const io::Checkpoint a = io::load_checkpoint(in[0], "style"), b = io::load_checkpoint(in[1], "style");
-  const io::Checkpoint avg = train::average_style_checkpoints(in);
-
-  // Tensors the two snapshots share stay bit-identical; those training changed (the stylizer, the stage-2
-  // decoder, SICT's running statistics) are their mean; optimiser state and the trainer's are gone.
-  std::set<std::string> changed;
-  for (const auto& [name, t] : avg.tensors) {
-    CAPTURE(name);
-    REQUIRE(name.rfind("adam.", 0) != 0);
-    const auto& ta = a.get(name).data;
-    const auto& tb = b.get(name).data;
-    if (ta == tb) {
-      CHECK(t.data == tb);
-      continue;
-    }
-    changed.insert(name);
-    std::vector<double> mean(ta.size());
-    for (size_t k = 0; k < ta.size(); ++k) mean[k] = (double(ta[k]) + double(tb[k])) / 2;
-    testing::check_close(t.data, mean, 1e-6, 1e-12, "average of two snapshots");
-  }
-  model::StyleModel mb = model::StyleModel::load(b);
-  CHECK(changed.count(mb.dst.fc_w.name) == 1);
-  CHECK(changed.count("model." + mb.features.decoder.params().front()->name) == 1);
-  CHECK(changed.count(mb.sict.running_mean.name) == 1);
-  for (const auto& [name, t] : a.tensors)
-    if (name.rfind("adam.", 0) != 0) CHECK_MESSAGE(avg.tensors.count(name) == 1, name);
-  CHECK(!avg.meta.contains("trainer"));
-  CHECK(!avg.meta.contains("adam"));
-  CHECK(avg.meta.at("styles") == b.meta.at("styles"));
-  const auto& from = avg.meta.at("averaged").at("from");
-  REQUIRE(from.size() == 2);
-  CHECK(from[0].at("iteration") == 2);
-  CHECK(from[1].at("iteration") == 4);
-
-  // It is a model to stylise with: it round-trips and renders finitely; not a run to resume.
-  const std::string avg_path = (dir / "avg.ckpt").string();
-  io::save_checkpoint(avg_path, avg);
-  const io::Checkpoint avg_loaded = io::load_checkpoint(avg_path, "style");
-  check_same_stylized_view(model::StyleModel::load(avg), model::StyleModel::load(avg_loaded), styles.train[0]);
-  testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), avg_loaded, nullptr); }, "no style-trainer state");
-
-  // Refused: one input, an average as input, another run (seed), another feature field.
-  testing::expect_error([&] { train::average_style_checkpoints({in[0]}); }, "two or more");
-  testing::expect_error([&] { train::average_style_checkpoints({in[0], avg_path}); }, "itself an average");
-  const std::string other = (dir / "other.ckpt").string();
-  run(5, other, 0);
-  testing::expect_error([&] { train::average_style_checkpoints({in[0], other}); }, "s.it2.ckpt was trained with another configuration");
-  io::Checkpoint moved = a;
-  const std::string field_tensor = "model." + mb.features.field.params().front()->name;
-  REQUIRE(moved.tensors.count(field_tensor) == 1);
-  moved.tensors.at(field_tensor).data[0] += 1.0f;
-  const std::string moved_path = (dir / "moved_field.ckpt").string();
-  io::save_checkpoint(moved_path, moved);
-  testing::expect_error([&] { train::average_style_checkpoints({moved_path, in[1]}); },
-                        "moved_field.ckpt: frozen tensor '" + field_tensor + "' differs");
-}
-
-TEST_CASE("the AdaIN teacher: relu3_1 of 2D AdaIN as a target; its loss and gradient; it steers the stylizer") {
-  SUBCASE("the target is relu3_1 of adain_stylize's output, as rows") {
-    auto adain = style::AdainModel::load_default();
-    nn::VggEncoder vgg = nn::VggEncoder::load_default();
-    const Tensor content = train::load_style_image(testing::image_file_or_procedural("scenes/llff/fern/images_8/image000.png", "content"), 32, 32, nullptr);
-    const Tensor simg = train::load_style_image(style_dir() + "/style_1.png", 32, 32, nullptr);
-    const auto teacher = train::AdainTeacher::load_default();
-    const Tensor t = teacher.target_rows(vgg, vgg.forward(content, 4, false)[3], vgg.forward(simg, 4, false)[3]);
-    const Tensor ref = nn::image_to_rows(vgg.forward(style::adain_stylize(adain, content, simg, 1.0f), 3, false)[2]);
-    REQUIRE(t.shape() == host::Shape{64, 256});
-    REQUIRE(ref.shape() == t.shape());
-    const auto a = t.to_host(), b = ref.to_host();
-    CHECK(max_abs(b) > 0.1);
-    double worst = 0;
-    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, double(std::abs(a[i] - b[i])));
-    CHECK(worst <= 1e-5 * max_abs(b));
-    testing::expect_error([&] { (void)teacher.target_rows(vgg, vgg.forward(content, 3, false)[2], vgg.forward(simg, 4, false)[3]); },
-                          "relu4_1 maps");
-  }
-  SUBCASE("the loss: a double reference, central differences, zero weights, bad shapes") {
-    const int R = 5, C = 3;
-    const auto y = testing::random_normal(R * C, 11), t = testing::random_normal(R * C, 12);
-    const std::vector<float> a = {0.0f, 0.5f, 1.0f, 0.25f, 1.0f};
-    auto reference = [&](const std::vector<float>& yv, const std::vector<float>* w) {
-      double num = 0, den = 0;
-      for (int r = 0; r < R; ++r) {
-        const double wr = w ? double((*w)[size_t(r)]) : 1.0;
-        den += wr * C;
-        for (int c = 0; c < C; ++c) num += wr * std::pow(double(yv[size_t(r * C + c)]) - double(t[size_t(r * C + c)]), 2);
-      }
-      return 3.0 * num / den;
-    };
-    const Tensor tt = Tensor::from_host(t, {R, C});
-    for (const std::vector<float>* w : {static_cast<const std::vector<float>*>(nullptr), &a}) {
-      const auto l = train::teacher_loss(Tensor::from_host(y, {R, C}), tt, w, 3.0f);
-      CHECK(l.value == doctest::Approx(reference(y, w)).epsilon(1e-6));
-      const auto g = l.dy.to_host();
-      for (size_t i = 0; i < y.size(); ++i) {
-        const double h = 1e-3;
-        auto yp = y, ym = y;
-        yp[i] += float(h);
-        ym[i] -= float(h);
-        const double fd = (reference(yp, w) - reference(ym, w)) / (double(yp[i]) - double(ym[i]));
-        CHECK(double(g[i]) == doctest::Approx(fd).epsilon(1e-3).scale(1e-6));
-      }
-      if (w) CHECK(g[0] == 0.0f);  // a transparent ray is taught nothing
-    }
-    const std::vector<float> none(R, 0.0f);
-    const auto z = train::teacher_loss(Tensor::from_host(y, {R, C}), tt, &none, 3.0f);
-    CHECK(z.value == 0.0);
-    CHECK(max_abs(z.dy.to_host()) == 0.0);
-    testing::expect_error([&] { (void)train::teacher_loss(Tensor::from_host(y, {C, R}), tt, nullptr, 1.0f); }, "same [rays, channels]");
-    const std::vector<float> short_w(R - 1, 1.0f);
-    testing::expect_error([&] { (void)train::teacher_loss(Tensor::from_host(y, {R, C}), tt, &short_w, 1.0f); }, "row weights");
-  }
-  SUBCASE("in training: the same losses, another stylizer update, in 2D and rendered steps; the config keeps it") {
-    const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-    auto cfg = small_config(2);
-    cfg.warm_start = 1;
-    cfg.warm_maps = train::WarmMaps::Rendered;
-    train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    cfg.adain_teacher = 2.0f;
-    train::StyleTrainer taught(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-    const auto p1 = plain.step(), t1 = taught.step();
-    CHECK(t1.warm);
-    CHECK(p1.teacher == 0.0);
-    CHECK(t1.teacher > 0.0);
-    CHECK(std::isfinite(t1.teacher));
-    CHECK(t1.style == doctest::Approx(p1.style).epsilon(1e-5));  // the same forward: the teacher only adds a term
-    CHECK(t1.content == doctest::Approx(p1.content).epsilon(1e-5));
-    CHECK(taught.model().dst.fc_w.value.to_host() != plain.model().dst.fc_w.value.to_host());
-    const auto t2 = taught.step();
-    CHECK_FALSE(t2.warm);
-    CHECK(t2.teacher > 0.0);
-    CHECK(std::isfinite(t2.teacher + t2.style + t2.content));
-    CHECK(taught.model().first_nonfinite().empty());
-    check_option_kept(cfg, "adain_teacher", &train::StyleTrainConfig::adain_teacher, 0.0f);
-    auto paper = cfg;
-    paper.warm_start = 0;  // refused for the paper profile on its own account
-    testing::expect_error(
-        [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, paper, nullptr); },
-        "--adain-teacher needs the fast profile");
-  }
-}
-
-TEST_CASE("style_augment: the steps train on augmented styles; the config keeps it; old configs read it off") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(2);
-  cfg.style_size = cfg.style_crop;  // the whole image: no random crop, so only the augmentation differs
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  cfg.style_augment = true;
-  train::StyleTrainer augmented(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  const auto a1 = plain.step(), b1 = augmented.step();
-  CHECK(a1.style_name == b1.style_name);  // the same style drawn, then augmented
-  CHECK(b1.style != a1.style);            // a flipped / reordered style has other statistics to match
-  CHECK(std::isfinite(b1.style + b1.content + augmented.step().style));
-  CHECK(augmented.model().first_nonfinite().empty());
-  check_option_kept(cfg, "style_augment", &train::StyleTrainConfig::style_augment, false);
-}
-
-TEST_CASE("style_crop_min: steps train on crops of other sides; the config keeps it; bad values are refused") {
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = small_config(6);
-  cfg.style_size = cfg.style_crop;  // the whole image without the option: only the crop side differs
-  train::StyleTrainer plain(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  cfg.style_crop_min = 16;
-  train::StyleTrainer parts(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  // Each crop's side is one of 16, 24, 32 (seeded draws: over six steps some are parts of the image), whose
-  // statistics the style loss then asks for instead of the whole's.
-  std::set<int> sides;
-  for (int i = 0; i < 6; ++i) {
-    const auto a = plain.step(), b = parts.step();
-    CHECK(a.style_side == 32);
-    CHECK(std::isfinite(b.style + b.content));
-    sides.insert(b.style_side);
-  }
-  CHECK(sides.size() >= 2);
-  CHECK(*sides.begin() >= 16);
-  CHECK(*sides.rbegin() <= 32);
-  CHECK(*sides.begin() < 32);
-  CHECK(parts.model().first_nonfinite().empty());
-  check_option_kept(cfg, "style_crop_min", &train::StyleTrainConfig::style_crop_min, 0);
-  for (int bad : {8, 20, 40}) {
-    CAPTURE(bad);
-    cfg.style_crop_min = bad;
+  for (float lr : {0.0f, -1e-5f}) {  // a frozen decoder (lr_decoder 0) is retired too
+    auto cfg = small_config(1);
+    cfg.lr_decoder = lr;
     testing::expect_error(
         [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr); },
-        "--style-crop-min");
+        "the decoder's learning rate must be > 0");
   }
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, small_config(1),
+                        nullptr);
+  t.step();
+  const std::string path = (testing::small_work_dir() / "style_retired.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  auto ck = io::load_checkpoint(path, "style");
+  nlohmann::json& config = ck.meta["trainer"]["config"];
+  REQUIRE_FALSE(config.contains("ema_decay"));
+  // Options that only steered training, as checkpoints of earlier runs hold them: ignored.
+  config["ema_decay"] = 0.0;
+  config["style_augment"] = true;
+  config["adain_teacher"] = 5.0;
+  train::StyleTrainer resumed(testing::small_scene(), ck, nullptr);
+  CHECK(resumed.iteration() == 1);
+  resumed.set_total_iters(2);
+  CHECK(std::isfinite(resumed.step().style));
+  // A weight average: the checkpoint's model is the average, and the last iterate to resume from is gone.
+  config["ema_decay"] = 0.995;
+  testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), ck, nullptr); },
+                        "style_retired.ckpt: its config has ema_decay 0.995");
+  config["ema_decay"] = 0.0;
+  config["lr_decoder"] = 0.0;
+  testing::expect_error([&] { train::StyleTrainer(testing::small_scene(), ck, nullptr); },
+                        "style_retired.ckpt: its config has lr_decoder 0");
 }
 
 TEST_CASE("masked losses: an empty mask is refused; gather and scatter are adjoint") {

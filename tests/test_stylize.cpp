@@ -18,7 +18,6 @@
 #include <cmath>
 #include <fstream>
 #include <random>
-#include <set>
 
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
@@ -385,65 +384,4 @@ TEST_CASE("style encoder: hard images, memory and disk caches") {
   CHECK(found[0].find("good.png") != std::string::npos);
   CHECK(log.str().find("notes.png") != std::string::npos);
   testing::expect_error([&] { style::style_images_in((bad_dir / "missing").string(), nullptr); }, "not a folder");
-}
-
-TEST_CASE("style crop sides: multiples of 8 drawn over the whole range; bad ranges are refused") {
-  std::mt19937_64 rng(3);
-  std::set<int> seen;
-  for (int i = 0; i < 400; ++i) {
-    const int side = style::draw_crop_side(128, 256, rng);
-    CHECK(side % 8 == 0);
-    CHECK(side >= 128);
-    CHECK(side <= 256);
-    seen.insert(side);
-  }
-  CHECK(seen.size() == 17);  // 128, 136, ..., 256: both ends included
-  CHECK(style::draw_crop_side(64, 64, rng) == 64);
-  CHECK_THROWS_WITH_AS(style::draw_crop_side(128, 64, rng), doctest::Contains("min <= max"), host::Error);
-  CHECK_THROWS_WITH_AS(style::draw_crop_side(100, 256, rng), doctest::Contains("multiples of 8"), host::Error);
-  CHECK_THROWS_WITH_AS(style::draw_crop_side(0, 256, rng), doctest::Contains("multiples of 8"), host::Error);
-}
-
-TEST_CASE("style augmentation draws each of a square image's 48 flips, turns and channel orders; non-square is refused") {
-  const int n = 5;
-  io::Image img;
-  img.width = img.height = n;
-  img.data = testing::random_uniform(size_t(3 * n * n), 9, 0.0f, 1.0f);
-  // The 48 built another way: the 8 symmetries of the square as 0-3 quarter turns, each with or without a
-  // mirror, times the 6 orders of the channels.
-  std::set<std::vector<float>> expected;
-  int order[3] = {0, 1, 2};
-  do {
-    for (int mirror = 0; mirror < 2; ++mirror)
-      for (int turns = 0; turns < 4; ++turns) {
-        io::Image o = img;
-        for (int c = 0; c < 3; ++c)
-          for (int y = 0; y < n; ++y)
-            for (int x = 0; x < n; ++x) {
-              int sy = y, sx = mirror ? n - 1 - x : x;
-              for (int t = 0; t < turns; ++t) {
-                const int ty = sx, tx = n - 1 - sy;  // one quarter turn
-                sy = ty;
-                sx = tx;
-              }
-              o.at(c, y, x) = img.at(order[c], sy, sx);
-            }
-        expected.insert(o.data);
-      }
-  } while (std::next_permutation(order, order + 3));
-  REQUIRE(expected.size() == 48);
-  std::set<std::vector<float>> seen;
-  std::mt19937_64 rng(1);
-  for (int i = 0; i < 2000; ++i) {
-    io::Image a = img;
-    style::augment_style_image(a, rng);
-    CHECK(a.width == n);
-    seen.insert(a.data);
-  }
-  CHECK(seen == expected);
-  io::Image wide;
-  wide.width = 4;
-  wide.height = 2;
-  wide.data.assign(24, 0.5f);
-  CHECK_THROWS_WITH_AS(style::augment_style_image(wide, rng), doctest::Contains("4x2, not square"), host::Error);
 }

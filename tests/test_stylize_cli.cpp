@@ -153,20 +153,12 @@ TEST_CASE("stylize: bad input gets a clear error") {
                             out + "' ";
   expect(train + "--lr-decay 0", "--lr-decay must be in (0, 1]");
   expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
-  expect(train + "--ema 1", "--ema must be in [0, 1)");
-  expect(train + "--ema -0.1", "--ema must be in [0, 1)");
   expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
   expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
   expect(train + "--style-decoder adain", "--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got 'adain'");
-  expect(train + "--lr-decoder -1", "--lr-decoder must be a positive number, or 0 to freeze the decoder");
+  expect(train + "--lr-decoder -1", "--lr-decoder must be a positive number");
+  expect(train + "--lr-decoder 0", "--lr-decoder must be a positive number");
   expect(train + "--lr-stylizer 0", "--lr-stylizer must be a positive number");
-  expect(train + "--lr-decoder 0 --decoder-warm 5", "--decoder-warm then needs its own --lr-decoder-warm");
-  expect(train + "--decoder-warm 5 --lr-decoder-warm 0", "--lr-decoder-warm must be a positive number");
-  expect(train + "--lr-decoder-warm 1e-4", "--lr-decoder-warm needs --decoder-warm N > 0");
-  expect(train + "--decoder-warm 5 --decoder-warm-style -1", "--decoder-warm-style must be a positive number");
-  expect(train + "--decoder-warm-style 1", "--decoder-warm-style needs --decoder-warm N > 0");
   expect(train + "--style-size 128", "--style-size must be in [256, 4096] (the crop is 256), got 128");
-  expect(train + "--adain-teacher -1", "--adain-teacher must be a number >= 0");
-  expect(train + "--adain-teacher nan", "--adain-teacher must be a number >= 0");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

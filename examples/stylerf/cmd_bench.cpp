@@ -43,10 +43,6 @@ int run_bench(int argc, char** argv) {
       "size", po::value(&opt.size)->default_value(256), "patch: side in pixels (multiple of 8)")(
       "style-decoder", po::value(&opt.style_decoder)->default_value("stage2"),
       "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain | vgg-adain-relu4 (train-style --style-decoder)")(
-      "adain-teacher", po::bool_switch(&opt.adain_teacher),
-      "patch --stage 3: also time train-style --adain-teacher's target (AdaIN's decoder, VGG to relu3_1) and loss")(
-      "frozen-decoder", po::bool_switch(&opt.frozen_decoder),
-      "patch --stage 3: a frozen decoder (train-style --lr-decoder 0): its backward computes no weight gradients")(
       "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
       "views", po::value(&opt.views)->default_value(3), "render: held-out views to render")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(

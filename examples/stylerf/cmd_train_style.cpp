@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
-#include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -31,13 +30,12 @@ int run_train_style(int argc, char** argv) {
   std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name = "vgg", style_decoder_name = "stage2";
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
-      decoder_warm = 0, snapshot_every = 0;
-  int patch = 256, style_size = 512, style_crop_min = 0;
+      decoder_warm = 0;
+  int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decoder_warm = 0.0f, decoder_warm_style = 0.0f, lr_decay = 1.0f, ema = 0.0f,
-        adain_teacher = 0.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
   uint64_t seed = 0;
-  bool resume = false, force = false, timing = false, style_augment = false;
+  bool resume = false, force = false, timing = false;
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("features", po::value(&features_path), "feature-stage checkpoint")(
       "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
@@ -50,10 +48,6 @@ int run_train_style(int argc, char** argv) {
       "style-size", po::value(&style_size)->default_value(512),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
-      "style-crop-min", po::value(&style_crop_min)->default_value(0),
-      "N > 0: each step's crop side is drawn from [N, 256] (multiples of 8) and cut without rescaling: with "
-      "--style-size 256, parts of each painting at the scale inference reads it, so ~100 training styles give "
-      "the stylizer many inputs rather than the same ~100 (not the paper's); 0: every crop 256")(
       "sict", po::value(&sict_name)->default_value("volume-adaptive"),
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
@@ -70,28 +64,11 @@ int run_train_style(int argc, char** argv) {
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
       "not the paper's; README)")(
-      "style-augment", po::bool_switch(&style_augment),
-      "each step's style image is one of its 48 flips, 90-degree turns and colour-channel orders, drawn at random, "
-      "so that a few hundred training styles teach reading any style rather than those styles (not the paper's)")(
-      "adain-teacher", po::value(&adain_teacher)->default_value(0.0f),
-      "W > 0: the loss adds W x the MSE between DST's output map and relu3_1 of 2D AdaIN of the true patch with "
-      "the step's style, a target for every map pixel (not the paper's loss; 2D and rendered steps); 0: off, the "
-      "paper's")(
       "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
-      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f),
-      "decoder fine-tuning learning rate; 0 freezes the decoder (after any --decoder-warm, which then needs "
-      "--lr-decoder-warm): no weight gradients are computed for it")(
-      "lr-decoder-warm", po::value(&lr_decoder_warm),
-      "the decoder's learning rate during --decoder-warm's steps (default: --lr-decoder)")(
-      "decoder-warm-style", po::value(&decoder_warm_style),
-      "W > 0: --decoder-warm's loss adds W x the style term (relu1_1..relu4_1 means and stds) of the decoded "
-      "crop against the crop, texture statistics a pixel and feature MSE let the decoder blur (default: none)")(
+      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
       "lr-decay", po::value(&lr_decay)->default_value(1.0f),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
-      "ema", po::value(&ema)->default_value(0.0f),
-      "D in (0, 1): held-out losses and the checkpoint use an exponential moving average of the weights over "
-      "~1/(1-D) steps (the last iterate is kept for --resume); 0: off, the paper's")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
@@ -99,9 +76,6 @@ int run_train_style(int argc, char** argv) {
       "eval-every", po::value(&eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
       "eval-styles", po::value(&eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
       "ckpt-every", po::value(&ckpt_every)->default_value(200), "iterations between checkpoints")(
-      "snapshot-every", po::value(&snapshot_every)->default_value(0),
-      "N > 0: also keep the checkpoint of every N-th iteration as <out stem>.it<N><ext>, to average with "
-      "`stylerf average-style` or compare (0: none)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
       "timing", po::bool_switch(&timing), "print per-kernel times at the end");
   po::variables_map vm;
@@ -118,27 +92,12 @@ int run_train_style(int argc, char** argv) {
   if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
   if (style_size < 256 || style_size > 4096)
     throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(style_size));
-  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0 ||
-      snapshot_every < 0)
-    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles, --ckpt-every and "
-                "--snapshot-every must be >= 0");
+  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
+    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
-  if (!(lr_decoder >= 0) || !std::isfinite(lr_decoder))
-    throw Error("--lr-decoder must be a positive number, or 0 to freeze the decoder");
-  if (lr_decoder == 0 && decoder_warm > 0 && !vm.count("lr-decoder-warm"))
-    throw Error("--lr-decoder 0 freezes the decoder: --decoder-warm then needs its own --lr-decoder-warm");
-  if (vm.count("lr-decoder-warm") && !(lr_decoder_warm > 0 && std::isfinite(lr_decoder_warm)))
-    throw Error("--lr-decoder-warm must be a positive number");
-  if (vm.count("lr-decoder-warm") && decoder_warm == 0) throw Error("--lr-decoder-warm needs --decoder-warm N > 0");
-  if (vm.count("decoder-warm-style") && !(decoder_warm_style > 0 && std::isfinite(decoder_warm_style)))
-    throw Error("--decoder-warm-style must be a positive number");
-  if (vm.count("decoder-warm-style") && decoder_warm == 0)
-    throw Error("--decoder-warm-style needs --decoder-warm N > 0");
+  if (!(lr_decoder > 0) || !std::isfinite(lr_decoder)) throw Error("--lr-decoder must be a positive number");
   if (!(lr_decay > 0 && lr_decay <= 1))
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
-  if (!(adain_teacher >= 0 && std::isfinite(adain_teacher)))
-    throw Error("--adain-teacher must be a number >= 0, got " + std::to_string(adain_teacher));
-  if (!(ema >= 0 && ema < 1)) throw Error("--ema must be in [0, 1), got " + std::to_string(ema));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
   const auto warm_maps = train::parse_warm_maps(warm_maps_name);
@@ -178,59 +137,32 @@ int run_train_style(int argc, char** argv) {
     cfg.lr_stylizer = lr_stylizer;
     cfg.lr_decoder = lr_decoder;
     cfg.lr_decay_ratio = lr_decay;
-    cfg.ema_decay = ema;
     cfg.warm_start = warm;
     cfg.warm_maps = warm_maps;
     cfg.style_decoder = style_decoder;
-    cfg.adain_teacher = adain_teacher;
-    cfg.style_augment = style_augment;
-    cfg.style_crop_min = style_crop_min;
     cfg.decoder_warm = decoder_warm;
-    cfg.lr_decoder_warm = lr_decoder_warm;
-    cfg.decoder_warm_style = decoder_warm_style;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
     trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
   }
   const auto& cfg = trainer->config();
   auto& m = trainer->model();
-  int64_t trained_params = m.param_count();
-  if (cfg.lr_decoder == 0)  // frozen after any warm-up: the stylizer's alone
-    for (const auto* p : m.decoder_params()) trained_params -= p->value.numel();
-  const std::string decay =
-      cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string();
-  std::ostringstream rates;  // the decay is said once, after the last rate that decays
-  rates << "  Adam lr stylizer " << cfg.lr_stylizer;
-  if (cfg.lr_decoder > 0)
-    rates << ", decoder " << cfg.lr_decoder << decay;
-  else
-    rates << decay << ", decoder frozen";
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << "\n"
             << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
-            << " held out; style images resized to " << cfg.style_size << " then cropped to "
-            << (cfg.style_crop_min > 0 ? std::to_string(cfg.style_crop_min) + ".." : std::string()) << cfg.style_crop
-            << (cfg.style_augment ? ", each step's flipped / turned / channel-reordered at random" : "") << "\n"
+            << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
-            << cfg.weights.style
-            << (cfg.adain_teacher > 0 ? " + AdaIN teacher (DST output vs relu3_1 of 2D AdaIN, MSE) x" +
-                                            std::to_string(cfg.adain_teacher)
-                                      : std::string())
-            << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
-            << rates.str()
-            << (cfg.ema_decay > 0 ? "; weights averaged (EMA " + std::to_string(cfg.ema_decay) + ")" : std::string())
-            << "; grids frozen; "
-            << trained_params / 1e6 << "M trained parameters"
+            << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
+            << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
+            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << "; grids frozen; " << m.param_count() / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps)"
                                    : "")
-            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "");
-  if (cfg.decoder_warm > 0 && cfg.lr_decoder_warm > 0) std::cout << " (decoder lr " << cfg.lr_decoder_warm << ")";
-  if (cfg.decoder_warm > 0 && cfg.decoder_warm_style > 0)
-    std::cout << " (inversion + " << cfg.decoder_warm_style << " x the crop's style term)";
-  std::cout << std::endl;
+            << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "")
+            << std::endl;
 
   train::StyleRunOptions ro;
   ro.log = &std::cout;
@@ -239,7 +171,6 @@ int run_train_style(int argc, char** argv) {
   ro.eval_styles = eval_styles;
   ro.checkpoint = out;
   ro.checkpoint_every = ckpt_every;
-  ro.snapshot_every = snapshot_every;
   ro.time_budget_s = minutes * 60.0;
   ro.scene_meta = scene_meta;
   if (minutes > 0 && !resume) trainer->set_total_iters(1000000);  // refitted from the measured rate

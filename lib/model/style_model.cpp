@@ -154,11 +154,10 @@ Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, D
   return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
 }
 
-Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder) {
-  if (decoder_kind == StyleDecoderKind::Stage2)
-    return features.decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
+Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
+  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
   // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
-  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx, train_decoder);
+  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx);
   if (!need_dx) return Tensor();
   if (decoder_kind == StyleDecoderKind::VggAdainRelu4) d41 = nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
   return vgg_tail.backward(ctx.tail, d41);
@@ -176,22 +175,9 @@ std::vector<nn::Param*> StyleModel::decoder_params() {
   return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
 }
 
-std::vector<nn::Param*> StyleModel::stylizer_params() {
-  std::vector<nn::Param*> out;
-  sict.collect_params(out);
-  dst.collect_params(out);
-  return out;
-}
-
-style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra,
-                                            bool train_decoder) {
-  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true, train_decoder);
-  Tensor dy = nn::rows_to_image_backward(dmap);
-  if (dy_extra.defined()) {
-    host::expect_shape(dy_extra, dy.shape(), "style model backward", "extra gradient at DST's output");
-    nn::axpby(1.0f, dy_extra, 1.0f, dy);
-  }
-  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
+style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
+  const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
+  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, nn::rows_to_image_backward(dmap), true);
   render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
   return g;
 }
@@ -379,26 +365,13 @@ void StyleModel::collect_params(std::vector<nn::Param*>& out) {
 
 void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
 
-namespace {
-// SICT, DST and AdaIN's decoder where it draws the maps: the tensors a style checkpoint adds to the feature
-// model's.
-void save_style_parts(StyleModel& m, io::Checkpoint& ck) {
-  m.sict.save(ck, "");
-  m.dst.save(ck, "");
-  if (m.decoder_kind != StyleDecoderKind::Stage2) m.style_decoder.save(ck, "");
-}
-}  // namespace
-
 void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
-  save_style_parts(*this, ck);
+  sict.save(ck, "");
+  dst.save(ck, "");
+  if (decoder_kind != StyleDecoderKind::Stage2) style_decoder.save(ck, "");
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
-}
-
-void StyleModel::save_trained(io::Checkpoint& ck) {
-  save_style_parts(*this, ck);
-  if (decoder_kind == StyleDecoderKind::Stage2) features.decoder.save(ck, "model.");  // as FeatureModel::save names it
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {

@@ -89,14 +89,12 @@ class StyleModel : public nn::Module {
   };
   // code: the style's, for VggAdainRelu4 (its relu4_1 statistics); the others ignore it (may be null).
   Tensor decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const;
-  // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients unless
-  // train_decoder is false (a frozen decoder: only the data gradient, about half the decoder's backward).
-  Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx, bool train_decoder = true);
+  // drgb -> dmap (undefined when need_dx is false); accumulates the decoder's parameter gradients.
+  Tensor decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx);
   // A style image's code from its VGG taps: DST's (relu3_1), and for VggAdainRelu4 relu4_1's statistics
   // (taps to depth 4). ctx: DST's style-branch context, for training.
   style::StyleCode style_code(const nn::VggFeatures& taps, style::Dst::StyleContext* ctx) const;
   std::vector<nn::Param*> decoder_params();
-  std::vector<nn::Param*> stylizer_params();  // SICT's and DST's
   int stride() const { return features.stride(); }
 
   // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
@@ -124,11 +122,8 @@ class StyleModel : public nn::Module {
   // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
   Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
-  // dstd) for the style branch (Dst::style_code_backward). dy_extra (optional, [h w, 256]): a gradient of
-  // another loss at DST's output rows, added to the decoder's (train::AdainTeacher's). train_decoder false:
-  // the decoder's parameter gradients are not computed (decode_map_backward).
-  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb, const Tensor& dy_extra = Tensor(),
-                                  bool train_decoder = true);
+  // dstd) for the style branch (Dst::style_code_backward).
+  style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb);
 
   // The deferred-vs-per-point proof's other side: DST applied to every kept sample's SICT output (weight
   // 1 each: unzip(T c_i) * std + mean), then the 256 channels composited. Inference only; equals
@@ -182,9 +177,6 @@ class StyleModel : public nn::Module {
   // Checkpoint kind "style": the feature model's tensors and meta, the stylizer under "style.*", and
   // meta["style_model"] (SICT mode, DST bias).
   void save(io::Checkpoint& ck);
-  // What a style run changes, under the names save() gives them: SICT (with its running statistics), DST
-  // and the fine-tuned decoder (train/style_average.hpp averages exactly these).
-  void save_trained(io::Checkpoint& ck);
   static StyleModel load(const io::Checkpoint& ck);
 };
 

@@ -251,7 +251,7 @@ Tensor ConvStack::forward(const Tensor& x, Ctx* ctx) const {
   return h;
 }
 
-Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx, bool need_params) {
+Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx) {
   const std::string op = where() + "::backward";
   if (ctx.inputs.size() != layers_.size() || ctx.relu_out.size() != layers_.size() || !ctx.inputs[0].defined())
     throw Error(op + ": the context does not come from this stack's forward(x, &ctx) (" +
@@ -263,15 +263,12 @@ Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx, bool 
   Tensor d = dy;
   for (int i = int(layers_.size()) - 1; i >= 0; --i) {
     Layer& l = layers_[i];
-    const bool dx_here = i > 0 || need_dx;
-    if (!dx_here && !need_params) return Tensor();  // nothing asked of the first conv
     if (l.upsample) d = upsample2x_backward(d);
     if (l.relu) d = relu_backward(ctx.relu_out[i], d);
-    Conv2dGrads g = conv2d_backward(ctx.inputs[i], l.w.value, d, pad_, dx_here, need_params);
-    if (need_params) {
-      l.w.accumulate(g.dw);
-      l.b.accumulate(g.db);
-    }
+    Conv2dGrads g = conv2d_backward(ctx.inputs[i], l.w.value, d, pad_, /*need_dx=*/i > 0 || need_dx,
+                                    /*need_params=*/true);
+    l.w.accumulate(g.dw);
+    l.b.accumulate(g.db);
     d = g.dx;
   }
   return d;

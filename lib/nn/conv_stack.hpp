@@ -82,9 +82,8 @@ class ConvStack : public Module {
   // side too), so a 1x1 input is an Error naming the layer; zero padding takes any size.
   Tensor forward(const Tensor& x, Ctx* ctx = nullptr) const;
   // dy of forward's output -> dx (undefined when need_dx is false: the first conv skips its col2im).
-  // Adds dW and db of every conv into the Params' grads; need_params false (a frozen stack) computes
-  // neither, which leaves each conv's data gradient only (about half the work).
-  Tensor backward(const Ctx& ctx, const Tensor& dy, bool need_dx = true, bool need_params = true);
+  // Adds dW and db of every conv into the Params' grads.
+  Tensor backward(const Ctx& ctx, const Tensor& dy, bool need_dx = true);
 
   void collect_params(std::vector<Param*>& out) override;
 

@@ -50,35 +50,6 @@ host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64
   return io::to_tensor(out);
 }
 
-void augment_style_image(io::Image& img, std::mt19937_64& rng) {
-  if (img.width != img.height)
-    throw Error("style augmentation: the image is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
-                ", not square");
-  const int n = img.width;
-  std::uniform_int_distribution<int> pick(0, 47);
-  const int k = pick(rng);
-  const bool flip_x = k & 1, flip_y = k & 2, transpose = k & 4;
-  static const int kOrders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  const int* order = kOrders[k >> 3];
-  io::Image out = img;
-  for (int c = 0; c < 3; ++c)
-    for (int y = 0; y < n; ++y)
-      for (int x = 0; x < n; ++x) {
-        int sx = flip_x ? n - 1 - x : x, sy = flip_y ? n - 1 - y : y;
-        if (transpose) std::swap(sx, sy);
-        out.at(c, y, x) = img.at(order[c], sy, sx);
-      }
-  img = std::move(out);
-}
-
-int draw_crop_side(int min_side, int max_side, std::mt19937_64& rng) {
-  if (min_side < 8 || min_side % 8 || max_side % 8 || max_side < min_side)
-    throw Error("style crop sides must be multiples of 8 with min <= max, got [" + std::to_string(min_side) + ", " +
-                std::to_string(max_side) + "]");
-  std::uniform_int_distribution<int> eighths(min_side / 8, max_side / 8);
-  return 8 * eighths(rng);
-}
-
 host::Tensor load_style_image(const std::string& path, int size, int crop, std::mt19937_64* rng) {
   check_crop(path, crop, size);
   return crop_style_image(load_style_source(path, size), crop, rng, path);

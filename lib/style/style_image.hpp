@@ -22,19 +22,6 @@ host::Tensor load_style_image(const std::string& path, int size, int crop, std::
 io::Image load_style_source(const std::string& path, int size);
 host::Tensor crop_style_image(const io::Image& source, int crop, std::mt19937_64* rng, const std::string& path);
 
-// A crop side for one training step (train-style --style-crop-min): a multiple of 8 drawn uniformly from
-// [min_side, max_side] (both multiples of 8). Cropped without resizing, so the style keeps the texture
-// scale inference reads it at; a smaller window is a part of the painting, with statistics of its own.
-int draw_crop_side(int min_side, int max_side, std::mt19937_64& rng);
-
-// Style-image augmentation for training (train-style --style-augment): one of the 48 images a horizontal
-// flip, a vertical flip, a transpose (so 90-degree turns) and an order of the three colour channels make,
-// drawn uniformly from `rng`. Each is as much a painting as the original, with the same texture scale;
-// 116 training styles become 5568 to the stylizer, which otherwise meets every style tens of times,
-// always the same, and learns them rather than how to read any style (a generalisation gap measured on
-// fern: README). The image must be square (a transpose keeps its shape).
-void augment_style_image(io::Image& img, std::mt19937_64& rng);
-
 // The style images of a folder in name order: files named .jpg/.jpeg/.png (any case) that decode. Files
 // that cannot be decoded (a WebP saved as .jpg, a text file renamed) are left out, each named with its
 // reason on `log`: one bad file must not stop a run of hours at the step that draws it. Throws when `dir`

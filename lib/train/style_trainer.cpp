@@ -16,7 +16,6 @@
 #include "lib/nn/ops.hpp"
 #include "lib/train/progress.hpp"
 #include "lib/train/reconstruction_loss.hpp"
-#include "lib/train/style_average.hpp"
 #include "lib/style/style_encoder.hpp"
 
 namespace stylerf::train {
@@ -38,18 +37,12 @@ json StyleTrainConfig::to_json() const {
           {"beta1", beta1},
           {"beta2", beta2},
           {"lr_decay_ratio", lr_decay_ratio},
-          {"ema_decay", ema_decay},
           {"content_weight", weights.content},
           {"style_weight", weights.style},
           {"warm_start", warm_start},
           {"decoder_warm", decoder_warm},
-          {"lr_decoder_warm", lr_decoder_warm},
-          {"decoder_warm_style", decoder_warm_style},
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
-          {"adain_teacher", adain_teacher},
-          {"style_augment", style_augment},
-          {"style_crop_min", style_crop_min},
           {"running_init_patches", running_init_patches},
           {"seed", seed}};
 }
@@ -67,18 +60,12 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.beta1 = j.at("beta1").get<float>();
   c.beta2 = j.at("beta2").get<float>();
   c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
-  c.ema_decay = j.value("ema_decay", 0.0f);  // absent from checkpoints written before the option existed
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
   c.warm_start = j.at("warm_start").get<int>();
   c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
-  c.lr_decoder_warm = j.value("lr_decoder_warm", 0.0f);  // absent before the option existed
-  c.decoder_warm_style = j.value("decoder_warm_style", 0.0f);  // absent before the option existed
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
-  c.adain_teacher = j.value("adain_teacher", 0.0f);  // absent before the option existed
-  c.style_augment = j.value("style_augment", false);  // absent before the option existed
-  c.style_crop_min = j.value("style_crop_min", 0);  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
   c.seed = j.at("seed").get<uint64_t>();
   return c;
@@ -117,6 +104,20 @@ Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
     for (int64_t c = 0; c < C; ++c) v[size_t(r * C + c)] *= factor[size_t(r)];
   return Tensor::from_host(v, {R, C}, "scaled rows");
 }
+
+// Options retired as neutral or worse (docs/experiments.md) may still be in a checkpoint's config: those
+// that only steered training are ignored on resume (the rest of the run trains without them); a run this
+// trainer cannot continue as it ran (a weight average, a frozen decoder) is refused, naming the file and field.
+void refuse_retired_state(const json& config, const std::string& path) {
+  if (config.value("ema_decay", 0.0f) > 0)
+    throw Error("checkpoint " + path + ": its config has ema_decay " + config.at("ema_decay").dump() +
+                ": its model is a weight average, which train-style no longer keeps (docs/experiments.md), so the "
+                "run cannot be resumed; the checkpoint still stylises and evaluates as it is");
+  if (config.value("lr_decoder", 1.0f) == 0)
+    throw Error("checkpoint " + path + ": its config has lr_decoder 0: a frozen decoder, which train-style no longer "
+                "supports (docs/experiments.md), so the run cannot be resumed as it ran; the checkpoint still "
+                "stylises and evaluates as it is");
+}
 }  // namespace
 
 // ---- trainer ----------------------------------------------------------------------------------------------
@@ -126,21 +127,11 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
     throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
                 "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (cfg_.adain_teacher > 0 && features.profile != model::DecoderProfile::Fast)
-    throw Error("train-style: --adain-teacher needs the fast profile (its target, relu3_1 of 2D AdaIN, is at the fast "
-                "profile's map resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (!(cfg_.lr_decoder >= 0))
-    throw Error("train-style: the decoder's learning rate must be >= 0 (0: frozen), got " + std::to_string(cfg_.lr_decoder));
-  if (cfg_.lr_decoder == 0 && cfg_.decoder_warm > 0 && !(cfg_.lr_decoder_warm > 0))
-    throw Error("train-style: a frozen decoder's warm-up needs its own rate (--lr-decoder-warm): at --lr-decoder 0 the "
-                "warm-up would not train it");
+  if (!(cfg_.lr_decoder > 0))
+    throw Error("train-style: the decoder's learning rate must be > 0, got " + std::to_string(cfg_.lr_decoder));
   if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
-  if (cfg_.style_crop_min != 0 && (cfg_.style_crop_min < 16 || cfg_.style_crop_min % 8 || cfg_.style_crop_min > cfg_.style_crop))
-    throw Error("train-style: --style-crop-min " + std::to_string(cfg_.style_crop_min) +
-                " must be a multiple of 8 from 16 (relu4_1 then has 2 x 2 positions for its statistics) to the crop, " +
-                std::to_string(cfg_.style_crop) + " (0: every crop at that side)");
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   init(log);
   init_running_stats(log);
@@ -149,6 +140,7 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
 StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log) : scene_(&scene) {
   try {
     const json& t = ck.meta.at("trainer");
+    refuse_retired_state(t.at("config"), ck.path);
     cfg_ = StyleTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
     styles_ = StyleSet::from_json(ck.meta.at("styles"));
@@ -158,14 +150,11 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, 
   model_ = model::StyleModel::load(ck);
   init(log);
   adam_.load(ck, "", model_.params());
-  ema_.load(ck, "", model_.params());
 }
 
 void StyleTrainer::init(std::ostream* log) {
   adam_ = nn::Adam({{"stylizer", cfg_.lr_stylizer}, {"decoder", cfg_.lr_decoder}}, cfg_.beta1, cfg_.beta2);
-  ema_ = nn::WeightAverage(cfg_.ema_decay);
   vgg_ = nn::VggEncoder::load_default();
-  if (cfg_.adain_teacher > 0) teacher_ = std::make_unique<AdainTeacher>(AdainTeacher::load_default());
   if (cfg_.warm_start > 0 && cfg_.decoder_warm + cfg_.warm_start > iteration_) {
     if (cfg_.warm_maps == WarmMaps::Rendered) {
       rendered_maps_ = render_warm_maps(model_.features, *scene_, log);
@@ -239,23 +228,17 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
     return st;
   }
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
-  // decode_styled in two steps: the teacher reads DST's output before decode_rows adds the background.
-  Tensor y = model_.dst.apply(content.c, content.kept_acc, code, &ctx.dst);
-  std::vector<float> acc_rows;
-  if (teacher_ && masked) acc_rows = content.acc.to_host();
-  const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc_rows : nullptr);
-  const Tensor rgb = model_.decode_rows(std::move(y), content.acc, h, w, &code, &ctx);
+  const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb, teach.dy, !decoder_frozen());
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
   st.content = lv.content;
   st.style = lv.style;
-  st.teacher = teach.value;
   return st;
 }
 
@@ -299,7 +282,6 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
     }
   }
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
-  const TeacherLoss teach = teacher_term(y, truth, style_taps, masked ? &acc : nullptr);  // before the background
   model::StyleModel::Context mctx;  // only its decoder part is used
   const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
                               : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
@@ -308,15 +290,13 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
   const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true, !decoder_frozen()));
-  if (teach.dy.defined()) nn::axpby(1.0f, teach.dy, 1.0f, dy);
+  const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
   const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
   // The running statistics are left alone: they describe 3D samples, which these 2D maps only resemble.
   st.content = lv.content;
   st.style = lv.style;
-  st.teacher = teach.value;
   st.rays = R;
   return st;
 }
@@ -330,19 +310,11 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   if (model_.decoder_kind == model::StyleDecoderKind::VggAdainRelu4) style::set_relu4_stats(own, style_taps[3]);
   const Tensor rgb = model_.decode_map(style_taps[2], &own, &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
-  const ReconstructionLoss loss =
-      reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight, cfg_.decoder_warm_style);
+  const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight);
   model_.decode_map_backward(dctx, loss.drgb, false);
   st.content = loss.pixel_mse + kFeatureWeight * loss.feature_mse;
-  st.style = loss.style;
   st.rays = rgb.numel() / 3;
   return st;
-}
-
-TeacherLoss StyleTrainer::teacher_term(const Tensor& y, const nn::VggFeatures& truth, const nn::VggFeatures& style_taps,
-                                       const std::vector<float>* row_weights) {
-  if (!teacher_) return {};
-  return teacher_loss(y, teacher_->target_rows(vgg_, truth[3], style_taps[3]), row_weights, cfg_.adain_teacher);
 }
 
 void StyleTrainer::set_group_lr(const std::string& group, float lr) {
@@ -368,9 +340,8 @@ void StyleTrainer::set_step_lrs(int k, bool decoder_warm) {
   const double stylizer_progress =
       stylizer_start_ < 0 ? 0.0 : std::clamp((progress - stylizer_start_) / std::max(1e-9, 1.0 - stylizer_start_), 0.0, 1.0);
   const double decay = double(cfg_.lr_decay_ratio);
-  const float decoder_lr = decoder_warm && cfg_.lr_decoder_warm > 0 ? cfg_.lr_decoder_warm : cfg_.lr_decoder;
   set_group_lr("stylizer", float(double(cfg_.lr_stylizer) * std::pow(decay, stylizer_progress)));
-  set_group_lr("decoder", float(double(decoder_lr) * std::pow(decay, progress)));
+  set_group_lr("decoder", float(double(cfg_.lr_decoder) * std::pow(decay, progress)));
 }
 
 StyleStepStats StyleTrainer::step() {
@@ -381,13 +352,7 @@ StyleStepStats StyleTrainer::step() {
   const std::string& path = styles_.train[pick(rng_)];
   auto source = style_sources_.find(path);
   if (source == style_sources_.end()) source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
-  io::Image augmented;
-  if (cfg_.style_augment) {
-    augmented = source->second;
-    style::augment_style_image(augmented, rng_);
-  }
-  const int side = cfg_.style_crop_min > 0 ? style::draw_crop_side(cfg_.style_crop_min, cfg_.style_crop, rng_) : cfg_.style_crop;
-  const Tensor simg = style::crop_style_image(cfg_.style_augment ? augmented : source->second, side, &rng_, path);
+  const Tensor simg = style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
   const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
   model_.zero_grad();
   StyleStepStats st;
@@ -399,18 +364,15 @@ StyleStepStats StyleTrainer::step() {
     st = k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
   }
   st.style_name = stem(path);
-  st.style_side = side;
   if (!st.skipped) {
-    if (!std::isfinite(st.content + st.style + st.teacher))
+    if (!std::isfinite(st.content + st.style))
       throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
                   "); try lower learning rates or another --seed");
     set_step_lrs(k, st.decoder_warm);
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).
-    // A frozen decoder (lr_decoder 0) is left out: its moments from a warm-up would otherwise keep moving it.
-    adam_.step(st.decoder_warm ? model_.decoder_params() : decoder_frozen() ? model_.stylizer_params() : model_.params());
-    ema_.update(model_.params());
+    adam_.step(st.decoder_warm ? model_.decoder_params() : model_.params());
   }
   iteration_ = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {
@@ -426,7 +388,6 @@ StyleStepStats StyleTrainer::step() {
 HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
   HoldoutLoss h;
   if (styles_.holdout.empty()) return h;
-  const nn::AveragedWeightsScope averaged(ema_, model_.params());
   const int s = model_.stride();
   const int W = scene_->width(), H = scene_->height();
   const features::Patch p = patches_->at(0, ((W - patches_->width()) / 2) / 4 * 4, ((H - patches_->height()) / 2) / 4 * 4, s);
@@ -466,11 +427,7 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
                 "; checkpoint " + path + " not written");
   io::Checkpoint ck;
   ck.kind = "style";
-  {
-    const nn::AveragedWeightsScope averaged(ema_, model_.params());  // the model users get: the average
-    model_.save(ck);
-  }
-  ema_.save(ck, "", model_.params());  // the last iterate, to resume training from
+  model_.save(ck);
   ck.meta["scene"] = scene_meta;
   ck.meta["styles"] = styles_.to_json();
   ck.meta["trainer"] = {{"config", cfg_.to_json()}, {"iteration", iteration_}};
@@ -481,7 +438,7 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
 // ---- run loop ----------------------------------------------------------------------------------------------
 StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
   StyleRunSummary sum;
-  double win_s = 0, win_c = 0, win_st = 0, win_t = 0;
+  double win_s = 0, win_c = 0, win_st = 0;
   int win_n = 0, win_l = 0, win_skip = 0;
   double next_refit_s = 0;
   auto save = [&] {
@@ -507,27 +464,24 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
     if (st.skipped) {
       ++win_skip;
     } else {
-      win_c += st.content, win_st += st.style, win_t += st.teacher, ++win_l;
+      win_c += st.content, win_st += st.style, ++win_l;
     }
     const int total = trainer.config().iters;
     if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
       const double per_it = win_s / win_n;
       std::ostringstream l;
       l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
-        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content', its style term in 'style')" : "");
+        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
-      if (win_l && trainer.config().adain_teacher > 0) l << "  teacher " << win_t / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
         << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
       *opt.log << l.str() << std::endl;
-      win_s = win_c = win_st = win_t = 0;
+      win_s = win_c = win_st = 0;
       win_n = win_l = win_skip = 0;
     }
     if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.snapshot_every > 0 && st.iteration % opt.snapshot_every == 0 && !opt.checkpoint.empty())
-      trainer.save(snapshot_path(opt.checkpoint, st.iteration), opt.scene_meta);
     if (opt.time_budget_s > 0) {
       if (sum.seconds >= opt.time_budget_s) break;
       if (sum.iterations >= 5 && sum.seconds >= next_refit_s) {

@@ -13,17 +13,10 @@
 //  - SICT's running statistics start from the statistics of the kept samples of a few training patches
 //    (measured before the first step) instead of (0, 1): at momentum 1e-4 they would need ~10k steps to
 //    leave their initial values, and inference uses nothing else;
-//  - ema_decay > 0 (off by default, as in the paper): an exponential moving average of the trained weights
-//    is what the held-out evaluation measures and what checkpoints hold as the model (the last iterate is
-//    kept beside it for --resume); one style a step makes the last iterate noisy;
 //  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
-//    that never drew one renders blurred, and the style loss is mostly about fine texture (README).
-//    lr_decoder_warm may set its own rate, e.g. a fast inversion then the paper's slow fine-tuning, meant to
-//    keep the decoder an inverter of relu3_1 (on fern that measured worse than a fast decoder: README);
-//    decoder_warm_style > 0 adds the style stage's style term of the decoded crop against the crop, so that
-//    the inversion learns the texture statistics the style loss measures rather than a blur of them;
+//    that never drew one renders blurred, and the style loss is mostly about fine texture (README);
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
@@ -31,17 +24,7 @@
 //  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
-//    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics;
-//  - style_augment (off by default): each step's style image is one of 48 flips, turns and channel orders
-//    of it (style::augment_style_image): with ~100 styles met tens of times each, the stylizer otherwise
-//    learns the training styles rather than how to read a new one;
-//  - style_crop_min > 0 (off by default): each step's style crop has a side drawn from [style_crop_min,
-//    style_crop], cut from the resized image without rescaling: with style_size == style_crop, parts of a
-//    painting at the scale inference reads it, each with statistics of its own, where the whole image
-//    would be the same ~100 inputs met tens of times each (the paper's 512 -> 256 crop does this at twice
-//    inference's scale);
-//  - adain_teacher > 0 (off by default): the 2D and rendered steps add a dense target for DST's output,
-//    relu3_1 of 2D AdaIN of the true patch with the step's style (lib/train/adain_teacher.hpp).
+//    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics.
 #pragma once
 #include <iosfwd>
 #include <memory>
@@ -57,9 +40,7 @@
 #include "lib/style/style_image.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
-#include "lib/nn/weight_average.hpp"
 #include "lib/scene/scene.hpp"
-#include "lib/train/adain_teacher.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
 
@@ -71,20 +52,14 @@ struct StyleTrainConfig {
   int iters = 25000;
   int patch = 256;
   int style_size = 512, style_crop = 256;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;  // lr_decoder 0: the decoder is frozen (after any warm-up)
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f;
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 1.0f;  // lr at the end of the run over lr at its start (the stylizer's: at its first step)
-  float ema_decay = 0.0f;       // > 0: held-out losses and checkpoints use an average of the weights (nn/weight_average.hpp)
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
-  float lr_decoder_warm = 0.0f; // the decoder's lr during those steps (0: lr_decoder)
-  float decoder_warm_style = 0.0f;  // > 0: those steps add this x the style term of the crop (reconstruction_loss)
   int warm_start = 0;           // 2D steps next (fast profile)
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
-  bool style_augment = false;   // each step's style image flipped / turned / channel-reordered at random (style_image.hpp)
-  int style_crop_min = 0;       // > 0: each step's crop side is drawn from [style_crop_min, style_crop] (multiples of 8)
-  float adain_teacher = 0.0f;   // > 0: adds this x the MSE of DST's output to relu3_1 of 2D AdaIN (adain_teacher.hpp)
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   uint64_t seed = 0;
   int finite_check_every = 50;
@@ -110,10 +85,8 @@ struct StyleStepStats {
   bool decoder_warm = false;  // a decoder warm-up step (content = its inversion loss, style 0)
   bool skipped = false;   // the patch had no opaque position (nothing to learn from)
   double content = 0, style = 0, seconds = 0;
-  double teacher = 0;     // the AdaIN teacher's term (weighted; 0 without adain_teacher)
   int64_t rays = 0, kept = 0;
   std::string style_name;
-  int style_side = 0;     // the side of the step's style crop
 };
 
 struct HoldoutLoss {
@@ -125,7 +98,9 @@ class StyleTrainer {
  public:
   StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles, const StyleTrainConfig& cfg,
                std::ostream* log);
-  // Resumes from a style checkpoint written by save().
+  // Resumes from a style checkpoint written by save(). One of a run that averaged its weights (the
+  // retired ema_decay, docs/experiments.md) holds the average as its model, and one of a run with a frozen
+  // decoder (lr_decoder 0) cannot go on as it ran: both are refused, naming the file and the field.
   StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log);
 
   StyleStepStats step();
@@ -140,7 +115,7 @@ class StyleTrainer {
   model::StyleModel& model() { return model_; }
   const nn::Adam& optimizer() const { return adam_; }
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
-  // max_styles of them), SICT in inference mode; with ema_decay > 0, of the averaged weights.
+  // max_styles of them), SICT in inference mode.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
   void save(const std::string& path, const nlohmann::json& scene_meta);
 
@@ -152,25 +127,17 @@ class StyleTrainer {
   StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
-  // The teacher's term for DST's output rows y of a patch (null without adain_teacher): call it before
-  // the forward whose backward follows (it runs VGG without keeping anything).
-  TeacherLoss teacher_term(const Tensor& y, const nn::VggFeatures& truth, const nn::VggFeatures& style_taps,
-                           const std::vector<float>* row_weights);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
   void set_step_lrs(int k, bool decoder_warm);            // both groups' rates for step k (lr decay, warm-up)
-  // lr_decoder 0: after any warm-up the decoder is not trained, and no step computes its weight gradients.
-  bool decoder_frozen() const { return cfg_.lr_decoder == 0; }
 
   const scene::Scene* scene_;
   StyleTrainConfig cfg_;
   StyleSet styles_;
   model::StyleModel model_;
   nn::Adam adam_;
-  nn::WeightAverage ema_;
   nn::VggEncoder vgg_;
   features::FeatureTargets targets_;  // warm start on VGG maps only
   RenderedWarmMaps rendered_maps_;    // warm start on rendered maps only
-  std::unique_ptr<AdainTeacher> teacher_;  // adain_teacher > 0 only
   double schedule_progress_ = -1;
   double stylizer_start_ = -1;  // the run's progress at the stylizer's first step (its lr decay starts there)
   std::unique_ptr<features::PatchSampler> patches_;
@@ -188,9 +155,6 @@ struct StyleRunOptions {
   int eval_styles = 0;      // held-out styles in that evaluation (0: all)
   std::string checkpoint;
   int checkpoint_every = 200;
-  // > 0: also keep a checkpoint every this many steps at train::snapshot_path(checkpoint, step), for
-  // averaging after the run (train/style_average.hpp) or comparing stretches of it; not in the time budget.
-  int snapshot_every = 0;
   nlohmann::json scene_meta;
   double time_budget_s = 0;
 };
