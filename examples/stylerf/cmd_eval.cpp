@@ -17,6 +17,7 @@
 #include "host/files.hpp"
 #include "lib/eval/path_frames.hpp"
 #include "lib/model/density_model.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
@@ -56,7 +57,7 @@ int run_consistency(int argc, char** argv) {
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
       "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
-      "supersample", po::value(&p.supersample)->default_value(1),
+      "supersample", po::value(&p.supersample)->default_value(0),
       "stylerf: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
@@ -104,8 +105,10 @@ int run_consistency(int argc, char** argv) {
   if (method == "stylerf") {
     stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
     stylerf::style::StyleEncoder enc(styled->dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
-    frames = eval::stylerf_frames(*styled, scene, path.cams, enc.encode(style_path).code, scene.effects.background,
-                                   p.chunk, p.supersample);
+    stylerf::style::StyleCode code = enc.encode(style_path).code;
+    stylerf::model::SceneStyleStats(*styled, scene).attach(code);
+    frames = eval::stylerf_frames(*styled, scene, path.cams, code, scene.effects.background, p.chunk,
+                                  p.supersample > 0 ? p.supersample : styled->inference_supersample);
   } else {
     frames = eval::rgb_frames(*density, scene, path.cams, p.chunk);
     if (method == "adain") {

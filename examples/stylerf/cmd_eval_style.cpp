@@ -24,15 +24,16 @@ using stylerf::host::Error;
 int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
-  int views = 5, supersample = 1;
+  int views = 5, supersample = 0;
   po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
       "views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
       "images", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
-      "supersample", po::value(&supersample)->default_value(1),
-      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "supersample", po::value(&supersample)->default_value(0),
+      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
+      "render); 0: the checkpoint's recipe's")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -42,7 +43,7 @@ int run_eval_style(int argc, char** argv) {
     return vm.count("help") ? 0 : 2;
   }
   if (views < 0) throw Error("--views must be >= 0");
-  stylerf::cli::check_int_range("--supersample", supersample, 1, stylerf::model::kMaxSupersample);
+  stylerf::cli::check_int_range("--supersample", supersample, 0, stylerf::model::kMaxSupersample);
   if (!images.empty()) std::filesystem::create_directories(images);
   stylerf::cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "style");
@@ -61,7 +62,7 @@ int run_eval_style(int argc, char** argv) {
   auto adain = stylerf::style::AdainModel::load_default();
   train::StyleEvalOptions opt;
   opt.views = views;
-  opt.supersample = supersample;
+  opt.supersample = supersample > 0 ? supersample : model.inference_supersample;
   opt.image_dir = images;
   opt.log = &std::cout;
   const auto rows = train::evaluate_styles(model, vgg, adain, scene, styles, opt);

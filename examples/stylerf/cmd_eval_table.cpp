@@ -170,7 +170,7 @@ int run_eval_table(int argc, char** argv) {
                                                           "side-by-side video frame rate")(
       "output,o", po::value(&out), "output directory")("chunk", po::value(&p.chunk)->default_value(8192),
                                                         "rays per renderer call")(
-      "supersample", po::value(&p.supersample)->default_value(1),
+      "supersample", po::value(&p.supersample)->default_value(0),
       "StyleRF: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
@@ -284,7 +284,7 @@ int run_eval_table(int argc, char** argv) {
         model::SceneStyleStats(*models[mi], scene).attach(code);
         const auto f =
             eval::stylerf_frames(*models[mi], scene, path.cams, code, scene.effects.background,
-                                p.chunk, p.supersample);
+                                p.chunk, p.supersample > 0 ? p.supersample : models[mi]->inference_supersample);
         style_rows[mi].styles.push_back(st);
         style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));
         std::cout << "    " << style_rows[mi].name << ": " << score_line(style_rows[mi].scores.back()) << "\n";
@@ -333,8 +333,10 @@ int run_eval_table(int argc, char** argv) {
      << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
      << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
      << (lpips ? lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
-     << ". StyleRF content: " << p.supersample << "x" << p.supersample
-     << (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)")
+     << ". StyleRF content: "
+     << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n, averaged)")
+         : std::to_string(p.supersample) + "x" + std::to_string(p.supersample) +
+               (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)"))
      << ". Means over styles and frame pairs. Plot colours: ";
   for (size_t i = 0; i < (results.empty() ? 0 : results.front().methods.size()); ++i)
     md << (i ? ", " : "") << results.front().methods[i].name << " " << eval::plot_colour_name(int(i));

@@ -126,8 +126,8 @@ int run_pipeline(int argc, char** argv) {
   const Budget budget = split_budget(o.minutes, o.stage_minutes);
   const auto styles = train::StyleSet::from_dir(o.styles, o.holdout, nullptr);
   std::vector<std::string> shown = o.stylize;
-  for (size_t i = 0; shown.empty() && i < styles.holdout.size() && int(i) < o.max_videos; ++i)
-    shown.push_back(styles.holdout[i]);
+  if (shown.empty())
+    for (size_t i = 0; i < styles.holdout.size() && int(i) < o.max_videos; ++i) shown.push_back(styles.holdout[i]);
   // The mix sheet's four corners: the shown styles first, then held-out ones, then training ones.
   std::vector<std::string> corners = shown;
   for (const auto* list : {&styles.holdout, &styles.train})

@@ -147,7 +147,7 @@ double mix_grid(const model::StyleModel& m, const model::SceneStyleStats& scene_
 int run_stylize(int argc, char** argv) {
   std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid_arg, region_spec, inside, outside, cache;
   std::vector<std::string> style_args;
-  int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 1;
+  int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 0;
   bool no_losses = false, decoded_background = false;
   po::options_description desc("stylerf stylize --ckpt STYLE_CKPT --style IMG --views test|path -o DIR [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
@@ -169,8 +169,9 @@ int run_stylize(int argc, char** argv) {
       "scenes with a background colour: keep the decoder's empty space instead of compositing over the colour")(
       "fps", po::value(&fps)->default_value(30), "video frame rate")(
       "chunk", po::value(&chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
-      "supersample", po::value(&supersample)->default_value(1),
-      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "supersample", po::value(&supersample)->default_value(0),
+      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
+      "render); 0: the checkpoint's recipe's")(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -185,7 +186,7 @@ int run_stylize(int argc, char** argv) {
   if (max_views < 0) throw Error("--max-views must be >= 0");
   if (size < 0 || size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
   if (chunk < 1) throw Error("--chunk must be >= 1");
-  stylerf::cli::check_int_range("--supersample", supersample, 1, model::kMaxSupersample);
+  stylerf::cli::check_int_range("--supersample", supersample, 0, model::kMaxSupersample);
   if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
   if (out.empty()) throw Error("-o DIR is required");
   const bool regions = !region_spec.empty();
@@ -221,6 +222,7 @@ int run_stylize(int argc, char** argv) {
     throw Error("checkpoint " + ckpt + " holds a '" + ck.kind + "' stage, not a trained stylizer; train one with "
                 "`stylerf train-style --features " + ckpt + "`");
   const auto m = model::StyleModel::load(ck);
+  if (supersample == 0) supersample = m.inference_supersample;
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
   auto lo = stylerf::scene::load_options_from_meta(smeta);
   lo.load_images = views == "test" && !no_losses;

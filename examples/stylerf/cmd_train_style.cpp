@@ -15,6 +15,7 @@
 #include "host/runtime.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/scene/scene_meta.hpp"
+#include "lib/train/recipes.hpp"
 #include "lib/train/style_trainer.hpp"
 
 namespace po = boost::program_options;
@@ -28,7 +29,7 @@ int run_train_style(int argc, char** argv) {
   namespace train = stylerf::train;
   namespace model = stylerf::model;
   std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
-              warm_maps_name = "vgg", style_decoder_name = "stage2";
+              warm_maps_name, style_decoder_name, recipe_name;
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0;
   int patch = 256, style_size = 512;
@@ -45,28 +46,31 @@ int run_train_style(int argc, char** argv) {
       "iters", po::value(&iters), "iterations (default 25000, the paper's)")(
       "minutes", po::value(&minutes), "train for this much time (replaces --iters)")(
       "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
-      "style-size", po::value(&style_size)->default_value(512),
+      "recipe", po::value(&recipe_name),
+      "fast | paper: the settings below that a flag does not give (default: the feature checkpoint's profile's "
+      "name; fast is the best measured, paper the paper's)")(
+      "style-size", po::value(&style_size),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
       "sict", po::value(&sict_name)->default_value("volume-adaptive"),
       "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
-      "warm-start", po::value(&warm)->default_value(0),
+      "warm-start", po::value(&warm),
       "first N steps in 2D on a map per training view (no rendering; fast profile)")(
       "decoder-warm", po::value(&decoder_warm)->default_value(0),
       "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
       "profile)")(
-      "warm-maps", po::value(&warm_maps_name)->default_value("vgg"),
+      "warm-maps", po::value(&warm_maps_name),
       "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
-      "style-decoder", po::value(&style_decoder_name)->default_value("stage2"),
+      "style-decoder", po::value(&style_decoder_name),
       "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
       "not the paper's; README)")(
-      "lr-stylizer", po::value(&lr_stylizer)->default_value(1e-4f), "stylizer learning rate")(
-      "lr-decoder", po::value(&lr_decoder)->default_value(1e-5f), "decoder fine-tuning learning rate")(
-      "lr-decay", po::value(&lr_decay)->default_value(1.0f),
+      "lr-stylizer", po::value(&lr_stylizer), "stylizer learning rate")(
+      "lr-decoder", po::value(&lr_decoder), "decoder fine-tuning learning rate")(
+      "lr-decay", po::value(&lr_decay),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
       "seed", po::value(&seed)->default_value(0), "random seed")(
@@ -100,8 +104,9 @@ int run_train_style(int argc, char** argv) {
     throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
   if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
   const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
-  const auto warm_maps = train::parse_warm_maps(warm_maps_name);
-  const auto style_decoder = model::parse_style_decoder(style_decoder_name);
+  if (!recipe_name.empty()) train::parse_recipe(recipe_name);  // refused before any work
+  if (vm.count("warm-maps")) train::parse_warm_maps(warm_maps_name);
+  if (vm.count("style-decoder")) model::parse_style_decoder(style_decoder_name);
   stylerf::cli::check_checkpoint_output(out, resume, force);
   stylerf::cli::init_runtime(device, timing);
 
@@ -128,18 +133,25 @@ int run_train_style(int argc, char** argv) {
     if (!profile_name.empty() && model::parse_decoder_profile(profile_name) != fm.profile)
       throw Error("--profile " + profile_name + ": feature checkpoint " + features_path + " was trained with the " +
                   model::decoder_profile_name(fm.profile) + " profile (its decoder is fixed by it)");
-    train::StyleTrainConfig cfg;
+    // The recipe's settings, then every flag given over them.
+    const std::string profile = model::decoder_profile_name(fm.profile);
+    const auto recipe = train::parse_recipe(recipe_name.empty() ? profile : recipe_name);
+    if (recipe == train::Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
+      throw Error("--recipe fast needs a fast-profile feature checkpoint; " + features_path + " has the " + profile +
+                  " profile (use --recipe paper)");
+    train::StyleTrainConfig cfg = train::style_recipe(recipe);
     cfg.sict = sict_mode;
     cfg.dst_bias = dst_name == "bias";
     if (iters > 0) cfg.iters = iters;
     cfg.patch = patch;
-    cfg.style_size = style_size;
-    cfg.lr_stylizer = lr_stylizer;
-    cfg.lr_decoder = lr_decoder;
-    cfg.lr_decay_ratio = lr_decay;
-    cfg.warm_start = warm;
-    cfg.warm_maps = warm_maps;
-    cfg.style_decoder = style_decoder;
+    if (vm.count("style-size")) cfg.style_size = style_size;
+    if (vm.count("lr-stylizer")) cfg.lr_stylizer = lr_stylizer;
+    if (vm.count("lr-decoder")) cfg.lr_decoder = lr_decoder;
+    if (vm.count("lr-decay")) cfg.lr_decay_ratio = lr_decay;
+    if (vm.count("warm-start")) cfg.warm_start = warm;
+    if (vm.count("warm-maps")) cfg.warm_maps = train::parse_warm_maps(warm_maps_name);
+    if (vm.count("style-decoder")) cfg.style_decoder = model::parse_style_decoder(style_decoder_name);
+    std::cout << "recipe " << train::recipe_name(recipe) << "\n";
     cfg.decoder_warm = decoder_warm;
     cfg.seed = seed;
     auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);

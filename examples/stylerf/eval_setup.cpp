@@ -40,7 +40,7 @@ void check_path_options(const PathOptions& p) {
   if (p.size < 0 || p.size > 4096) throw Error("--size must be in [0, 4096] (0: the scene's)");
   if (!(p.depth_tolerance > 0 && p.depth_tolerance < 1)) throw Error("--depth-tol must be in (0, 1)");
   if (p.chunk < 1) throw Error("--chunk must be >= 1");
-  check_int_range("--supersample", p.supersample, 1, model::kMaxSupersample);
+  check_int_range("--supersample", p.supersample, 0, model::kMaxSupersample);
 }
 
 PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p) {

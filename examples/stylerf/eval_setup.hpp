@@ -19,7 +19,7 @@ void check_same_scene_of(const io::Checkpoint& a, const io::Checkpoint& b, const
 
 struct PathOptions {
   int frames = 16, path_frames = 120, size = 0, chunk = 8192;
-  int supersample = 1;  // StyleRF content rays per feature-map block and axis (StyleModel::render_camera_content)
+  int supersample = 0;  // StyleRF content rays per block and axis (render_camera_content); 0: each checkpoint's
   float depth_tolerance = 0.03f;
 };
 // Also the options' ranges, checked before anything loads.

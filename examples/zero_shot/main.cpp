@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
     model::SceneStyleStats(m, scene).attach(code);  // one re-normalisation for the scene's every frame
 
     // Content once (style-independent), then any number of styles on it.
-    const auto content = m.render_camera_content(scene, cam);
+    const auto content = m.render_camera_content(scene, cam, 4096, nullptr, m.inference_supersample);
     std::vector<float> rgb = m.stylize_camera(content, code, cam.width, cam.height);
     m.over_background(rgb, content, cam.width, cam.height);
 

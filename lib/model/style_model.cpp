@@ -371,7 +371,10 @@ void StyleModel::save(io::Checkpoint& ck) {
   dst.save(ck, "");
   if (decoder_kind != StyleDecoderKind::Stage2) style_decoder.save(ck, "");
   ck.meta["style_model"] = {
-      {"sict", style::sict_mode_name(sict.mode)}, {"dst_bias", dst.bias}, {"decoder", style_decoder_name(decoder_kind)}};
+      {"sict", style::sict_mode_name(sict.mode)},
+      {"dst_bias", dst.bias},
+      {"decoder", style_decoder_name(decoder_kind)},
+      {"inference_supersample", inference_supersample}};
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
@@ -381,11 +384,13 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   style::SictMode mode;
   bool bias = true;
   StyleDecoderKind decoder = StyleDecoderKind::Stage2;
+  int supersample = 1;
   try {
     const json& sm = ck.meta.at("style_model");
     mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
     bias = sm.at("dst_bias").get<bool>();
     decoder = parse_style_decoder(sm.value("decoder", std::string("stage2")));  // absent before the option existed
+    supersample = sm.value("inference_supersample", 1);  // absent before recipes set it
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
   } catch (const Error& e) {
@@ -395,6 +400,10 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   m.sict.load(ck, "");
   m.dst.load(ck, "");
   if (decoder != StyleDecoderKind::Stage2) m.style_decoder.load(ck, "");
+  if (supersample < 1 || supersample > kMaxSupersample)
+    throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
+                " is outside 1.." + std::to_string(kMaxSupersample));
+  m.inference_supersample = supersample;
   return m;
 }
 

@@ -70,6 +70,9 @@ class StyleModel : public nn::Module {
   style::Sict sict;
   style::Dst dst;
   StyleDecoderKind decoder_kind = StyleDecoderKind::Stage2;
+  // Content rays per feature-map block and axis that inference uses unless told otherwise (a recipe's
+  // choice, saved in the checkpoint; 1: one ray per block centre, what training renders).
+  int inference_supersample = 1;
   nn::VggTail vgg_tail;         // VggAdain*: frozen
   nn::ConvStack style_decoder;  // VggAdain*: AdaIN's decoder, "style.decoder.*"
 

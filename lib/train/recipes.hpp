@@ -7,6 +7,8 @@
 #pragma once
 #include <string>
 
+#include "lib/train/style_trainer.hpp"
+
 namespace stylerf::train {
 
 enum class Recipe { Fast, Paper };
@@ -14,5 +16,11 @@ enum class Recipe { Fast, Paper };
 // "fast" | "paper"; anything else is an error naming the value and the choices.
 Recipe parse_recipe(const std::string& name);
 const char* recipe_name(Recipe r);
+
+// Stage 3's settings. Fast (fast profile only): the vgg-adain-relu4 decoder, 1600 2D warm-start steps on
+// rendered maps, the stylizer at 1e-3 and the decoder at 1e-5 decaying to 0.1x, style images at 256 (the
+// scale inference reads them), and inference at 2 x 2 rays per feature block. Paper: StyleTrainConfig's
+// defaults, which are the paper's.
+StyleTrainConfig style_recipe(Recipe r);
 
 }  // namespace stylerf::train

@@ -88,7 +88,11 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         sheet.width = 3 * We;
         sheet.height = He;
         sheet.data.assign(size_t(3) * sheet.width * He, 0.0f);
-        const Tensor parts[3] = {truth, ours, ad};
+        // The picture shows ours as stylize does, over the scene's background (the losses above are
+        // masked by opacity instead, so what the decoder draws in empty space never counts).
+        std::vector<float> shown = ours_rgb;
+        m.over_background(shown, cc, W, H);
+        const Tensor parts[3] = {truth, planar_crop(shown, W, He, We), ad};
         for (int k = 0; k < 3; ++k) {
           const auto p = parts[k].to_host();
           for (int c = 0; c < 3; ++c)

@@ -44,6 +44,7 @@ json StyleTrainConfig::to_json() const {
           {"warm_maps", warm_maps_name(warm_maps)},
           {"style_decoder", model::style_decoder_name(style_decoder)},
           {"running_init_patches", running_init_patches},
+          {"inference_supersample", inference_supersample},
           {"seed", seed}};
 }
 
@@ -67,6 +68,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
   c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
   c.running_init_patches = j.at("running_init_patches").get<int>();
+  c.inference_supersample = j.value("inference_supersample", 1);  // absent before recipes set it
   c.seed = j.at("seed").get<uint64_t>();
   return c;
 }
@@ -133,6 +135,7 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
     throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
                 "the style size " + std::to_string(cfg_.style_size));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
+  model_.inference_supersample = cfg_.inference_supersample;
   init(log);
   init_running_stats(log);
 }
