@@ -7,7 +7,8 @@
 //   evenly spaced).
 // Writes DIR/table.md (methods x short/long x LPIPS/RMSE, per scene and over all, with StyleRF/AdaIN
 // ratios), DIR/table.json (every pair), and per scene DIR/<scene>/side_by_side.mp4 (AdaIN | StyleRF, first
-// style) and DIR/<scene>/per_frame_rmse.png (short-range RMSE per frame pair, mean over styles).
+// style) and DIR/<scene>/per_frame_rmse.svg (short-range RMSE per frame pair, mean over styles; axes,
+// units and a legend).
 #include <boost/program_options.hpp>
 #include <chrono>
 #include <cmath>
@@ -80,18 +81,15 @@ struct MethodRows {
   }
 };
 
+// "StyleRF (<file stem>[, recipe][, ablations])": rows of several checkpoints must be told apart.
 std::string style_model_label(const io::Checkpoint& ck) {
   const auto sm = ck.meta.value("style_model", nlohmann::json::object());
   const std::string sict = sm.value("sict", "volume-adaptive");
-  const bool bias = sm.value("dst_bias", true);
-  std::string label = "StyleRF";
-  if (sict != "volume-adaptive" || !bias) {
-    label += " (";
-    if (sict != "volume-adaptive") label += "sict " + sict;
-    if (!bias) label += std::string(sict != "volume-adaptive" ? ", " : "") + "dst no-bias";
-    label += ")";
-  }
-  return label;
+  std::string label = "StyleRF (" + fs::path(ck.path).stem().string();
+  label += std::string(", ") + sm.value("decoder", "stage2") + " decoder";
+  if (sict != "volume-adaptive") label += ", sict " + sict;
+  if (!sm.value("dst_bias", true)) label += ", dst no-bias";
+  return label + ")";
 }
 
 std::vector<std::string> pick_evenly(const std::vector<std::string>& all, int n) {
@@ -308,7 +306,12 @@ int run_eval_table(int argc, char** argv) {
     std::vector<eval::PlotSeries> series;
     for (size_t i = 0; i < res.methods.size(); ++i)
       series.push_back({res.methods[i].name, eval::plot_colour(int(i)), res.methods[i].per_pair_rmse()});
-    io::save_png((sdir / "per_frame_rmse.png").string(), eval::line_plot(series));
+    eval::PlotLabels labels;
+    labels.title = scene.name + ": short-range consistency per frame pair (lower is steadier)";
+    labels.x_label = "frame pair (t - 1, t) along the path";
+    labels.y_label = "RMSE of the warped frame (RGB in [0, 1])";
+    labels.x_first = 1;
+    host::write_file_atomic((sdir / "per_frame_rmse.svg").string(), eval::line_plot_svg(series, labels));
 
     nlohmann::json mj = nlohmann::json::array();
     for (const auto& m : res.methods) {
