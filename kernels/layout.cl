@@ -4,7 +4,7 @@
 // transposes [H*W, C] into [C, H*W]; image_to_rows is the reverse transpose. Each is the other's
 // backward, so this one kernel is forward and backward of both.
 //
-// On PoCL/CPU (DESIGN.md: barriers are costly, vectorise inside a work-item) a work-item transposes a
+// On PoCL/CPU (docs/design.md: barriers are costly, vectorise inside a work-item) a work-item transposes a
 // 16x16 tile in registers, as four 8x8 blocks: it reads 16 source rows of 16 floats and writes 16
 // destination rows of 16 floats, whole 64-byte cache lines on both sides, with no local memory and no
 // barrier. An 8x8 block is transposed by three rounds of interleaving (zip) pairs of rows i and i+4:

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Test suites on Oclgrind, a simulated OpenCL device that reports out-of-bounds accesses, data races and
 # invalid API use: a second, stricter platform than PoCL. Runs every suite CTest runs (package_find_package
-# included: its example runs on Oclgrind), each under `oclgrind --data-races --check-api` with a time
-# limit; a suite is clean when it passes and Oclgrind reported nothing. One line per suite, then a summary;
-# exit status 1 on any finding or timeout. Logs: $BUILD_DIR/oclgrind_<suite>.log (doctest durations in them).
+# included: its example runs on Oclgrind; cli_doc too, though it runs no kernels), each under
+# `oclgrind --data-races --check-api` with a time limit; a suite is clean when it passes and Oclgrind
+# reported nothing. One line per suite, then a summary; exit status 1 on any finding or timeout.
+# Logs: $BUILD_DIR/oclgrind_<suite>.log (doctest durations in them).
 #   bash scripts/oclgrind.sh [suite ...]      (default: every CTest suite of the build)
 #   BUILD_DIR=build-ocl                        build directory (default build; built as usual with cmake)
 #   OCLGRIND_SUITE_TIMEOUT=600                 seconds per suite (default 600)
@@ -86,6 +87,8 @@ for s in $suites; do
   log=$BUILD_DIR/oclgrind_$s.log
   if [ "$s" = package_find_package ]; then
     cmd=(bash tests/package_test.sh "$BUILD_DIR" "$PWD")  # installs, builds examples/embed, runs it
+  elif [ "$s" = cli_doc ]; then
+    cmd=(bash tests/cli_doc_test.sh "$BUILD_DIR" "$PWD")  # docs/cli.md against --help (no kernels run)
   else
     cmd=("$BUILD_DIR/$s" --duration=true)  # per-case seconds in the log, for choosing what to shrink
     if [ -n "${EXCLUDE[$s]:-}" ]; then

@@ -1,5 +1,5 @@
 // Plain double-precision CPU references of SICT and DST (lib/style/sict.hpp, lib/style/dst.hpp), written
-// from the formulas in DESIGN.md with loops and nothing shared with the device code. Rows layout: points
+// from the formulas in docs/design.md with loops and nothing shared with the device code. Rows layout: points
 // [K][256], style positions [L][256], rays [R][32]; weights in nn::linear's [in][out] layout.
 #pragma once
 #include <algorithm>

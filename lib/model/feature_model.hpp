@@ -1,7 +1,7 @@
 // Stage 2's model: the frozen geometry of a density checkpoint, the feature field (VM grid of VGG relu3_1
 // features + basis; lib/model/feature_field.hpp) and a decoder from rendered feature maps to RGB.
 //
-// Two decoder profiles, both real (DESIGN.md, "Profiles"):
+// Two decoder profiles, both real (docs/design.md, "Profiles"):
 //   paper: features rendered at full resolution (one ray per pixel), then the PlainDecoder: eight
 //          reflect-padded 3x3 convs 256-256-256-256-128-128-64-64-3, no upsampling (from scratch);
 //   fast:  features rendered at relu3_1's own resolution (one ray per 4x4 block, through its centre),

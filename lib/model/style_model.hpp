@@ -153,7 +153,7 @@ class StyleModel : public nn::Module {
   // the camera moves (fine geometry such as fern's leaves otherwise flickers in and out of the block
   // centres). DST is affine in (c, w_r) and SICT runs per point, so averaging content is averaging what
   // each sub-ray's map would have been before the decoder. Costs up to n^2 x the content render; matters
-  // for the fast profile, whose one ray per block stands for 16 pixels (README: what n = 2 buys on the
+  // for the fast profile, whose one ray per block stands for 16 pixels (docs/results.md: what n = 2 buys on the
   // consistency table and costs a frame).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
                                       const RegionHead* region = nullptr, int supersample = 1) const;

@@ -4,7 +4,7 @@
 // Why: AdaIN's pretrained decoder reads relu4_1 and StyleRF's maps are relu3_1. Putting this tail in front
 // of it gives a decoder of relu3_1 maps that was trained, on a large set of photographs and paintings, to
 // draw images whose VGG statistics match its input's, which is what the style stage's losses measure
-// (README: train-style --style-decoder vgg-adain). The weights are the encoder's own: the tail of the network that encodes
+// (docs/design.md, "Stage 3: style"; its runs: docs/experiments.md). The weights are the encoder's own: the tail of the network that encodes
 // style images and measures the losses.
 #pragma once
 #include <vector>

@@ -6,7 +6,7 @@
 //      sampled (the whole point of SICT: views render consistently);
 //   2. q, k, v = 1x1 convs 256 -> 32 (one GEMM to [K, 96] here);
 //   3. channel self-attention per point: out_i = sum_j softmax_j(q_i k_j) v_j over its 32 channels.
-// The authors' numerics (DESIGN.md): eps 1e-5, no affine, running variance updated with the unbiased
+// The authors' numerics (docs/design.md): eps 1e-5, no affine, running variance updated with the unbiased
 // batch variance. Checked against ../shared/reference/stylerf in tests/test_sict_dst.cpp.
 //
 // The paper's ablations (Fig. 7) are modes: VanillaIn normalises with the batch statistics in training and

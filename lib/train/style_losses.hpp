@@ -1,4 +1,4 @@
-// The style stage's losses (StyleRF's train_style, DESIGN.md):
+// The style stage's losses (StyleRF's train_style, docs/design.md):
 //   content = MSE of relu4_1 between VGG of the stylised image and of the true image, x content_weight (1);
 //   style   = sum over relu1_1 .. relu4_1 of the AdaIN style loss (MSE of channel means + MSE of channel
 //             stds) between the stylised image and the style image, x style_weight (20).

@@ -16,7 +16,7 @@
 //  - decoder_warm > 0: before everything else, the decoder alone learns to invert VGG: the relu3_1 of the
 //    step's style crop in, the crop out (pixel MSE + (relu3_1 + relu4_1 MSE) / 10, stage 2's patch loss).
 //    Stage 2 taught it one scene's photographs; the style loss asks for painted textures, which a decoder
-//    that never drew one renders blurred, and the style loss is mostly about fine texture (README);
+//    that never drew one renders blurred, and the style loss is mostly about fine texture (docs/experiments.md);
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile

@@ -5,7 +5,7 @@
 //  - rendered: stage 2's feature field rendered at the block centres of every training view, i.e. what the
 //    rendered steps and inference feed the stylizer. The field's maps are blurrier and of lower contrast
 //    than VGG's, so a warm start on VGG maps learns a stylizer for inputs it never meets again (measured:
-//    README, style stage).
+//    docs/experiments.md, the warm-maps row).
 // Rendered maps hold a ray's mean feature (the composite over its samples divided by its opacity, the
 // background removed) and, beside it, the opacity: a warm step then forms c = acc * SICT(mean), the 2D
 // stand-in for the sum over kept samples of w_i SICT(f_i) that a rendered step computes.
