@@ -21,6 +21,7 @@
 #include "host/error.hpp"
 #include "lib/demo/procedural_images.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
@@ -330,11 +331,51 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   const auto loaded = model::StyleModel::load(ck);
   CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
   check_same_stylized_view(m, loaded, styles.holdout[0]);
-  // One map, one style's statistics: compositional regions are refused, named.
+  // One map, one style's statistics: compositional regions blend the two stylised pictures by the mask.
   const auto& cam = testing::small_scene().test[0].camera;
-  const auto cc = m.render_camera_content(testing::small_scene(), cam);
+  auto cc = m.render_camera_content(testing::small_scene(), cam);
   CHECK_THROWS_WITH_AS(m.stylize_camera_regions(cc, code, code, cam.width, cam.height),
-                       doctest::Contains("vgg-adain-relu4"), host::Error);
+                       doctest::Contains("without a region"), host::Error);
+  style::StyleCode other = m.style_code(vgg.forward(train::load_style_image(styles.train[0], 32, 32, nullptr), 4, false), nullptr);
+  cc.region_mask.assign(size_t(cc.width) * cc.height, 1.0f);
+  CHECK(m.stylize_camera_regions(cc, code, other, cam.width, cam.height) == m.stylize_camera(cc, code, cam.width, cam.height));
+  cc.region_mask.assign(size_t(cc.width) * cc.height, 0.0f);
+  CHECK(m.stylize_camera_regions(cc, code, other, cam.width, cam.height) == m.stylize_camera(cc, other, cam.width, cam.height));
+
+  // Scene statistics: relu4_1 pooled over the training views' maps under the code, against a double
+  // reference over the same views; then every frame is re-normalised from them (a fixed per-channel
+  // affine), not from its own statistics.
+  const auto& sc = testing::small_scene();
+  style::StyleCode tied = code;
+  model::SceneStyleStats(m, sc, 3).attach(tied);
+  REQUIRE(tied.scene_mean.defined());
+  REQUIRE(tied.scene_mean.shape() == host::Shape{1, 512});
+  std::vector<double> sum(512, 0.0), sq(512, 0.0);
+  double count = 0;
+  const int n = int(sc.train.size());
+  for (int i = 0; i < 3; ++i) {
+    const auto view = m.render_camera_content(sc, sc.train[size_t(int64_t(i) * n / 3)].camera);
+    const Tensor r41 = m.relu4_of(view.content, code, view.height, view.width);
+    const int64_t hw = r41.dim(2) * r41.dim(3);
+    const auto x = r41.to_host();
+    for (int64_t c = 0; c < 512; ++c)
+      for (int64_t j = 0; j < hw; ++j) sum[size_t(c)] += x[size_t(c * hw + j)], sq[size_t(c)] += double(x[size_t(c * hw + j)]) * x[size_t(c * hw + j)];
+    count += double(hw);
+  }
+  const auto got_mean = tied.scene_mean.to_host(), got_std = tied.scene_std.to_host();
+  for (size_t c = 0; c < 512; ++c) {
+    const double mu = sum[c] / count, sd = std::sqrt(std::max(0.0, sq[c] / count - mu * mu) + 1e-5);
+    CHECK(got_mean[c] == doctest::Approx(mu).epsilon(1e-5).scale(1.0));
+    CHECK(got_std[c] == doctest::Approx(sd).epsilon(1e-5).scale(1.0));
+  }
+  const auto x = testing::random_uniform(256 * 4 * 6, 17, 0.0f, 1.0f);
+  const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
+  const auto want = m.style_decoder
+                        .forward(nn::adain_between_stats_forward(m.vgg_tail.forward(map), {tied.scene_mean, tied.scene_std},
+                                                                 {tied.deep_mean, tied.deep_std}))
+                        .to_host();
+  CHECK(m.decode_map(map, &tied, nullptr).to_host() == want);
+  CHECK(m.decode_map(map, &tied, nullptr).to_host() != m.decode_map(map, &code, nullptr).to_host());
 }
 
 TEST_CASE("rendered warm-start maps hold each ray's mean feature and its opacity, as the field renders them") {
@@ -622,4 +663,45 @@ TEST_CASE("bad inputs name the file or folder and what is wrong") {
   fm.save(ck);
   ck.path = "features.ckpt";
   testing::expect_error([&] { model::StyleModel::load(ck); }, "train-style");
+}
+
+TEST_CASE("generated demo styles: deterministic, and differ in colour and in texture") {
+  // demo-images --styles N: a stylizer trained on styles alike learns to ignore its style input (the old
+  // variants' mix sheet had corners 0.0008 apart). Each pair of the first 14 must differ in its mean colour
+  // or its texture statistics (the std of horizontal differences, per channel).
+  struct Stats {
+    double mean[3], grad[3];
+  };
+  auto stats_of = [](const demo::RgbImage& im) {
+    Stats s{};
+    const size_t plane = size_t(im.width) * im.height;
+    for (int c = 0; c < 3; ++c) {
+      double m = 0, g = 0;
+      for (size_t i = 0; i < plane; ++i) m += im.data[c * plane + i];
+      for (int y = 0; y < im.height; ++y)
+        for (int x = 1; x < im.width; ++x) {
+          const size_t i = c * plane + size_t(y) * im.width + x;
+          g += std::abs(im.data[i] - im.data[i - 1]);
+        }
+      s.mean[c] = m / double(plane);
+      s.grad[c] = g / double(plane);
+    }
+    return s;
+  };
+  CHECK(demo::make_varied_style_image(48, 40, 5).data == demo::make_varied_style_image(48, 40, 5).data);
+  std::vector<Stats> all;
+  for (int v = 0; v < 14; ++v) {
+    const auto im = demo::make_varied_style_image(96, 96, v);
+    for (float x : im.data) REQUIRE((x >= 0.0f && x <= 1.0f));
+    all.push_back(stats_of(im));
+  }
+  for (size_t a = 0; a < all.size(); ++a)
+    for (size_t b = a + 1; b < all.size(); ++b) {
+      double dm = 0, dg = 0;
+      for (int c = 0; c < 3; ++c)
+        dm += std::abs(all[a].mean[c] - all[b].mean[c]), dg += std::abs(all[a].grad[c] - all[b].grad[c]);
+      CAPTURE(a);
+      CAPTURE(b);
+      CHECK(dm + dg > 0.05);
+    }
 }

@@ -21,6 +21,7 @@
 
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
@@ -276,6 +277,36 @@ TEST_CASE("background compositing uses the rendered opacity") {
   std::vector<float> same(size_t(3) * W * H, 0.9f);
   m.over_background(same, cc, W, H);
   CHECK(same == std::vector<float>(size_t(3) * W * H, 0.9f));
+}
+
+TEST_CASE("background compositing at the image's resolution: a per-pixel opacity, rendered by the geometry") {
+  // A map coarser than the image (stride s) used to composite with its opacity upsampled from the block
+  // centres, so silhouettes came out as s x s blocks. The content now carries one opacity per pixel.
+  const auto& sc = testing::small_scene();
+  model::StyleModel m = small_style_model();
+  const auto& cam = sc.test[0].camera;
+  REQUIRE(m.stride() > 1);
+  m.features.geo.has_background = false;  // no background to composite over: nothing extra is rendered
+  CHECK(m.render_camera_content(sc, cam).pixel_acc.empty());
+  m.features.geo.has_background = true;
+  m.features.geo.background = {0.2f, 0.4f, 0.6f};
+  const auto rendered = m.render_camera_content(sc, cam);
+  REQUIRE(rendered.pixel_acc.size() == size_t(cam.width) * cam.height);
+  CHECK(rendered.pixel_acc == model::render_geometry(m.features.geo, sc, cam, 8192).acc);
+  // over_background uses each pixel's own opacity: a checkerboard of 0 and 1 at pixel scale, which no
+  // upsampling of block opacities can make.
+  model::StyleModel::CameraContent cc;
+  const int s = m.stride(), W = 2 * s, H = 2 * s;
+  cc.width = 2;
+  cc.height = 2;
+  cc.content.acc = Tensor::from_host({0.5f, 0.5f, 0.5f, 0.5f}, {4});
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) cc.pixel_acc.push_back(float((x + y) % 2));
+  std::vector<float> rgb(size_t(3) * W * H, 0.9f);
+  m.over_background(rgb, cc, W, H);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      CHECK(rgb[(size_t(y) * W + x) * 3] == doctest::Approx((x + y) % 2 ? 0.9f : 0.2f));
 }
 
 TEST_CASE("style codes: interpolation weights") {

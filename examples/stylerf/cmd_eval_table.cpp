@@ -10,6 +10,7 @@
 // style) and DIR/<scene>/per_frame_rmse.svg (short-range RMSE per frame pair, mean over styles; axes,
 // units and a legend).
 #include <boost/program_options.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -232,6 +233,7 @@ int run_eval_table(int argc, char** argv) {
   fs::create_directories(out);
   const auto t_all = Clock::now();
   std::vector<SceneResult> results;
+  std::vector<std::string> used_folders;
   for (size_t gi = 0; gi < scene_ckpts.size(); ++gi) {
     const auto& group = scene_ckpts[gi];
     const auto ck_d = io::load_checkpoint(group.front(), "");
@@ -248,7 +250,12 @@ int run_eval_table(int argc, char** argv) {
 
     SceneResult res;
     res.name = scene.name;
-    const fs::path sdir = fs::path(out) / scene.name;
+    // Groups of the same scene (e.g. two recipes' density checkpoints) get folders of their own.
+    std::string folder = scene.name;
+    for (int k = 2; std::count(used_folders.begin(), used_folders.end(), folder); ++k)
+      folder = scene.name + "_" + std::to_string(k);
+    used_folders.push_back(folder);
+    const fs::path sdir = fs::path(out) / folder;
     fs::create_directories(sdir);
     std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
     const PathSetup path = path_setup(density.geo, scene, p);

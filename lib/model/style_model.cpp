@@ -129,6 +129,21 @@ Tensor pad_to_even(const Tensor& x) {
         o[size_t((p * H2 + y) * W2 + xx)] = v[size_t((p * H + std::min(y, H - 1)) * W + std::min(xx, W - 1))];
   return Tensor::from_host(o, {N, C, H2, W2}, "map padded to even sides");
 }
+// A per-block map [h][w] at the image's pixels [cam_h][cam_w], bilinear between the block centres (block
+// j's ray passes through pixel coordinate s (j + 0.5)), clamped at the edges.
+std::vector<float> upsample_blocks(const std::vector<float>& v, int w, int h, int s, int cam_w, int cam_h) {
+  auto at = [&](int x, int y) { return v[size_t(std::clamp(y, 0, h - 1)) * w + size_t(std::clamp(x, 0, w - 1))]; };
+  std::vector<float> out(size_t(cam_w) * cam_h);
+  for (int y = 0; y < cam_h; ++y)
+    for (int x = 0; x < cam_w; ++x) {
+      const float fx = (x + 0.5f) / float(s) - 0.5f, fy = (y + 0.5f) / float(s) - 0.5f;
+      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+      const float u = fx - x0, t = fy - y0;
+      out[size_t(y) * cam_w + x] = (1 - u) * (1 - t) * at(x0, y0) + u * (1 - t) * at(x0 + 1, y0) +
+                                   (1 - u) * t * at(x0, y0 + 1) + u * t * at(x0 + 1, y0 + 1);
+    }
+  return out;
+}
 }  // namespace
 
 Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const {
@@ -300,11 +315,19 @@ std::vector<float> StyleModel::stylize_camera(const CameraContent& cc, const sty
 
 std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, const style::StyleCode& inside,
                                                       const style::StyleCode& outside, int cam_w, int cam_h) const {
-  if (decoder_kind == StyleDecoderKind::VggAdainRelu4)
-    throw Error("style model: compositional regions need a decoder that reads no style statistics; the "
-                "vgg-adain-relu4 decoder re-normalises the whole map to one style's relu4_1 statistics");
   const int64_t n = int64_t(cc.width) * cc.height;
   if (int64_t(cc.region_mask.size()) != n) throw Error("style model: this content was rendered without a region");
+  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
+    // This decoder re-normalises a whole map to one style's relu4_1 statistics, so two styles cannot share
+    // a map: each is drawn over the whole view and the pictures are blended by the region mask, upsampled
+    // from the blocks (a blend of pictures, not the paper's of DST outputs; the edge is a block soft).
+    std::vector<float> rgb = stylize_camera(cc, inside, cam_w, cam_h);
+    const std::vector<float> out = stylize_camera(cc, outside, cam_w, cam_h);
+    const auto m = upsample_blocks(cc.region_mask, cc.width, cc.height, stride(), cam_w, cam_h);
+    for (size_t i = 0; i < m.size(); ++i)
+      for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = m[i] * rgb[i * 3 + c] + (1 - m[i]) * out[i * 3 + c];
+    return rgb;
+  }
   const auto c = cc.content.c.to_host(), k = cc.content.kept_acc.to_host();
   const int E = style::Sict::kEmbed;
   std::vector<float> c_in(c.size()), c_out(c.size()), k_in(k.size()), k_out(k.size());
@@ -329,29 +352,13 @@ void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& c
   if (!features.geo.has_background) return;
   if (rgb.size() != size_t(3) * cam_w * cam_h) throw Error("over_background: the image is not " + std::to_string(cam_w) + "x" + std::to_string(cam_h));
   const bool per_pixel = cc.pixel_acc.size() == size_t(cam_w) * cam_h;
-  const auto acc = per_pixel ? std::vector<float>() : cc.content.acc.to_host();
-  const float s = float(stride());
+  const std::vector<float> alpha =
+      per_pixel ? cc.pixel_acc : upsample_blocks(cc.content.acc.to_host(), cc.width, cc.height, stride(), cam_w, cam_h);
   const auto& bg = features.geo.background;
-  auto at = [&](int x, int y) {
-    x = std::clamp(x, 0, cc.width - 1);
-    y = std::clamp(y, 0, cc.height - 1);
-    return acc[size_t(y) * cc.width + x];
-  };
-  for (int y = 0; y < cam_h; ++y)
-    for (int x = 0; x < cam_w; ++x) {
-      // Block j's ray passes through pixel coordinate s (j + 0.5).
-      const float fx = (x + 0.5f) / s - 0.5f, fy = (y + 0.5f) / s - 0.5f;
-      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
-      const float u = fx - x0, v = fy - y0;
-      const float a = std::clamp(per_pixel ? cc.pixel_acc[size_t(y) * cam_w + x]
-                                           : (1 - u) * (1 - v) * at(x0, y0) + u * (1 - v) * at(x0 + 1, y0) +
-                                                 (1 - u) * v * at(x0, y0 + 1) + u * v * at(x0 + 1, y0 + 1),
-                                 0.0f, 1.0f);
-      for (int c = 0; c < 3; ++c) {
-        float& p = rgb[(size_t(y) * cam_w + x) * 3 + c];
-        p = p * a + bg[size_t(c)] * (1 - a);
-      }
-    }
+  for (size_t i = 0; i < alpha.size(); ++i) {
+    const float a = std::clamp(alpha[i], 0.0f, 1.0f);
+    for (int c = 0; c < 3; ++c) rgb[i * 3 + c] = rgb[i * 3 + c] * a + bg[size_t(c)] * (1 - a);
+  }
 }
 
 void StyleModel::collect_params(std::vector<nn::Param*>& out) {

@@ -162,7 +162,9 @@ class StyleModel : public nn::Module {
   std::vector<float> stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w, int cam_h) const;
   // Compositional transfer (the paper's): the DST outputs of two styles blended on the feature map by the
   // region mask m, m yA + (1 - m) yB, then decoded. Since DST is linear in (c, w_r) this is computed as
-  // DST_A(m c, m w_r) + DST_B((1 - m) c, (1 - m) w_r): two applies, no extra map-sized kernel.
+  // DST_A(m c, m w_r) + DST_B((1 - m) c, (1 - m) w_r): two applies, no extra map-sized kernel. The
+  // vgg-adain-relu4 decoder re-normalises a map to one style, so there the two stylised pictures are
+  // blended by the mask instead.
   std::vector<float> stylize_camera_regions(const CameraContent& cc, const style::StyleCode& inside,
                                             const style::StyleCode& outside, int cam_w, int cam_h) const;
 

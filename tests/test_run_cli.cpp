@@ -1,0 +1,114 @@
+// `stylerf run` end to end on a tiny generated scene: every step's output, summary.json and index.html,
+// resuming (a second run keeps every step; a changed option reruns its step and what reads it), and bad
+// input refused before any work.
+#include <doctest/doctest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "tests/cli_runner.hpp"
+#include "tests/small_scene.hpp"
+
+using namespace stylerf;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Inputs {
+  fs::path scene, styles;
+};
+
+// A 32 px scene of 20 views and 8 generated styles, made by the tool itself.
+const Inputs& inputs() {
+  static const Inputs in = [] {
+    const fs::path root = testing::small_work_dir() / "run_inputs";
+    fs::remove_all(root);
+    fs::create_directories(root);
+    auto r = testing::run_cli("make-scene -o '" + (root / "scene").string() + "' --size 32 --views 20");
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    r = testing::run_cli("demo-images -o '" + root.string() + "' --styles 8 --size 64");
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    return Inputs{root / "scene", root / "styles"};
+  }();
+  return in;
+}
+
+std::string run_args(const fs::path& out, int holdout) {
+  const auto& in = inputs();
+  return "run --scene '" + in.scene.string() + "' --styles '" + in.styles.string() + "' -o '" + out.string() +
+         "' --holdout-styles " + std::to_string(holdout) +
+         " --stage-minutes 0.03,0.03,0.05 --frames 3 --eval-views 1 --table-frames 8 --max-videos 1";
+}
+
+int count(const std::string& text, const std::string& needle) {
+  int n = 0;
+  for (size_t p = text.find(needle); p != std::string::npos; p = text.find(needle, p + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("run: the whole pipeline, its report, and resuming") {
+  const fs::path out = testing::small_work_dir() / "run_out";
+  fs::remove_all(out);
+  auto r = testing::run_cli(run_args(out, 2));
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  for (const char* f : {"density.ckpt", "features.ckpt", "style.ckpt", "density_test/metrics.json",
+                        "features_test/metrics.json", "style_eval.json", "videos/metrics.json", "mix/mix_grid.png",
+                        "consistency/table.json", "summary.json", "index.html", "steps.json", "logs/style.log"})
+    CHECK_MESSAGE(fs::exists(out / f), f);
+  const auto s = testing::read_json(out / "summary.json");
+  CHECK(s["recipe"] == "fast");
+  CHECK(s["stages"]["density"]["test_psnr"].is_number());
+  CHECK(s["style_loss_ratio"].get<double>() > 0);
+  CHECK(s["per_style"].size() == 2);  // the two held-out styles
+  CHECK(s["consistency"]["short_rmse_ratio"].get<double>() > 0);
+  CHECK(s["mix_corner_min_mean_abs_diff"].get<double>() >= 0);
+  CHECK(s["checks"].size() == 3);
+  std::ifstream page(out / "index.html");
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  CHECK(html.find("mix/mix_grid.png") != std::string::npos);
+  CHECK(html.find("video.mp4") != std::string::npos);
+  CHECK(html.find("per_frame_rmse.svg") != std::string::npos);
+  const auto style_s = testing::read_json(out / "steps.json")["style"]["seconds"].get<double>();
+
+  // The same command again: every step is kept, none runs.
+  r = testing::run_cli(run_args(out, 2));
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(count(r.output, "done in an earlier run") == 9);
+  CHECK(count(r.output, ": stylerf ") == 0);
+  CHECK(testing::read_json(out / "steps.json")["style"]["seconds"].get<double>() == style_s);
+
+  // Another held-out split: the style stage and what reads it run again; density and features are kept.
+  r = testing::run_cli(run_args(out, 3));
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("== density: done in an earlier run") != std::string::npos);
+  CHECK(r.output.find("== features: done in an earlier run") != std::string::npos);
+  CHECK(r.output.find("== style: stylerf train-style") != std::string::npos);
+  CHECK(testing::read_json(out / "summary.json")["per_style"].size() == 3);
+}
+
+TEST_CASE("run: bad input is refused before any work, naming the problem") {
+  const auto& in = inputs();
+  const fs::path out = testing::small_work_dir() / "run_bad";
+  auto expect = [&](const std::string& args, const std::string& needle) {
+    const auto r = testing::run_cli("run " + args + " -o '" + out.string() + "'");
+    INFO(r.output);
+    CHECK(r.code != 0);
+    CHECK(r.output.find(needle) != std::string::npos);
+    CHECK_FALSE(fs::exists(out / "steps.json"));
+  };
+  const std::string ok = "--scene '" + in.scene.string() + "' --styles '" + in.styles.string() + "'";
+  expect("--scene /no/such/scene --styles '" + in.styles.string() + "'", "/no/such/scene");
+  expect(ok + " --recipe quick", "recipe 'quick'");
+  expect(ok + " --stage-minutes 1,2", "--stage-minutes");
+  expect(ok + " --minutes 0", "--minutes");
+  expect(ok + " --holdout-styles 8", "held out leaves none");
+  expect(ok + " --stylize /no/such.png", "/no/such.png");
+}
