@@ -212,14 +212,20 @@ cl_program Runtime::build_program(const std::string& program, const std::string&
   return prog;
 }
 
+cl_program Runtime::built_program(const std::string& program, const std::string& options) {
+  const std::string key = program + '\n' + options;
+  auto it = programs_.find(key);
+  if (it == programs_.end()) it = programs_.emplace(key, build_program(program, options)).first;
+  return it->second;
+}
+
+void Runtime::build(const ProgramBuild& p) { built_program(p.program, p.options); }
+
 cl_kernel Runtime::kernel(const std::string& program, const std::string& name, const std::string& options) {
-  const std::string pkey = program + '\n' + options;
-  const std::string kkey = pkey + '\n' + name;
+  const std::string kkey = program + '\n' + options + '\n' + name;
   if (auto it = kernels_.find(kkey); it != kernels_.end()) return it->second;
-  auto pit = programs_.find(pkey);
-  if (pit == programs_.end()) pit = programs_.emplace(pkey, build_program(program, options)).first;
   cl_int err = CL_SUCCESS;
-  cl_kernel k = clCreateKernel(pit->second, name.c_str(), &err);
+  cl_kernel k = clCreateKernel(built_program(program, options), name.c_str(), &err);
   check(err, "clCreateKernel", "kernel '" + name + "' in kernels/" + program + ".cl");
   kernels_.emplace(kkey, k);
   return k;

@@ -19,6 +19,11 @@
 
 namespace stylerf::host {
 
+// A program of kernels/ and the build options it is launched with (one build each).
+struct ProgramBuild {
+  std::string program, options;
+};
+
 // Per-kernel time totals gathered while profiling is on.
 struct KernelTiming {
   std::string kernel;
@@ -55,6 +60,12 @@ class Runtime {
 
   // A kernel of kernels/<program>.cl built with the given options (e.g. "-DTILE=8"). Cached.
   cl_kernel kernel(const std::string& program, const std::string& name, const std::string& options = "");
+  // Builds the program now unless it is built already (kernel() builds at first use): a training stage
+  // builds every program it launches before its clock starts. PoCL still generates each kernel's code for
+  // a work-group size at its first launch (~50 ms a kernel measured here), which only a launch can do.
+  void build(const ProgramBuild& p);
+  // How many (program, options) builds this process holds: tests check that a stage's steps add none.
+  size_t programs_built() const { return programs_.size(); }
   // The source of kernels/<program>.cl (embedded, or from STYLERF_KERNEL_DIR); "a+b" is a.cl then b.cl.
   std::string program_source(const std::string& program) const;
 
@@ -95,6 +106,7 @@ class Runtime {
  private:
   explicit Runtime(const DeviceInfo& device);
   cl_program build_program(const std::string& program, const std::string& options);
+  cl_program built_program(const std::string& program, const std::string& options);  // cached build
 
   DeviceInfo device_;
   cl_context context_ = nullptr;

@@ -70,6 +70,25 @@ TEST_CASE("kernel launch runs, and errors name the kernel") {
   CHECK_THROWS_AS(Runtime::instance().kernel("no_such_program", "k"), Error);
 }
 
+TEST_CASE("a program built ahead of its first launch is built once; the launch builds nothing more") {
+  Runtime& rt = Runtime::instance();
+  const size_t before = rt.programs_built();
+  rt.build({"elementwise", "-DAHEAD_OF_LAUNCH=1"});  // options no launch uses: a build of its own
+  CHECK(rt.programs_built() == before + 1);
+  rt.build({"elementwise", "-DAHEAD_OF_LAUNCH=1"});
+  CHECK(rt.programs_built() == before + 1);
+  Tensor t = Tensor::from_host(std::vector<float>{1, 2}, {2});
+  launch_with_local("elementwise", "axpby", "-DAHEAD_OF_LAUNCH=1", {2}, Range(0), t, t, 1.0f, 1.0f, 2);
+  CHECK(t.to_host()[1] == doctest::Approx(4));
+  CHECK(rt.programs_built() == before + 1);
+  try {
+    rt.build({"no_such_program", ""});
+    FAIL("expected an error");
+  } catch (const Error& e) {
+    CHECK(std::string(e.what()).find("no_such_program") != std::string::npos);
+  }
+}
+
 TEST_CASE("profiling sums time per kernel") {
   auto& rt = Runtime::instance();
   rt.reset_timings();

@@ -19,6 +19,7 @@
 #include <sstream>
 
 #include "host/error.hpp"
+#include "host/runtime.hpp"
 #include "lib/demo/procedural_images.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/scene_style_stats.hpp"
@@ -28,6 +29,7 @@
 #include "lib/style/adain.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/style_trainer.hpp"
+#include "lib/train/stage_programs.hpp"
 #include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
 
@@ -146,6 +148,9 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, small_config(4),
                         nullptr);
   auto& m = t.model();
+  // Every program the stage launches is built before its loop's clock starts: its steps build none.
+  train::build_stage_programs(train::style_stage_programs(m), nullptr);
+  const size_t built = host::Runtime::instance().programs_built();
   const auto grid0 = m.features.field.head.grid_param().value.to_host();
   const auto basis0 = m.features.field.basis.value.to_host();
   const auto qkv0 = m.sict.qkv_w.value.to_host(), fc0 = m.dst.fc_w.value.to_host();
@@ -161,6 +166,7 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
     CHECK(st.style > 0);
   }
   CHECK(trained > 0);
+  CHECK(host::Runtime::instance().programs_built() == built);
   CHECK(m.features.field.head.grid_param().value.to_host() == grid0);
   CHECK(m.features.field.basis.value.to_host() == basis0);
   CHECK(m.sict.qkv_w.value.to_host() != qkv0);
@@ -452,6 +458,8 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
     cfg.warm_start = 1;
     CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).decoder_warm == 2);
     train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    train::build_stage_programs(train::style_stage_programs(t.model()), nullptr);
+    const size_t built = host::Runtime::instance().programs_built();
     const auto sict0 = t.model().sict.qkv_w.value.to_host(), dst0 = t.model().dst.fc_w.value.to_host();
     const auto dec0 = t.model().features.decoder.layers().front().w.value.to_host();
     const auto s1 = t.step(), s2 = t.step();
@@ -466,6 +474,7 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
     CHECK((s3.warm && !s3.decoder_warm));
     CHECK((!s4.warm && !s4.decoder_warm));
     CHECK(t.model().dst.fc_w.value.to_host() != dst0);
+    CHECK(host::Runtime::instance().programs_built() == built);  // warm-up and warm-start steps: listed programs
   }
   for (int train::StyleTrainConfig::*warm : {&train::StyleTrainConfig::decoder_warm, &train::StyleTrainConfig::warm_start})
     testing::expect_error(

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "host/error.hpp"
+#include "host/runtime.hpp"
 #include "lib/nn/decoder.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
@@ -18,6 +19,7 @@
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/density_trainer.hpp"
 #include "lib/train/feature_trainer.hpp"
+#include "lib/train/stage_programs.hpp"
 #include "tests/small_scene.hpp"
 #include "tests/testing.hpp"
 
@@ -44,9 +46,13 @@ train::FeatureTrainConfig small_config(model::DecoderProfile profile, int iters)
 
 TEST_CASE("feature stage (fast profile): ray and patch losses fall; checkpoint round trip; resume") {
   train::FeatureTrainer t(small_scene(), geometry(), small_config(model::DecoderProfile::Fast, 120), nullptr);
+  // Every program the stage launches is built before its loop's clock starts: its steps build none.
+  train::build_stage_programs(train::feature_stage_programs(t.model()), nullptr);
+  const size_t built = host::Runtime::instance().programs_built();
   const double v0 = t.view_feature_mse(0);
   std::vector<train::FeatureStepStats> st;
   while (!t.done()) st.push_back(t.step());
+  CHECK(host::Runtime::instance().programs_built() == built);
   const double v1 = t.view_feature_mse(0);
   auto mean_of = [&](bool patch, bool first) {
     double s = 0;
@@ -95,12 +101,15 @@ TEST_CASE("feature stage (paper profile): full-resolution features through the P
   train::FeatureTrainer t(small_scene(), geometry(), cfg, nullptr);
   CHECK(t.model().stride() == 1);
   CHECK(t.model().decoder.spec().same_architecture(nn::plain_decoder_spec()));
+  train::build_stage_programs(train::feature_stage_programs(t.model()), nullptr);
+  const size_t built = host::Runtime::instance().programs_built();
   std::vector<double> patch;
   while (!t.done()) {
     auto s = t.step();
     if (s.patch) patch.push_back(s.pixel_mse);
     CHECK(std::isfinite(s.patch ? s.pixel_mse : s.feature_mse));
   }
+  CHECK(host::Runtime::instance().programs_built() == built);  // the PlainDecoder too launches only listed programs
   CHECK(patch.size() == 3);
   // The decoder and grid both receive the patch gradient: the rendered view changed from a fresh model.
   const auto& cam = small_scene().test[0].camera;

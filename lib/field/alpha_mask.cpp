@@ -24,8 +24,7 @@ AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::ar
   const host::Shape shape{res[2], res[1], res[0]};
   host::Tensor raw(shape, host::DType::U8, "alpha mask (raw)");
   m.voxels = host::Tensor(shape, host::DType::U8, "alpha mask");
-  const std::string opts = "-DRANK0=" + std::to_string(density.rank[0]) + " -DRANK1=" +
-                           std::to_string(density.rank[1]) + " -DRANK2=" + std::to_string(density.rank[2]);
+  const std::string opts = rank_build_options(density.rank);  // the build the grid kernels use
   // Groups of 64 voxels (an explicit size: PoCL picks awkward divisors of odd voxel counts).
   host::launch_with_local("grid", "alpha_mask_eval", opts, {n}, {64}, density.params, raw, int(res[0]), int(res[1]), int(res[2]),
          density.res[0], density.res[1], density.res[2], density.rank[0], density.rank[1], density.rank[2], int(act),

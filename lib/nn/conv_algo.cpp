@@ -68,4 +68,8 @@ ConvAlgo resolve_conv_algo(ConvAlgo a, int cin, int cout, int h, int w, int n) {
   return a;
 }
 
+std::string winograd_build_options(int m) { return "-DWINO_M=" + std::to_string(m); }
+
+std::vector<std::string> winograd_build_variants() { return {winograd_build_options(2), winograd_build_options(4)}; }
+
 }  // namespace stylerf::nn

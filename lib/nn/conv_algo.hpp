@@ -8,6 +8,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace stylerf::nn {
 
@@ -22,5 +23,10 @@ ConvAlgo default_conv_algo();
 // The algorithm a 3x3 conv of these sizes runs when asked for `a` (never Auto). Winograd needs its
 // largest transformed tensor to fit in 1 GiB (or STYLERF_CONV_SCRATCH_BYTES); otherwise im2col runs.
 ConvAlgo resolve_conv_algo(ConvAlgo a, int cin, int cout, int h, int w, int n = 1);
+
+// kernels/winograd.cl's build options for F(m x m, 3 x 3), m = 2 or 4.
+std::string winograd_build_options(int m);
+// Those of both Winograd algorithms: a stage that builds its programs ahead of its first step builds both.
+std::vector<std::string> winograd_build_variants();
 
 }  // namespace stylerf::nn

@@ -9,6 +9,7 @@
 
 #include "host/gemm.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/conv_algo.hpp"
 #include "lib/nn/conv_internal.hpp"
 
 namespace stylerf::nn::detail {
@@ -30,7 +31,7 @@ Tiles tiles_of(const ConvDims& d, int m) {
   t.tw = (d.W + m - 1) / m;
   t.T = d.N * t.th * t.tw;
   t.groups = size_t(d.N) * t.th * ((t.tw + 7) / 8);
-  t.options = "-DWINO_M=" + std::to_string(m);
+  t.options = winograd_build_options(m);
   return t;
 }
 

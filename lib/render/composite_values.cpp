@@ -15,14 +15,22 @@ static const Tensor& absent() {
   return t;
 }
 
+constexpr int kVectorWidths[] = {16, 8, 4, 1};
+
 // The widest float vector dividing C (the kernels' VW build option).
 static int vector_width(int C) {
-  for (int w : {16, 8, 4})
+  for (int w : kVectorWidths)
     if (C % w == 0) return w;
   return 1;
 }
 
 static std::string vw_option(int vw) { return "-DVW=" + std::to_string(vw); }
+
+std::vector<std::string> composite_value_build_options() {
+  std::vector<std::string> out;
+  for (int w : kVectorWidths) out.push_back(vw_option(w));
+  return out;
+}
 
 static int check_values(const KeptLayout& l, const Tensor& w, const Tensor& values, const char* op) {
   host::expect_shape(w, {l.count}, host::DType::F32, op, "weights");

@@ -7,6 +7,9 @@
 // The background term out += (1 - acc_all) bg is separate (background_forward/backward): it uses the
 // opacity of all samples, from weights_forward.
 #pragma once
+#include <string>
+#include <vector>
+
 #include "host/tensor.hpp"
 #include "lib/render/ray_march.hpp"
 
@@ -24,6 +27,10 @@ struct CompositedValues {
   Tensor value;  // [R, C]
   Tensor acc;    // [R]
 };
+// The build options of kernels/composite.cl's value kernels, one per vector width a channel count can
+// select: a stage that builds its programs ahead of its first step builds all of them.
+std::vector<std::string> composite_value_build_options();
+
 // w [K], values [K, C].
 CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values);
 

@@ -11,6 +11,7 @@
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
 #include "lib/train/progress.hpp"
+#include "lib/train/stage_programs.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
 
@@ -361,11 +362,10 @@ double mean_psnr(const std::vector<ViewScore>& v) {
 namespace stylerf::train {
 
 RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
+  build_stage_programs(density_stage_programs(trainer.model()), opt.log);
   RunSummary sum;
   const int batch = trainer.config().batch;
-  const bool refit = opt.fit_schedule_to_budget && opt.time_budget_s > 0;
-  double refit_s = 0, next_refit_s = 0;  // training time since / of the next refit
-  int refit_steps = 0;
+  TrainingBudget budget(opt.time_budget_s, opt.clock);
   double window_s = 0, window_psnr = 0, window_mse = 0;
   int64_t window_samples = 0, window_kept = 0;
   int window_n = 0;
@@ -377,10 +377,11 @@ RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) 
     const int total = trainer.config().schedule.iters;
     const bool report = opt.log && opt.log_every > 0 &&
                         ((trainer.iteration() + 1) % opt.log_every == 0 || trainer.iteration() + 1 == total);
+    budget.start_step();
     const StepStats st = trainer.step(report);
+    const double step_s = budget.end_step();
     ++sum.iterations;
-    sum.seconds += st.seconds;
-    window_s += st.seconds;
+    window_s += step_s;
     window_psnr += st.psnr;
     window_mse += st.mse;
     window_samples += st.samples;
@@ -408,26 +409,17 @@ RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) 
         !trainer.done())
       save();
     if (opt.after_step && !opt.after_step(st)) break;
-    if (opt.time_budget_s > 0 && sum.seconds >= opt.time_budget_s) break;
-    if (refit) {
-      refit_s += st.seconds;
-      ++refit_steps;
-      if (refit_steps >= 10 && sum.seconds >= next_refit_s) {
-        const double per_it = refit_s / refit_steps;
-        const int fit = trainer.iteration() + std::max(1, int((opt.time_budget_s - sum.seconds) / per_it));
-        if (fit != trainer.config().schedule.iters) {
-          trainer.refit_schedule(fit);
-          if (opt.log)
-            *opt.log << "  [" << trainer.iteration() << "] " << std::fixed << std::setprecision(2) << per_it
-                     << " s/it -> " << fit << " iterations fit the budget: " << trainer.config().schedule.describe()
-                     << std::endl;
-        }
-        refit_s = 0;
-        refit_steps = 0;
-        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
-      }
+    if (budget.spent()) break;
+    const std::optional<Refit> r = budget.refit(trainer.iteration());
+    if (opt.fit_schedule_to_budget && r && r->total_iters != trainer.config().schedule.iters) {
+      trainer.refit_schedule(r->total_iters);
+      if (opt.log)
+        *opt.log << "  [" << trainer.iteration() << "] " << std::fixed << std::setprecision(2) << r->seconds_per_step
+                 << " s/it -> " << r->total_iters << " iterations fit the budget: "
+                 << trainer.config().schedule.describe() << std::endl;
     }
   }
+  sum.seconds = budget.elapsed();
   if (window_n) sum.last_psnr = window_psnr / window_n;
   save();
   return sum;

@@ -9,6 +9,7 @@
 #include "host/error.hpp"
 #include "lib/eval/metrics.hpp"
 #include "lib/train/progress.hpp"
+#include "lib/train/stage_programs.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
@@ -287,18 +288,19 @@ std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const s
 
 // ---- run loop ----------------------------------------------------------------------------------------------
 FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt) {
+  build_stage_programs(feature_stage_programs(trainer.model()), opt.log);
   FeatureRunSummary sum;
+  TrainingBudget budget(opt.time_budget_s, opt.clock);
   double win_s = 0, win_fmse = 0, win_pmse = 0, win_content = 0, win_rays = 0;
   int win_r = 0, win_p = 0, win_n = 0;
-  double next_refit_s = 0;
   auto save = [&] {
     if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta, opt.density_meta);
   };
   while (!trainer.done()) {
+    budget.start_step();
     const FeatureStepStats st = trainer.step();
+    win_s += budget.end_step();
     ++sum.iterations;
-    sum.seconds += st.seconds;
-    win_s += st.seconds;
     win_rays += double(st.rays);
     ++win_n;
     if (st.patch) {
@@ -317,7 +319,7 @@ FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRun
           << eval::psnr_from_mse(win_pmse / win_p) << ") content " << std::setprecision(4) << win_content / win_p;
       l << std::setprecision(0) << "  " << win_rays / win_s << " rays/s  " << std::setprecision(2) << per_it
         << " s/it  ETA "
-        << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
+        << hms(budget.limited() ? budget.remaining() : per_it * (total - st.iteration));
       *opt.log << l.str() << std::endl;
       if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
       if (win_r) sum.last_feature_mse = win_fmse / win_r;
@@ -325,18 +327,11 @@ FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRun
       win_r = win_p = win_n = 0;
     }
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.time_budget_s > 0) {
-      if (sum.seconds >= opt.time_budget_s) break;
-      // Refit the run's length (its lr decay horizon) to the budget from the rate so far: after 10 steps,
-      // then every 5% of the budget.
-      if (sum.iterations >= 10 && sum.seconds >= next_refit_s) {
-        const double per_it = sum.seconds / sum.iterations;
-        trainer.set_total_iters(trainer.iteration() +
-                                std::max(1, int((opt.time_budget_s - sum.seconds) / per_it)));
-        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
-      }
-    }
+    if (budget.spent()) break;
+    // The run's length is its lr decay horizon: refitted to the budget as the step rate becomes known.
+    if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);
   }
+  sum.seconds = budget.elapsed();
   if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
   if (win_r) sum.last_feature_mse = win_fmse / win_r;
   save();

@@ -25,6 +25,7 @@
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
+#include "lib/train/budget.hpp"
 
 namespace stylerf::train {
 
@@ -107,14 +108,16 @@ std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const s
                                            bool ssim);
 
 // The loop around step(): progress lines (losses, PSNR of the patches, rays/s, ETA), periodic atomic
-// checkpoints, a time budget that refits the run's length (and so its lr decay) from the measured rate.
+// checkpoints, a time budget that refits the run's length (and so its lr decay) from the measured rate;
+// the stage's kernels are built before the first step (lib/train/stage_programs.hpp).
 struct FeatureRunOptions {
   std::ostream* log = nullptr;
   int log_every = 50;
   std::string checkpoint;
   int checkpoint_every = 500;
   nlohmann::json scene_meta, density_meta;
-  double time_budget_s = 0;
+  double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
+  Clock clock;               // read before and after each step; empty: the steady clock
 };
 struct FeatureRunSummary {
   int iterations = 0;

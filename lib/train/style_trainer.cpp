@@ -15,6 +15,7 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/train/progress.hpp"
+#include "lib/train/stage_programs.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/style/style_encoder.hpp"
 
@@ -440,10 +441,11 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
 
 // ---- run loop ----------------------------------------------------------------------------------------------
 StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
+  build_stage_programs(style_stage_programs(trainer.model()), opt.log);
   StyleRunSummary sum;
+  TrainingBudget budget(opt.time_budget_s, opt.clock);
   double win_s = 0, win_c = 0, win_st = 0;
   int win_n = 0, win_l = 0, win_skip = 0;
-  double next_refit_s = 0;
   auto save = [&] {
     if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta);
   };
@@ -458,11 +460,11 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
   };
   if (trainer.iteration() == 0 && opt.eval_every > 0) holdout(0);
   while (!trainer.done()) {
-    if (opt.time_budget_s > 0) trainer.set_schedule_progress(sum.seconds / opt.time_budget_s);
+    if (budget.limited()) trainer.set_schedule_progress(budget.fraction());
+    budget.start_step();
     const StyleStepStats st = trainer.step();
+    win_s += budget.end_step();
     ++sum.iterations;
-    sum.seconds += st.seconds;
-    win_s += st.seconds;
     ++win_n;
     if (st.skipped) {
       ++win_skip;
@@ -478,22 +480,18 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
       if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
       if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
       l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
-        << hms(opt.time_budget_s > 0 ? opt.time_budget_s - sum.seconds : per_it * (total - st.iteration));
+        << hms(budget.limited() ? budget.remaining() : per_it * (total - st.iteration));
       *opt.log << l.str() << std::endl;
       win_s = win_c = win_st = 0;
       win_n = win_l = win_skip = 0;
     }
     if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.time_budget_s > 0) {
-      if (sum.seconds >= opt.time_budget_s) break;
-      if (sum.iterations >= 5 && sum.seconds >= next_refit_s) {
-        const double per_it = sum.seconds / sum.iterations;
-        trainer.set_total_iters(trainer.iteration() + std::max(1, int((opt.time_budget_s - sum.seconds) / per_it)));
-        next_refit_s = sum.seconds + 0.05 * opt.time_budget_s;
-      }
-    }
+    if (budget.spent()) break;
+    // The lr decay follows the budget's fraction; the refitted length only says when the run is done.
+    if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);
   }
+  sum.seconds = budget.elapsed();
   if (opt.eval_every > 0 && trainer.iteration() % opt.eval_every != 0) holdout(trainer.iteration());
   save();
   return sum;

@@ -41,6 +41,7 @@
 #include "lib/nn/adam.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
+#include "lib/train/budget.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
 
@@ -157,7 +158,8 @@ struct StyleRunOptions {
   std::string checkpoint;
   int checkpoint_every = 200;
   nlohmann::json scene_meta;
-  double time_budget_s = 0;
+  double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
+  Clock clock;               // read before and after each step; empty: the steady clock
 };
 struct StyleRunSummary {
   int iterations = 0;
