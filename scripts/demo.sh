@@ -25,5 +25,5 @@ echo "== a generated scene: 48 views of four textured objects, with known depth"
 "$S" make-scene -o "$OUT/scene" --size 128 --views 48
 echo "== StyleRF in one command (stage budgets sized for this 2-core demo; a real scene: --minutes 90)"
 "$S" run --scene "$OUT/scene" --styles "$OUT/styles" --holdout-styles 4 --stage-minutes 0.5,1,1.5 \
-    --frames 48 --check -o "$OUT"
+    --frames 36 --eval-views 3 --check -o "$OUT"
 echo "== done in $(( $(date +%s) - start )) s after the build; open $OUT/index.html"
