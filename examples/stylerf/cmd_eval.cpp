@@ -107,7 +107,7 @@ int run_consistency(int argc, char** argv) {
     stylerf::style::StyleEncoder enc(styled->dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
     stylerf::style::StyleCode code = enc.encode(style_path).code;
     stylerf::model::SceneStyleStats(*styled, scene).attach(code);
-    frames = eval::stylerf_frames(*styled, scene, path.cams, code, scene.effects.background, p.chunk,
+    frames = eval::stylerf_frames(*styled, scene, path.cams, code, styled->features.geo.has_background, p.chunk,
                                   p.supersample > 0 ? p.supersample : styled->inference_supersample);
   } else {
     frames = eval::rgb_frames(*density, scene, path.cams, p.chunk);

@@ -288,7 +288,7 @@ int run_eval_table(int argc, char** argv) {
         style::StyleCode code = encoders[mi]->encode(st).code;
         model::SceneStyleStats(*models[mi], scene).attach(code);
         const auto f =
-            eval::stylerf_frames(*models[mi], scene, path.cams, code, scene.effects.background,
+            eval::stylerf_frames(*models[mi], scene, path.cams, code, models[mi]->features.geo.has_background,
                                 p.chunk, p.supersample > 0 ? p.supersample : models[mi]->inference_supersample);
         style_rows[mi].styles.push_back(st);
         style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));

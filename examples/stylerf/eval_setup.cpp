@@ -49,7 +49,9 @@ PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const 
   out.cams = eval::path_cameras(scene, p.frames, p.path_frames, p.size);
   eval::ConsistencyOptions opt;
   opt.warp.depth_tolerance = p.depth_tolerance;
-  opt.warp.mask_background = scene.effects.background;
+  // The geometry records whether the scene has a background: the scene here is loaded without its images,
+  // so its own effects cannot tell (they come from the images' alpha).
+  opt.warp.mask_background = g.has_background;
   out.warps = eval::path_warps(eval::render_path_geometry(g, scene, out.cams, p.chunk), eval::RaySpace::of(scene), opt);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

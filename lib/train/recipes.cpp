@@ -15,12 +15,14 @@ const char* recipe_name(Recipe r) { return r == Recipe::Fast ? "fast" : "paper";
 StyleTrainConfig style_recipe(Recipe r) {
   StyleTrainConfig c;
   if (r == Recipe::Paper) return c;
-  // Measured on fern 1/8 in 45 min (docs/experiments.md): 0.986x and 1.104x 2D AdaIN's held-out style loss,
-  // against 1.435-1.69x for the stage2 decoder with the same settings. On the generated demo scene the
-  // per-frame relu4_1 re-normalisation flickered (short-range RMSE 1.21x AdaIN's); scene statistics and
-  // 2 x 2 rays per block bring it to 0.72x at 1.02x the style loss, 3 x 3 to 0.74x where 2 x 2 gave 0.80x
-  // on three other styles (short LPIPS 0.87x against 0.97x) at the same style loss (docs/results.md).
-  c.style_decoder = model::StyleDecoderKind::VggAdainRelu4;
+  // The decoder: VGG's relu3_1 -> relu4_1 tail, then AdaIN's pretrained decoder (vgg-adain). Chosen by
+  // style loss and consistency together on the generated demo scene (90 s of style training, 3 held-out
+  // styles, docs/results.md): vgg-adain 1.31x 2D AdaIN's style loss and 0.66x its short-range RMSE;
+  // vgg-adain-relu4, which re-normalises relu4_1 to the style's statistics, 0.99-1.10x but 0.92-1.14x
+  // (why is not measured; a guess: dividing by small relu4_1 stds amplifies what moves between frames);
+  // stage2 2.23x and 0.54x.
+  // On fern 1/8 (45 min) vgg-adain-relu4 reached 0.99-1.10x, vgg-adain 1.70x with older settings.
+  c.style_decoder = model::StyleDecoderKind::VggAdain;
   c.warm_start = 1600;
   c.warm_maps = WarmMaps::Rendered;
   c.lr_stylizer = 1e-3f;
