@@ -1,5 +1,6 @@
 #include "examples/stylerf/run_report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -85,12 +86,20 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   h << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>stylerf run: " << html_escape(stem(in.scene))
     << "</title>\n<style>body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em}"
        "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
-       "th{background:#eee}img,video{max-width:100%;image-rendering:auto}figure{display:inline-block;margin:6px}"
+       "th{background:#eee}img,video{max-width:100%}figure{display:inline-block;margin:6px}"
+       ".sheet{width:540px}.frame{width:320px}.grid{width:640px}"
        ".bad{color:#b00;font-weight:bold}.ok{color:#070}</style></head><body>\n";
   h << "<h1>StyleRF on " << html_escape(in.scene) << "</h1>\n<p>recipe <b>" << html_escape(in.recipe)
     << "</b>; " << fmt(sum.value("total_seconds", 0.0) / 60.0, 1) << " minutes in all.</p>\n";
   h << "<h2>Stages</h2>\n<table><tr><th>step</th><th>seconds</th><th>held-out PSNR (dB)</th></tr>\n";
-  for (const auto& [name, st] : in.steps.items()) {
+  // In the order the steps run (the record is a JSON object, which keeps its keys sorted).
+  std::vector<std::string> order = {"density", "features", "style", "density_test", "features_test",
+                                    "style_eval", "videos", "mix", "consistency"};
+  for (const auto& [name, st] : in.steps.items())
+    if (std::find(order.begin(), order.end(), name) == order.end()) order.push_back(name);
+  for (const auto& name : order) {
+    if (!in.steps.contains(name)) continue;
+    const json& st = in.steps.at(name);
     std::string psnr;
     if (name == "density" || name == "features")
       psnr = fmt(sum["stages"][name].value("test_psnr", std::nan("")), 2);
@@ -109,7 +118,7 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
     << "x).</p>\n";
   for (const auto& r : eval.value("styles", json::array())) {
     const std::string st = r.value("style", "");
-    h << "<figure><img src=\"style_eval/" << html_escape(st) << ".png\"><figcaption>" << html_escape(st)
+    h << "<figure><img class=\"sheet\" src=\"style_eval/" << html_escape(st) << ".png\"><figcaption>" << html_escape(st)
       << ": style loss " << fmt(number(r, "style_ratio"), 2) << "x AdaIN's</figcaption></figure>\n";
   }
   h << "<h2>Zero-shot videos</h2>\n";
@@ -117,13 +126,13 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   for (size_t i = 0; i < outputs.size(); ++i) {
     const std::string dir = outputs[i].value("dir", "");
     const std::string style = i < in.shown_styles.size() ? in.shown_styles[i] : outputs[i].value("name", "");
-    h << "<figure><video controls loop autoplay muted src=\"" << html_escape(link(out, dir + "/video.mp4"))
+    h << "<figure><video class=\"frame\" controls loop autoplay muted src=\"" << html_escape(link(out, dir + "/video.mp4"))
       << "\"></video><figcaption>" << html_escape(stem(style)) << " <img src=\"" << html_escape(link(out, style))
       << "\" style=\"height:48px;vertical-align:middle\"></figcaption></figure>\n";
   }
   h << "<h2>Style interpolation (corners: ";
   for (size_t i = 0; i < in.corners.size(); ++i) h << (i ? ", " : "") << html_escape(stem(in.corners[i]));
-  h << ")</h2>\n<img src=\"mix/mix_grid.png\">\n";
+  h << ")</h2>\n<img class=\"grid\" src=\"mix/mix_grid.png\">\n";
   h << "<h2>Consistency against per-frame 2D AdaIN</h2>\n<p>StyleRF / AdaIN: short-range RMSE <b>"
     << fmt(number(sum["consistency"], "short_rmse_ratio"), 3) << "x</b>, long-range RMSE "
     << fmt(number(sum["consistency"], "long_rmse_ratio"), 3) << "x, short-range LPIPS "
@@ -133,7 +142,7 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   for (const auto& e : fs::directory_iterator(out / "consistency")) {
     if (!e.is_directory()) continue;
     const std::string scene = e.path().filename().string();
-    h << "<figure><video controls loop autoplay muted src=\"consistency/" << html_escape(scene)
+    h << "<figure><video class=\"sheet\" controls loop autoplay muted src=\"consistency/" << html_escape(scene)
       << "/side_by_side/side_by_side.mp4\"></video><figcaption>AdaIN per frame | StyleRF</figcaption></figure>\n"
       << "<figure><img src=\"consistency/" << html_escape(scene)
       << "/per_frame_rmse.svg\"><figcaption>short-range RMSE per frame pair</figcaption></figure>\n";
