@@ -35,6 +35,10 @@ help_of() {
     echo "$out" >&2
     exit 1
   fi
+  # A command whose --help points to --help-all (train-style) is documented with every option.
+  if grep -q -- "--help-all" <<<"$out"; then
+    out=$("$S" "$@" --help-all 2>&1) || { echo "gen_cli_doc: 'stylerf $* --help-all' failed" >&2; exit 1; }
+  fi
   printf '%s\n' "$out"
 }
 

@@ -1,4 +1,4 @@
-// stylerf train-style --features CKPT --styles DIR [--holdout-styles N] [--profile fast|paper]
+// stylerf train-style --features CKPT --styles DIR [--holdout-styles N] [--recipe fast|paper]
 //                     [--minutes M | --iters N] -o CKPT [--resume]:
 // the style stage (StyleRF stage 3) over a feature checkpoint: SICT + DST trained on many style images,
 // the decoder fine-tuned, the grids frozen. Progress lines print the losses, the held-out styles' losses
@@ -28,7 +28,7 @@ using stylerf::host::Error;
 int run_train_style(int argc, char** argv) {
   namespace train = stylerf::train;
   namespace model = stylerf::model;
-  std::string features_path, styles_dir, out, profile_name, device, sict_name = "volume-adaptive", dst_name = "bias",
+  std::string features_path, styles_dir, out, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name, style_decoder_name, recipe_name;
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0;
@@ -37,37 +37,31 @@ int run_train_style(int argc, char** argv) {
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
+  // --help lists what a user sets; --help-all adds the ablations and the run's plumbing.
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
-  desc.add_options()("help,h", "show this help")("features", po::value(&features_path), "feature-stage checkpoint")(
+  desc.add_options()("help,h", "show this help")("help-all", "also show the ablation and logging options")(
+      "features", po::value(&features_path), "feature-stage checkpoint")(
       "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
       "holdout-styles", po::value(&holdout)->default_value(12), "styles held out of training (evaluated, never trained on)")(
       "output,o", po::value(&out), "style checkpoint to write")(
-      "profile", po::value(&profile_name), "fast | paper: must be the feature checkpoint's (checked)")(
       "iters", po::value(&iters), "iterations (default 25000, the paper's)")(
       "minutes", po::value(&minutes), "train for this much time (replaces --iters)")(
-      "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
       "recipe", po::value(&recipe_name),
       "fast | paper: the settings below that a flag does not give (default: the feature checkpoint's profile's "
       "name; fast is the best measured, paper the paper's)")(
       "style-size", po::value(&style_size),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
-      "sict", po::value(&sict_name)->default_value("volume-adaptive"),
-      "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
-      "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
       "warm-start", po::value(&warm),
       "first N steps in 2D on a map per training view (no rendering; fast profile)")(
-      "decoder-warm", po::value(&decoder_warm)->default_value(0),
-      "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
-      "profile)")(
       "warm-maps", po::value(&warm_maps_name),
       "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
       "style-decoder", po::value(&style_decoder_name),
       "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
-      "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics over each map: "
-      "not the paper's; README)")(
+      "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics: not the "
+      "paper's; docs/results.md)")(
       "lr-stylizer", po::value(&lr_stylizer), "stylizer learning rate")(
       "lr-decoder", po::value(&lr_decoder), "decoder fine-tuning learning rate")(
       "lr-decay", po::value(&lr_decay),
@@ -76,17 +70,32 @@ int run_train_style(int argc, char** argv) {
       "seed", po::value(&seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
+      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+  po::options_description more("ablations and plumbing (--help-all)");
+  more.add_options()("sict", po::value(&sict_name)->default_value("volume-adaptive"),
+                     "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
+      "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
+      "decoder-warm", po::value(&decoder_warm)->default_value(0),
+      "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
+      "profile)")(
+      "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
       "log-every", po::value(&log_every)->default_value(10), "iterations between progress lines")(
       "eval-every", po::value(&eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
       "eval-styles", po::value(&eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
       "ckpt-every", po::value(&ckpt_every)->default_value(200), "iterations between checkpoints")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
       "timing", po::bool_switch(&timing), "print per-kernel times at the end");
+  po::options_description all;
+  all.add(desc).add(more);
   po::variables_map vm;
-  po::store(po::parse_command_line(argc, argv, desc), vm);
+  po::store(po::parse_command_line(argc, argv, all), vm);
   po::notify(vm);
+  if (vm.count("help-all")) {
+    std::cout << all;
+    return 0;
+  }
   if (vm.count("help") || out.empty() || (!resume && (features_path.empty() || styles_dir.empty()))) {
-    std::cout << desc;
+    std::cout << desc << "\n(also --sict, --dst, --decoder-warm, --patch, --log-every, --eval-every, --eval-styles, "
+                         "--ckpt-every, --timing: --help-all)\n";
     return vm.count("help") ? 0 : 2;
   }
   if (vm.count("iters") && iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(iters) + ")");
@@ -130,9 +139,6 @@ int run_train_style(int argc, char** argv) {
                   "; pass a larger --iters to continue");
   } else {
     model::FeatureModel fm = model::FeatureModel::load(*ck);
-    if (!profile_name.empty() && model::parse_decoder_profile(profile_name) != fm.profile)
-      throw Error("--profile " + profile_name + ": feature checkpoint " + features_path + " was trained with the " +
-                  model::decoder_profile_name(fm.profile) + " profile (its decoder is fixed by it)");
     // The recipe's settings, then every flag given over them.
     const std::string profile = model::decoder_profile_name(fm.profile);
     const auto recipe = train::parse_recipe(recipe_name.empty() ? profile : recipe_name);
