@@ -214,6 +214,7 @@ int run_train_density(int argc, char** argv) {
               << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_eval).count()
               << " s, beside the training time; --eval-views 0 for all " << scene.test.size() << ")" << std::endl;
   }
+  std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (profile) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }

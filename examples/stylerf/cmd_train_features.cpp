@@ -162,6 +162,7 @@ int run_train_features(int argc, char** argv) {
               << scores.size() << " held-out views (" << std::setprecision(1)
               << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s)" << std::endl;
   }
+  std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }

@@ -196,6 +196,7 @@ int run_train_style(int argc, char** argv) {
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.seconds / std::max(1, sum.iterations) << " s/it); checkpoint "
             << out << std::endl;
+  std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }

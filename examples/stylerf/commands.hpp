@@ -25,6 +25,9 @@ struct Register {
 // Initialises the OpenCL runtime on the chosen device.
 void init_runtime(const std::string& device_spec, bool profile);
 
+// This process's peak resident memory so far, in MB (getrusage; the training commands print it at the end).
+double peak_rss_mb();
+
 // Wall seconds since t (the commands' timings).
 inline double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();

@@ -1,4 +1,6 @@
 // stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the subcommands.
+#include <sys/resource.h>
+
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -15,6 +17,12 @@ std::vector<Command>& commands() {
 
 Register::Register(std::string name, std::string summary, CommandFn fn) {
   commands().push_back({std::move(name), std::move(summary), std::move(fn)});
+}
+
+double peak_rss_mb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_maxrss) / 1024.0;  // Linux reports kilobytes
 }
 
 void init_runtime(const std::string& device_spec, bool profile) {

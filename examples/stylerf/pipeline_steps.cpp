@@ -1,5 +1,6 @@
 #include "examples/stylerf/pipeline_steps.hpp"
 
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -44,8 +45,9 @@ namespace {
 const char* kRecord = "steps.json";
 
 // Runs self with args, its stdout and stderr copied line by line to ours and to `log_path`. Returns the
-// child's exit status (128 + signal when killed).
-int run_child(const std::string& self, const std::vector<std::string>& args, const std::string& log_path) {
+// child's exit status (128 + signal when killed); peak_rss_mb: the child's peak resident memory.
+int run_child(const std::string& self, const std::vector<std::string>& args, const std::string& log_path,
+              double& peak_rss_mb) {
   int fds[2];
   if (pipe(fds) != 0) throw Error("pipe() failed: " + std::string(std::strerror(errno)));
   std::cout.flush();
@@ -76,8 +78,10 @@ int run_child(const std::string& self, const std::vector<std::string>& args, con
   }
   close(fds[0]);
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  rusage usage{};
+  while (wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
   }
+  peak_rss_mb = double(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
 }
@@ -118,11 +122,12 @@ PipelineSteps::Result PipelineSteps::run(const std::string& name, const std::vec
   std::cout << "== " << name << ": stylerf" << shown << std::endl;
   const std::string log = (fs::path(out_) / "logs" / (name + ".log")).string();
   const auto t0 = std::chrono::steady_clock::now();
-  const int rc = run_child(self_, args, log);
+  double rss = 0;
+  const int rc = run_child(self_, args, log, rss);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (rc != 0)
     throw Error("step '" + name + "' failed (exit status " + std::to_string(rc) + "); its output is in " + log);
-  record_[name] = {{"key", r.key}, {"seconds", r.seconds}};
+  record_[name] = {{"key", r.key}, {"seconds", r.seconds}, {"peak_rss_mb", rss}};
   host::write_file_atomic((fs::path(out_) / kRecord).string(), record_.dump(2) + "\n");
   return r;
 }

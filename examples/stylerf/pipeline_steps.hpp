@@ -35,7 +35,7 @@ class PipelineSteps {
   Result run(const std::string& name, const std::vector<std::string>& args, const std::string& output,
              const std::string& extra_key = "");
 
-  // Seconds and whether skipped, per step, in the order they ran.
+  // Per step: its key, seconds and peak resident memory (MB).
   const nlohmann::json& record() const { return record_; }
 
  private:

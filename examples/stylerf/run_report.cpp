@@ -91,7 +91,8 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
        ".bad{color:#b00;font-weight:bold}.ok{color:#070}</style></head><body>\n";
   h << "<h1>StyleRF on " << html_escape(in.scene) << "</h1>\n<p>recipe <b>" << html_escape(in.recipe)
     << "</b>; " << fmt(sum.value("total_seconds", 0.0) / 60.0, 1) << " minutes in all.</p>\n";
-  h << "<h2>Stages</h2>\n<table><tr><th>step</th><th>seconds</th><th>held-out PSNR (dB)</th></tr>\n";
+  h << "<h2>Stages</h2>\n<table><tr><th>step</th><th>seconds</th><th>peak memory (MB)</th><th>held-out PSNR "
+       "(dB)</th></tr>\n";
   // In the order the steps run (the record is a JSON object, which keeps its keys sorted).
   std::vector<std::string> order = {"density", "features", "style", "density_test", "features_test",
                                     "style_eval", "videos", "mix", "consistency"};
@@ -104,7 +105,7 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
     if (name == "density" || name == "features")
       psnr = fmt(sum["stages"][name].value("test_psnr", std::nan("")), 2);
     h << "<tr><td style=\"text-align:left\">" << html_escape(name) << "</td><td>" << fmt(st.value("seconds", 0.0), 1)
-      << "</td><td>" << psnr << "</td></tr>\n";
+      << "</td><td>" << fmt(st.value("peak_rss_mb", std::nan("")), 0) << "</td><td>" << psnr << "</td></tr>\n";
   }
   h << "</table>\n<h2>Checks</h2>\n<table><tr><th>measure</th><th>value</th><th>limit</th><th></th></tr>\n";
   for (const auto& c : sum["checks"])
@@ -170,6 +171,8 @@ RunSummary write_run_report(const RunReportInput& in, const RunLimits& limits) {
   j["stages"]["features"] = {{"seconds", in.steps.value("features", json::object()).value("seconds", 0.0)},
                              {"test_psnr", number(ft, "mean_psnr")}};
   j["stages"]["style"] = {{"seconds", in.steps.value("style", json::object()).value("seconds", 0.0)}};
+  for (const char* st : {"density", "features", "style"})
+    j["stages"][st]["peak_rss_mb"] = in.steps.value(st, json::object()).value("peak_rss_mb", std::nan(""));
   const json eval = read_json(out / "style_eval.json");
   j["style_loss_ratio"] = number(eval, "style_loss_ratio");
   j["content_loss_ratio"] = number(eval, "content_loss_ratio");
