@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <initializer_list>
+#include <limits>
 #include <string>
 #include <type_traits>
 
@@ -40,6 +41,15 @@ void set_arg(cl_kernel k, cl_uint i, T v, const char* name) {
     float f = static_cast<float>(v);
     check(clSetKernelArg(k, i, sizeof(float), &f), "clSetKernelArg", std::string(name) + " arg " + std::to_string(i));
   } else {
+    // A size past int's range would wrap silently and index the wrong memory: refuse it, named.
+    if constexpr (std::is_signed_v<T>) {
+      if (v < T(std::numeric_limits<cl_int>::min()) || v > T(std::numeric_limits<cl_int>::max()))
+        throw Error(std::string("kernel ") + name + ": argument " + std::to_string(i) + " = " + std::to_string(v) +
+                    " does not fit the kernel's 32-bit int");
+    } else if (v > std::make_unsigned_t<cl_int>(std::numeric_limits<cl_int>::max())) {
+      throw Error(std::string("kernel ") + name + ": argument " + std::to_string(i) + " = " + std::to_string(v) +
+                  " does not fit the kernel's 32-bit int");
+    }
     cl_int x = static_cast<cl_int>(v);
     check(clSetKernelArg(k, i, sizeof(cl_int), &x), "clSetKernelArg", std::string(name) + " arg " + std::to_string(i));
   }

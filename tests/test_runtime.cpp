@@ -68,6 +68,17 @@ TEST_CASE("kernel launch runs, and errors name the kernel") {
     CHECK(std::string(e.what()).find("no_such_kernel") != std::string::npos);
   }
   CHECK_THROWS_AS(Runtime::instance().kernel("no_such_program", "k"), Error);
+  // An integer argument past the kernel's 32-bit int is refused, naming the kernel and the argument,
+  // before anything is enqueued (it used to wrap): y is untouched.
+  for (int64_t bad : {int64_t(1) << 31, -(int64_t(1) << 31) - 1}) {
+    CHECK_THROWS_WITH_AS(launch("elementwise", "axpby", {3}, tx, ty, 2.0f, 0.5f, bad),
+                         doctest::Contains("kernel axpby: argument 4"), Error);
+  }
+  CHECK_THROWS_WITH_AS(launch("elementwise", "axpby", {3}, tx, ty, 2.0f, 0.5f, size_t(1) << 31),
+                       doctest::Contains("32-bit int"), Error);
+  CHECK(ty.to_host() == out);
+  launch("elementwise", "axpby", {3}, tx, ty, 0.0f, 1.0f, int64_t(3));  // in range: runs
+  CHECK(ty.to_host() == out);
 }
 
 TEST_CASE("a program built ahead of its first launch is built once; the launch builds nothing more") {
