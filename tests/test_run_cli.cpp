@@ -19,8 +19,8 @@ struct Inputs {
   fs::path scene, styles;
 };
 
-// A 32 px scene of 20 views and 8 generated styles, made by the tool itself. The density stage gets 12 s:
-// in 2 s it learned no surface, and the consistency table had no valid pixel to score.
+// A 32 px scene of 20 views and 8 generated styles, made by the tool itself. The density stage gets 150
+// iterations: in 2 s (~20) it learned no surface, and the consistency table had no valid pixel to score.
 const Inputs& inputs() {
   static const Inputs in = [] {
     const fs::path root = testing::small_work_dir() / "run_inputs";
@@ -41,7 +41,7 @@ std::string run_args(const fs::path& out, int holdout) {
   const auto& in = inputs();
   return "run --scene '" + in.scene.string() + "' --styles '" + in.styles.string() + "' -o '" + out.string() +
          "' --holdout-styles " + std::to_string(holdout) +
-         " --stage-minutes 0.2,0.05,0.05 --frames 3 --eval-views 1 --table-frames 8 --max-videos 1";
+         " --stage-iters 150,20,6 --frames 3 --eval-views 1 --table-frames 8 --max-videos 1";
 }
 
 int count(const std::string& text, const std::string& needle) {
@@ -109,6 +109,8 @@ TEST_CASE("run: bad input is refused before any work, naming the problem") {
   expect("--scene /no/such/scene --styles '" + in.styles.string() + "'", "/no/such/scene");
   expect(ok + " --recipe quick", "recipe 'quick'");
   expect(ok + " --stage-minutes 1,2", "--stage-minutes");
+  expect(ok + " --stage-iters 10,20,2.5", "whole numbers");
+  expect(ok + " --stage-iters 10,20,5 --stage-minutes 1,1,1", "exclude each other");
   expect(ok + " --minutes 0", "--minutes");
   expect(ok + " --holdout-styles 8", "held out leaves none");
   expect(ok + " --stylize /no/such.png", "/no/such.png");

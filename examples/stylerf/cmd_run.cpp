@@ -46,17 +46,33 @@ std::string num(double v) {
 // the runs that met the stages' floors on lego and fern (10 + 30 + 45 minutes: density, features, style).
 struct Budget {
   double density = 0, features = 0, style = 0;  // minutes
+  std::vector<int> iters;                        // --stage-iters: iterations per stage instead of minutes
 };
 
-Budget split_budget(double minutes, const std::string& stage_minutes) {
+// "D,F,S": three positive numbers.
+std::vector<double> three_numbers(const std::string& text, const char* flag) {
+  std::vector<double> v(3);
+  char c1 = 0, c2 = 0;
+  std::istringstream in(text);
+  if (!(in >> v[0] >> c1 >> v[1] >> c2 >> v[2]) || c1 != ',' || c2 != ',' || !(v[0] > 0) || !(v[1] > 0) ||
+      !(v[2] > 0) || !in.eof())
+    throw Error(std::string(flag) + " takes three positive numbers D,F,S (density, features, style), got '" + text + "'");
+  return v;
+}
+
+Budget split_budget(double minutes, const std::string& stage_minutes, const std::string& stage_iters) {
   Budget b;
+  if (!stage_minutes.empty() && !stage_iters.empty()) throw Error("--stage-minutes and --stage-iters exclude each other");
+  if (!stage_iters.empty()) {
+    for (double v : three_numbers(stage_iters, "--stage-iters")) {
+      if (v != std::floor(v) || v > 1e7) throw Error("--stage-iters takes whole numbers of iterations, got '" + stage_iters + "'");
+      b.iters.push_back(int(v));
+    }
+    return b;
+  }
   if (!stage_minutes.empty()) {
-    char c1 = 0, c2 = 0;
-    std::istringstream in(stage_minutes);
-    if (!(in >> b.density >> c1 >> b.features >> c2 >> b.style) || c1 != ',' || c2 != ',' || !(b.density > 0) ||
-        !(b.features > 0) || !(b.style > 0))
-      throw Error("--stage-minutes takes three positive numbers D,F,S (density, features, style), got '" +
-                  stage_minutes + "'");
+    const auto v = three_numbers(stage_minutes, "--stage-minutes");
+    b.density = v[0], b.features = v[1], b.style = v[2];
     return b;
   }
   if (!(minutes > 0) || !std::isfinite(minutes)) throw Error("--minutes must be a positive number of minutes");
@@ -68,7 +84,7 @@ Budget split_budget(double minutes, const std::string& stage_minutes) {
 }
 
 struct RunOptions {
-  std::string scene, styles, out, recipe = "fast", device, stage_minutes;
+  std::string scene, styles, out, recipe = "fast", device, stage_minutes, stage_iters;
   std::vector<std::string> stylize;
   int downsample = 0, holdout = 12, frames = 60, eval_views = 5, table_frames = 16, max_videos = 3;
   double minutes = 90;
@@ -94,6 +110,8 @@ int run_pipeline(int argc, char** argv) {
       "output,o", po::value(&o.out), "output folder (a run there before is resumed)")(
       "minutes", po::value(&o.minutes)->default_value(90), "the whole run's time budget")(
       "stage-minutes", po::value(&o.stage_minutes), "D,F,S: each training stage's minutes (replaces --minutes' split)")(
+      "stage-iters", po::value(&o.stage_iters),
+      "D,F,S: each training stage's iterations instead of minutes (the same result on any machine)")(
       "recipe", po::value(&o.recipe)->default_value("fast"),
       "fast: the best measured recipe (fast feature profile; docs/results.md) | paper: the paper's settings")(
       "downsample", po::value(&o.downsample)->default_value(0), "image downsample (0: the scene's default)")(
@@ -123,7 +141,7 @@ int run_pipeline(int argc, char** argv) {
   }
   if (o.frames < 2 || o.eval_views < 1 || o.table_frames < 8 || o.max_videos < 1 || o.holdout < 1)
     throw Error("--frames must be >= 2, --eval-views, --max-videos and --holdout-styles >= 1, --table-frames >= 8");
-  const Budget budget = split_budget(o.minutes, o.stage_minutes);
+  const Budget budget = split_budget(o.minutes, o.stage_minutes, o.stage_iters);
   const auto styles = train::StyleSet::from_dir(o.styles, o.holdout, nullptr);
   std::vector<std::string> shown = o.stylize;
   if (shown.empty())
@@ -140,26 +158,35 @@ int run_pipeline(int argc, char** argv) {
   const fs::path out(o.out);
   const std::string self = fs::read_symlink("/proc/self/exe").string();
   PipelineSteps steps(o.out, self);
-  std::cout << "stylerf run: recipe " << o.recipe << "; training minutes: density " << std::fixed
-            << std::setprecision(1) << budget.density << ", features " << budget.features << ", style " << budget.style
-            << std::endl;
+  if (budget.iters.empty())
+    std::cout << "stylerf run: recipe " << o.recipe << "; training minutes: density " << std::fixed
+              << std::setprecision(1) << budget.density << ", features " << budget.features << ", style "
+              << budget.style << std::endl;
+  else
+    std::cout << "stylerf run: recipe " << o.recipe << "; training iterations: density " << budget.iters[0]
+              << ", features " << budget.iters[1] << ", style " << budget.iters[2] << std::endl;
+  // Each stage trains for its minutes or its iterations.
+  auto length = [&](int stage, double minutes) {
+    return budget.iters.empty() ? std::vector<std::string>{"--minutes", num(minutes)}
+                                : std::vector<std::string>{"--iters", std::to_string(budget.iters[size_t(stage)])};
+  };
   const std::string scene_fp = folder_fingerprint(o.scene), styles_fp = folder_fingerprint(o.styles);
   const std::string d_ck = (out / "density.ckpt").string(), f_ck = (out / "features.ckpt").string(),
                     s_ck = (out / "style.ckpt").string();
 
-  std::vector<std::string> density = args(o, "train-density", "--scene", o.scene, "--recipe", o.recipe, "--minutes",
-                                          num(budget.density), "--force", "-o", d_ck);
+  std::vector<std::string> density = args(o, "train-density", "--scene", o.scene, "--recipe", o.recipe, "--force",
+                                          "-o", d_ck);
   if (o.downsample > 0) density.insert(density.end(), {"--downsample", std::to_string(o.downsample)});
+  for (const auto& a : length(0, budget.density)) density.push_back(a);
   auto d = steps.run("density", density, d_ck, scene_fp);
-  auto f = steps.run("features",
-                     args(o, "train-features", "--density", d_ck, "--recipe", o.recipe, "--minutes",
-                          num(budget.features), "--force", "-o", f_ck),
-                     f_ck, d.key);
-  auto s = steps.run("style",
-                     args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
-                          std::to_string(o.holdout), "--recipe", o.recipe, "--minutes", num(budget.style), "--force",
-                          "-o", s_ck),
-                     s_ck, f.key + styles_fp);
+  std::vector<std::string> features = args(o, "train-features", "--density", d_ck, "--recipe", o.recipe, "--force",
+                                           "-o", f_ck);
+  for (const auto& a : length(1, budget.features)) features.push_back(a);
+  auto f = steps.run("features", features, f_ck, d.key);
+  std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
+                                        std::to_string(o.holdout), "--recipe", o.recipe, "--force", "-o", s_ck);
+  for (const auto& a : length(2, budget.style)) style.push_back(a);
+  auto s = steps.run("style", style, s_ck, f.key + styles_fp);
 
   const std::string upstream = s.key + d.key;
   steps.run("density_test", args(o, "render", "--ckpt", d_ck, "--views", "test", "-o", (out / "density_test").string()),
@@ -190,7 +217,7 @@ int run_pipeline(int argc, char** argv) {
   in.out = o.out;
   in.recipe = o.recipe;
   in.scene = o.scene;
-  in.minutes = o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
+  in.minutes = !budget.iters.empty() ? 0.0 : o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
   in.steps = steps.record();
   in.shown_styles = shown;
   in.corners = corners;

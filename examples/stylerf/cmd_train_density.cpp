@@ -160,7 +160,9 @@ int run_train_density(int argc, char** argv) {
     }
   } else {
     auto cfg = train::default_density_config(scene);
-    if (iters > 0) cfg.schedule.iters = iters;
+    // A run of N iterations gets the schedule a budget of N iterations gets (Schedule::fitted): TensoRF's
+    // events (upsampling from 2000, masks) would otherwise never fire in a short run.
+    if (iters > 0) cfg.schedule = cfg.schedule.fitted(iters);
     cfg.batch = batch;
     cfg.seed = seed;
     if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);
