@@ -102,8 +102,8 @@ std::vector<std::string> args(const RunOptions& o, T... a) {
   return v;
 }
 
-int run_pipeline(int argc, char** argv) {
-  RunOptions o;
+// The options; returns false (after printing the help) when there is nothing to run, with `rc` to exit with.
+bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   po::options_description desc("stylerf run --scene DIR --styles DIR -o OUT [options]");
   desc.add_options()("help,h", "show this help")("scene", po::value(&o.scene), "the scene (Blender or LLFF folder)")(
       "styles", po::value(&o.styles), "folder of training style images (some are held out)")(
@@ -130,7 +130,8 @@ int run_pipeline(int argc, char** argv) {
   po::notify(vm);
   if (vm.count("help") || o.scene.empty() || o.styles.empty() || o.out.empty()) {
     std::cout << desc;
-    return vm.count("help") ? 0 : 2;
+    rc = vm.count("help") ? 0 : 2;
+    return false;
   }
   train::parse_recipe(o.recipe);  // refused before any work
   if (!fs::is_directory(o.scene)) throw Error("--scene " + o.scene + " is not a folder");
@@ -141,18 +142,39 @@ int run_pipeline(int argc, char** argv) {
   }
   if (o.frames < 2 || o.eval_views < 1 || o.table_frames < 8 || o.max_videos < 1 || o.holdout < 1)
     throw Error("--frames must be >= 2, --eval-views, --max-videos and --holdout-styles >= 1, --table-frames >= 8");
-  const Budget budget = split_budget(o.minutes, o.stage_minutes, o.stage_iters);
+  return true;
+}
+
+// Which styles the videos, the consistency table and the mix sheet show.
+struct Shown {
+  std::vector<std::string> styles, corners;
+};
+
+Shown shown_styles(const RunOptions& o) {
   const auto styles = train::StyleSet::from_dir(o.styles, o.holdout, nullptr);
-  std::vector<std::string> shown = o.stylize;
-  if (shown.empty())
-    for (size_t i = 0; i < styles.holdout.size() && int(i) < o.max_videos; ++i) shown.push_back(styles.holdout[i]);
+  Shown r;
+  r.styles = o.stylize;
+  if (r.styles.empty())
+    for (size_t i = 0; i < styles.holdout.size() && int(i) < o.max_videos; ++i) r.styles.push_back(styles.holdout[i]);
   // The mix sheet's four corners: the shown styles first, then held-out ones, then training ones.
-  std::vector<std::string> corners = shown;
+  r.corners = r.styles;
   for (const auto* list : {&styles.holdout, &styles.train})
     for (const auto& s : *list)
-      if (corners.size() < 4 && std::find(corners.begin(), corners.end(), s) == corners.end()) corners.push_back(s);
-  if (corners.size() < 4) throw Error("--styles " + o.styles + ": the mix sheet needs 4 style images");
-  corners.resize(4);
+      if (r.corners.size() < 4 && std::find(r.corners.begin(), r.corners.end(), s) == r.corners.end())
+        r.corners.push_back(s);
+  if (r.corners.size() < 4) throw Error("--styles " + o.styles + ": the mix sheet needs 4 style images");
+  r.corners.resize(4);
+  return r;
+}
+
+int run_pipeline(int argc, char** argv) {
+  RunOptions o;
+  int rc = 0;
+  if (!parse_run_options(argc, argv, o, rc)) return rc;
+  const Budget budget = split_budget(o.minutes, o.stage_minutes, o.stage_iters);
+  const Shown picked = shown_styles(o);
+  const std::vector<std::string>& shown = picked.styles;
+  const std::vector<std::string>& corners = picked.corners;
 
   fs::create_directories(o.out);
   const fs::path out(o.out);
