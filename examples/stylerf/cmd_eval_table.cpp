@@ -267,9 +267,11 @@ int run_eval_table(int argc, char** argv) {
     MethodRows adain_rows{"AdaIN (per frame)", {}, {}};
     std::vector<std::unique_ptr<model::StyleModel>> models;
     std::vector<std::unique_ptr<style::StyleEncoder>> encoders;  // one per model: its codes are its own
+    std::vector<model::SceneStyleStats> scene_stats;              // one per model: its views rendered once
     std::vector<MethodRows> style_rows;
     for (const auto& ck : style_cks[gi]) {
       models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
+      scene_stats.emplace_back(*models.back(), scene);
       encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
                                                                style::StyleEncoder::default_cache_dir()));
       style_rows.push_back({style_model_label(ck), {}, {}});
@@ -286,7 +288,7 @@ int run_eval_table(int argc, char** argv) {
       if (si == 0) first_adain = a;
       for (size_t mi = 0; mi < models.size(); ++mi) {
         style::StyleCode code = encoders[mi]->encode(st).code;
-        model::SceneStyleStats(*models[mi], scene).attach(code);
+        scene_stats[mi].attach(code);
         const auto f =
             eval::stylerf_frames(*models[mi], scene, path.cams, code, models[mi]->features.geo.has_background,
                                 p.chunk, p.supersample > 0 ? p.supersample : models[mi]->inference_supersample);
