@@ -44,6 +44,16 @@ bool DeviceInfo::is_pocl() const {
   return platform_name.find("Portable Computing Language") != std::string::npos;
 }
 
+bool DeviceInfo::has_extension(const std::string& ext) const {
+  size_t at = 0;
+  while ((at = extensions.find(ext, at)) != std::string::npos) {
+    const size_t end = at + ext.size();
+    if ((at == 0 || extensions[at - 1] == ' ') && (end == extensions.size() || extensions[end] == ' ')) return true;
+    at = end;
+  }
+  return false;
+}
+
 std::string DeviceInfo::describe() const {
   std::ostringstream o;
   o << "[" << index << "] " << type_name() << "  " << name << "  (" << platform_name << ", driver "
@@ -83,6 +93,7 @@ std::vector<DeviceInfo> list_devices() {
       info.vendor = device_string(d, CL_DEVICE_VENDOR);
       info.version = device_string(d, CL_DEVICE_VERSION);
       info.driver = device_string(d, CL_DRIVER_VERSION);
+      info.extensions = device_string(d, CL_DEVICE_EXTENSIONS);
       info.type = device_value<cl_device_type>(d, CL_DEVICE_TYPE);
       info.global_mem_bytes = device_value<cl_ulong>(d, CL_DEVICE_GLOBAL_MEM_SIZE);
       info.max_alloc_bytes = device_value<cl_ulong>(d, CL_DEVICE_MAX_MEM_ALLOC_SIZE);

@@ -13,12 +13,14 @@ struct DeviceInfo {
   cl_platform_id platform = nullptr;
   cl_device_id id = nullptr;
   std::string name, vendor, version, driver, platform_name;
+  std::string extensions;  // CL_DEVICE_EXTENSIONS, space separated
   cl_device_type type = 0;
   size_t global_mem_bytes = 0, max_alloc_bytes = 0, max_work_group = 0;
   cl_uint compute_units = 0;
 
   std::string type_name() const;  // "cpu", "gpu", "accelerator", "other"
   bool is_pocl() const;
+  bool has_extension(const std::string& ext) const;  // a whole word of `extensions`
   std::string describe() const;   // one line for `stylerf devices`
 };
 

@@ -12,6 +12,7 @@
 #include "host/tensor.hpp"
 #include "lib/field/alpha_mask.hpp"
 #include "lib/field/vm_grid.hpp"
+#include "tests/grid_reference.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -21,161 +22,19 @@ using field::VMGrid;
 using host::Tensor;
 using testing::check_close;
 
+using testing::GridRef;
+using testing::grid_test_points;
+
 namespace {
-
-// ---- double-precision reference, written from the layout documented in vm_grid.hpp -------------------
-struct Ref {
-  std::array<int, 3> res, rank;
-  int U[3] = {0, 0, 1}, V[3] = {1, 2, 2}, W[3] = {2, 1, 0};
-  size_t plane_off(int m) const {
-    size_t o = 0;
-    for (int i = 0; i < m; ++i) o += size_t(res[U[i]]) * res[V[i]] * rank[i];
-    return o;
-  }
-  size_t line_off(int m) const {
-    size_t o = plane_off(3);
-    for (int i = 0; i < m; ++i) o += size_t(res[W[i]]) * rank[i];
-    return o;
-  }
-  size_t numel() const { return line_off(3); }
-  static void corner(double p, int n, int& i, double& f) {
-    const double x = (p + 1.0) * 0.5 * (n - 1);
-    i = std::min(std::max(int(std::floor(x)), 0), n - 2);
-    f = x - i;
-  }
-  static bool inside(const double* p) {
-    for (int a = 0; a < 3; ++a)
-      if (!(p[a] >= -1.0 && p[a] <= 1.0)) return false;
-    return true;
-  }
-  // plane_m[r] and line_m[r] at p; optionally the taps (index, weight) for gradients.
-  void values(const std::vector<double>& g, int m, int r, const double* p, double& pv, double& lv,
-              std::vector<std::pair<size_t, double>>* ptaps = nullptr,
-              std::vector<std::pair<size_t, double>>* ltaps = nullptr) const {
-    const int nu = res[U[m]], nv = res[V[m]], nw = res[W[m]], R = rank[m];
-    int iu, iv, iw;
-    double fu, fv, fw;
-    corner(p[U[m]], nu, iu, fu);
-    corner(p[V[m]], nv, iv, fv);
-    corner(p[W[m]], nw, iw, fw);
-    auto P = [&](int v, int u) { return plane_off(m) + (size_t(v) * nu + u) * R + r; };
-    auto L = [&](int w) { return line_off(m) + size_t(w) * R + r; };
-    std::pair<size_t, double> pt[4] = {{P(iv, iu), (1 - fu) * (1 - fv)},
-                                       {P(iv, iu + 1), fu * (1 - fv)},
-                                       {P(iv + 1, iu), (1 - fu) * fv},
-                                       {P(iv + 1, iu + 1), fu * fv}};
-    std::pair<size_t, double> lt[2] = {{L(iw), 1 - fw}, {L(iw + 1), fw}};
-    pv = lv = 0;
-    for (auto& t : pt) pv += g[t.first] * t.second;
-    for (auto& t : lt) lv += g[t.first] * t.second;
-    if (ptaps) ptaps->assign(pt, pt + 4);
-    if (ltaps) ltaps->assign(lt, lt + 2);
-  }
-  double raw_density(const std::vector<double>& g, const double* p) const {
-    if (!inside(p)) return 0.0;
-    double s = 0;
-    for (int m = 0; m < 3; ++m)
-      for (int r = 0; r < rank[m]; ++r) {
-        double pv, lv;
-        values(g, m, r, p, pv, lv);
-        s += pv * lv;
-      }
-    return s;
-  }
-  static double act(double f, DensityActivation a) {
-    if (a == DensityActivation::Relu) return std::max(f, 0.0);
-    const double x = f - 10.0;
-    return std::max(x, 0.0) + std::log1p(std::exp(-std::fabs(x)));
-  }
-  double density(const std::vector<double>& g, const double* p, DensityActivation a) const {
-    return inside(p) ? act(raw_density(g, p), a) : 0.0;
-  }
-  std::vector<double> features(const std::vector<double>& g, const double* p) const {
-    std::vector<double> f;
-    for (int m = 0; m < 3; ++m)
-      for (int r = 0; r < rank[m]; ++r) {
-        double pv = 0, lv = 0;
-        if (inside(p)) values(g, m, r, p, pv, lv);
-        f.push_back(pv * lv);
-      }
-    return f;
-  }
-  // Analytic d(sum_i gfeat_i . feat_i)/dparams (checked against finite differences below).
-  std::vector<double> features_grad(const std::vector<double>& g, const std::vector<double>& pts,
-                                    const std::vector<double>& gfeat) const {
-    std::vector<double> d(g.size(), 0.0);
-    const int F = rank[0] + rank[1] + rank[2];
-    for (size_t i = 0; i < pts.size() / 3; ++i) {
-      const double* p = &pts[3 * i];
-      if (!inside(p)) continue;
-      int k = 0;
-      for (int m = 0; m < 3; ++m)
-        for (int r = 0; r < rank[m]; ++r, ++k) {
-          double pv, lv;
-          std::vector<std::pair<size_t, double>> pt, lt;
-          values(g, m, r, p, pv, lv, &pt, &lt);
-          const double gg = gfeat[i * F + k];
-          for (auto& t : pt) d[t.first] += gg * lv * t.second;
-          for (auto& t : lt) d[t.first] += gg * pv * t.second;
-        }
-    }
-    return d;
-  }
-  double tv(const std::vector<double>& g) const {
-    double s = 0;
-    for (int m = 0; m < 3; ++m) {
-      const int nu = res[U[m]], nv = res[V[m]], R = rank[m];
-      double su = 0, sv = 0;
-      for (int v = 0; v < nv; ++v)
-        for (int u = 0; u < nu; ++u)
-          for (int r = 0; r < R; ++r) {
-            const double x = g[plane_off(m) + (size_t(v) * nu + u) * R + r];
-            if (u + 1 < nu) su += std::pow(g[plane_off(m) + (size_t(v) * nu + u + 1) * R + r] - x, 2);
-            if (v + 1 < nv) sv += std::pow(g[plane_off(m) + (size_t(v + 1) * nu + u) * R + r] - x, 2);
-          }
-      s += su / (double(R) * nv * (nu - 1)) + sv / (double(R) * (nv - 1) * nu);
-    }
-    return s;
-  }
-  double l1(const std::vector<double>& g) const {
-    size_t starts[7] = {plane_off(0), plane_off(1), plane_off(2), line_off(0), line_off(1), line_off(2), numel()};
-    double s = 0;
-    for (int q = 0; q < 6; ++q) {
-      double part = 0;
-      for (size_t k = starts[q]; k < starts[q + 1]; ++k) part += std::fabs(g[k]);
-      s += part / double(starts[q + 1] - starts[q]);
-    }
-    return s;
-  }
-};
-
-// Random points in the box plus the special ones: all 8 corners, edge midpoints, face points, exact grid
-// nodes, points just outside, NaN.
-std::vector<float> test_points(int n_random, uint64_t seed, bool with_outside) {
-  std::vector<float> p = testing::random_uniform(size_t(3) * n_random, seed, -1.0f, 1.0f);
-  for (int c = 0; c < 8; ++c)
-    for (int a = 0; a < 3; ++a) p.push_back((c >> a) & 1 ? 1.0f : -1.0f);
-  const float special[][3] = {{1, 0, 0}, {-1, 0.5f, 1}, {0, 1, -1}, {0.5f, 0.5f, 0.5f}, {0, 0, 0},
-                              {1, 1, 0.25f}, {-1, -1, 0.3f}, {0.25f, -0.5f, 1}};
-  for (auto& s : special) p.insert(p.end(), s, s + 3);
-  if (with_outside) {
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    const float out[][3] = {{1.0001f, 0, 0}, {0, -1.5f, 0}, {0, 0, 3}, {nan, 0, 0}, {-2, -2, -2}};
-    for (auto& s : out) p.insert(p.end(), s, s + 3);
-  }
-  return p;
-}
-
-Ref ref_of(const VMGrid& g) { return Ref{g.res, g.rank}; }
-
+GridRef ref_of(const VMGrid& g) { return GridRef{g.res, g.rank}; }
 }  // namespace
 
 TEST_CASE("VM density forward matches the double reference at random, corner, edge and outside points") {
   // Ranks 8/4/5 exercise the float4 path and the scalar tail; an uneven grid catches axis mix-ups.
   VMGrid g = VMGrid::create({5, 6, 7}, {8, 4, 5}, 0.5f, 11);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   const auto params = testing::to_double(g.params.to_host());
-  const auto pts = test_points(300, 3, true);
+  const auto pts = grid_test_points(300, 3, true);
   const int n = int(pts.size() / 3);
   Tensor tp = Tensor::from_host(pts, {n, 3});
   for (auto act : {DensityActivation::Relu, DensityActivation::Softplus}) {
@@ -197,7 +56,7 @@ TEST_CASE("VM density forward matches the double reference at random, corner, ed
 TEST_CASE("VM density at exact grid nodes equals the node values (align_corners semantics)") {
   // A rank-1 grid with planes = 1 and line 0 = node index: density at z-node k is exactly k (other lines 0).
   const std::array<int, 3> res{3, 4, 5}, rank{1, 1, 1};
-  Ref ref{res, rank};
+  GridRef ref{res, rank};
   std::vector<float> p(ref.numel(), 0.0f);
   for (size_t k = 0; k < ref.line_off(0); ++k) p[k] = 1.0f;
   for (int z = 0; z < res[2]; ++z) p[ref.line_off(0) + z] = float(z);
@@ -213,9 +72,9 @@ TEST_CASE("VM density at exact grid nodes equals the node values (align_corners 
 
 TEST_CASE("VM features forward matches the double reference") {
   VMGrid g = VMGrid::create({4, 7, 5}, {12, 3, 6}, 0.5f, 12);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   const auto params = testing::to_double(g.params.to_host());
-  const auto pts = test_points(200, 4, true);
+  const auto pts = grid_test_points(200, 4, true);
   const int n = int(pts.size() / 3);
   std::vector<double> want;
   for (int i = 0; i < n; ++i) {
@@ -227,16 +86,16 @@ TEST_CASE("VM features forward matches the double reference") {
   check_close(field::features_forward(g, Tensor::from_host(pts, {n, 3})).to_host(), want, 1e-5, 1e-6, "features");
 }
 
-TEST_CASE("VM density backward matches finite differences of the reference (5^3, rank 2), both scatter modes") {
+TEST_CASE("VM density backward matches finite differences of the reference (5^3, rank 2), every scatter mode") {
   // Softplus shifted by -10 is smooth everywhere; relu too away from 0 (the grid is offset so f > 0).
-  const auto pts = test_points(40, 5, true);
+  const auto pts = grid_test_points(40, 5, true);
   const int n = int(pts.size() / 3);
   const auto gs = testing::to_double(testing::random_normal(n, 6));
   Tensor tp = Tensor::from_host(pts, {n, 3});
   for (auto act : {DensityActivation::Softplus, DensityActivation::Relu}) {
     // Softplus(f - 10) needs f of order 10 to have gradients worth checking: a larger init there.
     VMGrid g = VMGrid::create({5, 5, 5}, {2, 2, 2}, act == DensityActivation::Softplus ? 2.5f : 0.6f, 21);
-    Ref ref = ref_of(g);
+    GridRef ref = ref_of(g);
     auto params = testing::to_double(g.params.to_host());
     auto loss = [&](const std::vector<double>& x) {
       double s = 0;
@@ -249,7 +108,7 @@ TEST_CASE("VM density backward matches finite differences of the reference (5^3,
     const auto fd = testing::finite_difference(loss, params, 1e-5);
     Tensor sigma = field::density_forward(g, tp, act);
     Tensor dsig = Tensor::from_host(std::vector<float>(gs.begin(), gs.end()), {n});
-    for (auto mode : {ScatterMode::Private, ScatterMode::Atomic}) {
+    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
       CAPTURE(int(act));
       CAPTURE(int(mode));
       Tensor dgrid = Tensor::zeros(g.params.shape());
@@ -264,11 +123,11 @@ TEST_CASE("VM density backward matches finite differences of the reference (5^3,
   }
 }
 
-TEST_CASE("VM features backward matches finite differences, and the privatised and atomic scatters agree") {
+TEST_CASE("VM features backward matches finite differences, and every scatter mode agrees") {
   VMGrid g = VMGrid::create({5, 5, 5}, {2, 2, 2}, 0.6f, 22);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
-  const auto pts = test_points(30, 7, true);
+  const auto pts = grid_test_points(30, 7, true);
   const int n = int(pts.size() / 3), F = g.features();
   const auto gf = testing::to_double(testing::random_normal(size_t(n) * F, 8));
   auto loss = [&](const std::vector<double>& x) {
@@ -286,7 +145,7 @@ TEST_CASE("VM features backward matches finite differences, and the privatised a
               1e-6, 1e-6, "reference analytic vs FD");
   Tensor tp = Tensor::from_host(pts, {n, 3});
   Tensor tg = Tensor::from_host(std::vector<float>(gf.begin(), gf.end()), {n, F});
-  for (auto mode : {ScatterMode::Private, ScatterMode::Atomic}) {
+  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
     Tensor dgrid = Tensor::zeros(g.params.shape());
     field::features_backward(g, tp, tg, dgrid, mode);
     check_close(dgrid.to_host(), fd, 1e-4, 1e-5, "features grad");
@@ -295,7 +154,7 @@ TEST_CASE("VM features backward matches finite differences, and the privatised a
 
 TEST_CASE("VM scatter with many points (several gradient copies) matches the reference and accumulates") {
   VMGrid g = VMGrid::create({9, 8, 7}, {4, 4, 8}, 0.3f, 23);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
   // Clustered points so many hit the same cells (contention for the atomic path).
   auto pts = testing::random_uniform(size_t(3) * 20000, 9, -0.3f, 0.2f);
@@ -306,7 +165,7 @@ TEST_CASE("VM scatter with many points (several gradient copies) matches the ref
   for (size_t k = 0; k < want.size(); ++k) want[k] = 1.0 + want1[k];  // accumulates into an existing gradient
   Tensor tp = Tensor::from_host(pts, {n, 3}), tg = Tensor::from_host(gf, {n, F});
   std::vector<float> first;
-  for (auto mode : {ScatterMode::Private, ScatterMode::Atomic, ScatterMode::Private}) {
+  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic, ScatterMode::Private}) {
     Tensor dgrid = Tensor::full(g.params.shape(), 1.0f);
     field::features_backward(g, tp, tg, dgrid, mode);
     const auto got = dgrid.to_host();
@@ -328,10 +187,10 @@ TEST_CASE("VM backward with ranks that use every vector width (8, 4 and scalar t
   for (auto rank : {std::array<int, 3>{13, 8, 7}, std::array<int, 3>{24, 12, 4}}) {
     CAPTURE(rank[0]);
     VMGrid g = VMGrid::create({6, 5, 7}, rank, 0.4f, 41);
-    Ref ref = ref_of(g);
+    GridRef ref = ref_of(g);
     const auto params = testing::to_double(g.params.to_host());
     auto pts = testing::random_uniform(size_t(3) * 3000, 42, -0.6f, 0.4f);
-    const auto special = test_points(0, 43, true);
+    const auto special = grid_test_points(0, 43, true);
     pts.insert(pts.end(), special.begin(), special.end());
     const int n = int(pts.size() / 3), F = g.features();
     Tensor tp = Tensor::from_host(pts, {n, 3});
@@ -356,7 +215,7 @@ TEST_CASE("VM backward with ranks that use every vector width (8, 4 and scalar t
     CHECK(active > n / 10);  // both branches of relu occur
     CHECK(active < n);
     const auto want_d = ref.features_grad(params, testing::to_double(pts), gd);
-    for (auto mode : {ScatterMode::Private, ScatterMode::Atomic}) {
+    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
       CAPTURE(int(mode));
       Tensor dgf = Tensor::zeros(g.params.shape());
       field::features_backward(g, tp, Tensor::from_host(gf, {n, F}), dgf, mode);
@@ -391,7 +250,7 @@ TEST_CASE("VM empty point lists and all-outside points: no launch errors, zero g
 
 TEST_CASE("TV and L1 regularisers: forward vs reference, backward vs finite differences") {
   VMGrid g = VMGrid::create({4, 5, 3}, {2, 3, 1}, 0.5f, 41);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
   // Forward: float partial sums, host sum in double: rtol 1e-5.
   CHECK(field::tv_forward(g) == doctest::Approx(ref.tv(params)).epsilon(1e-5));
@@ -408,7 +267,7 @@ TEST_CASE("TV and L1 regularisers: forward vs reference, backward vs finite diff
   // A plane row longer than one work-group (70 x rank 2 = 140 elements along u, groups of 64).
   {
     VMGrid w = VMGrid::create({70, 9, 5}, {1, 2, 1}, 0.5f, 42);
-    Ref wref = ref_of(w);
+    GridRef wref = ref_of(w);
     const auto wp = testing::to_double(w.params.to_host());
     const auto fd = testing::finite_difference([&](const std::vector<double>& x) { return wtv * wref.tv(x); }, wp);
     Tensor dw = Tensor::zeros(w.params.shape());
@@ -425,7 +284,7 @@ TEST_CASE("TV and L1 regularisers: forward vs reference, backward vs finite diff
 
 TEST_CASE("VM resampling: upsampling and sub-box crop match the reference; linear fields are kept exactly") {
   VMGrid g = VMGrid::create({5, 4, 6}, {2, 3, 4}, 0.5f, 51);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
   const std::array<float, 3> lo{-0.5f, -1.0f, 0.0f}, hi{0.75f, 1.0f, 1.0f};
   for (bool crop : {false, true}) {
@@ -462,7 +321,7 @@ TEST_CASE("alpha mask matches the reference occupancy (threshold + 3x3x3 dilatio
   // A grid whose density is a blob: relu(plane values * line values) with a random grid, threshold high
   // enough that part of the box is empty.
   VMGrid g = VMGrid::create({8, 8, 8}, {2, 2, 2}, 0.7f, 61);
-  Ref ref = ref_of(g);
+  GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
   const std::array<int, 3> mr{6, 5, 7};
   const float step = 0.1f, thr = 0.05f;

@@ -8,6 +8,7 @@
 #include "host/error.hpp"
 #include "host/launch.hpp"
 #include "host/runtime.hpp"
+#include "lib/field/vm_scatter.hpp"
 
 namespace stylerf::field {
 
@@ -114,51 +115,18 @@ Tensor features_forward(const VMGrid& g, const Tensor& pts) {
   return feat;
 }
 
-// Scratch for the privatised scatter's extra gradient copies, kept between calls (the queue is in order,
-// so reuse after the previous reduce is safe).
-static Tensor& scatter_scratch(int64_t floats) {
-  static Tensor scratch;
-  if (!scratch.defined() || scratch.numel() < floats)
-    scratch = Tensor({std::max<int64_t>(floats, 1)}, "grid gradient copies");
-  return scratch;
-}
-
-static void scatter(const VMGrid& g, const Tensor& pts, const Tensor& dsrc, const Tensor& sigma, Tensor& dgrid,
-                    int kind, DensityActivation act, ScatterMode mode) {
-  const int n = static_cast<int>(pts.dim(0));
-  if (dgrid.numel() != g.numel())
-    throw Error("grid backward: gradient has " + std::to_string(dgrid.numel()) + " values, grid has " +
-                std::to_string(g.numel()));
-  if (n == 0) return;
-  const auto& dev = host::Runtime::instance().device();
-  if (mode == ScatterMode::Auto) mode = (dev.type & CL_DEVICE_TYPE_CPU) ? ScatterMode::Private : ScatterMode::Atomic;
-  if (mode == ScatterMode::Atomic) {
-    grid_launch(g.rank, "vm_scatter_atomic", size_t(n), pts, g.params, dsrc, sigma, dgrid, n, g.res[0], g.res[1],
-           g.res[2], g.rank[0], g.rank[1], g.rank[2], kind, int(act));
-    return;
-  }
-  // One copy per compute unit, but no copy for fewer than ~4096 points each (zeroing would dominate).
-  const int copies = std::max(1, std::min<int>(static_cast<int>(dev.compute_units), (n + 4095) / 4096));
-  const int chunk = (n + copies - 1) / copies;
-  Tensor& scratch = scatter_scratch(int64_t(copies - 1) * g.numel());
-  launch_with_local("grid", "vm_scatter_private", rank_build_options(g.rank), {size_t(copies)}, {1}, pts, g.params, dsrc, sigma, dgrid,
-                    scratch, n, chunk, g.res[0], g.res[1], g.res[2], g.rank[0], g.rank[1], g.rank[2], kind, int(act));
-  if (copies > 1)
-    launch("grid", "vm_reduce_copies", {size_t(g.numel())}, scratch, dgrid, int(g.numel()), copies - 1);
-}
-
 void density_backward(const VMGrid& g, const Tensor& pts, const Tensor& sigma, const Tensor& dsigma, Tensor& dgrid,
                       DensityActivation act, ScatterMode mode) {
   check_points(pts, "density_backward");
   host::expect_shape(sigma, {pts.dim(0)}, "density_backward", "sigma");
   host::expect_shape(dsigma, {pts.dim(0)}, "density_backward", "dsigma");
-  scatter(g, pts, dsigma, sigma, dgrid, 0, act, mode);
+  scatter_into_grid(g, pts, dsigma, sigma, dgrid, 0, act, mode);
 }
 
 void features_backward(const VMGrid& g, const Tensor& pts, const Tensor& dfeat, Tensor& dgrid, ScatterMode mode) {
   check_points(pts, "features_backward");
   host::expect_shape(dfeat, {pts.dim(0), g.features()}, "features_backward", "dfeat");
-  scatter(g, pts, dfeat, dfeat, dgrid, 1, DensityActivation::Relu, mode);
+  scatter_into_grid(g, pts, dfeat, dfeat, dgrid, 1, DensityActivation::Relu, mode);
 }
 
 // ---- regularisers ------------------------------------------------------------------------------------

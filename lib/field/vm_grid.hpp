@@ -24,11 +24,19 @@ using host::Tensor;
 enum class DensityActivation { Relu = 0, Softplus = 1 };
 DensityActivation parse_density_activation(const std::string& s);  // "relu" | "softplus"
 
-// How backward scatters into the grid gradient. Private: one gradient copy per compute unit, each over a
-// fixed chunk of points in order, summed in a fixed order — deterministic, best on CPUs. Atomic: one
-// work-item per point with compare-and-swap float adds — for devices with many compute units.
-// Auto: Private on CPU devices, Atomic otherwise.
-enum class ScatterMode { Auto, Private, Atomic };
+// How backward scatters into the grid gradient.
+// Private: one gradient copy per compute unit, each over a fixed chunk of points in order, summed in a
+//   fixed order — deterministic for a given device, best on CPUs (few compute units, large caches).
+// Fixed: one work-item per (point, component), 64-bit fixed-point integer atomics
+//   (kernels/grid_fixed.cl) — deterministic bit for bit on any device and chunking, for devices with many
+//   compute units; needs cl_khr_int64_base_atomics.
+// Atomic: one work-item per point with compare-and-swap float adds — order-dependent; kept to compare.
+// Auto: Private on CPU devices, Fixed elsewhere where the device has 64-bit atomics, else Atomic.
+enum class ScatterMode { Auto, Private, Fixed, Atomic };
+ScatterMode parse_scatter_mode(const std::string& s);  // "auto" | "private" | "fixed" | "atomic"
+// The mode Auto resolves to on the current device.
+ScatterMode resolved_scatter_mode(ScatterMode mode);
+const char* scatter_mode_name(ScatterMode mode);
 
 struct VMGrid {
   std::array<int, 3> res{};   // grid points along x, y, z (each >= 2)

@@ -29,6 +29,10 @@ std::vector<ProgramBuild> field_programs(const model::Geometry& geo, const field
                                    {"elementwise", ""},
                                    {"optim", ""}};
   for (const std::string& o : render::composite_value_build_options()) out.push_back({"composite", o});
+  if (field::resolved_scatter_mode(field::ScatterMode::Auto) == field::ScatterMode::Fixed) {
+    out.push_back({"grid+grid_fixed", density});
+    out.push_back({"grid+grid_fixed", field::rank_build_options(values.rank)});
+  }
   return out;
 }
 
