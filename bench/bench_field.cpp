@@ -177,6 +177,12 @@ int bench_field(const BenchOptions& opt) {
                               field::ScatterMode::Private);
     });
     add("density bwd private", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
+    // The fixed-point scatter also reads dsig and the grid once more for its scale bound.
+    ms = timed("density bwd fixed", false, [&] {
+      field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
+                              field::ScatterMode::Fixed);
+    });
+    add("density bwd fixed", ms, double(N), "Mpts/s", pts_bytes + N * 12.0 + 2 * taps + dens.numel() * 20.0);
     ms = timed("density bwd atomic", false, [&] {
       field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
                               field::ScatterMode::Atomic);
@@ -216,6 +222,8 @@ int bench_field(const BenchOptions& opt) {
     Tensor dgrid = Tensor::zeros(app.params.shape());
     ms = timed("app features bwd private", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Private); });
     add("app features bwd private", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
+    ms = timed("app features bwd fixed", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Fixed); });
+    add("app features bwd fixed", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 8.0 + 2 * taps + app.numel() * 20.0);
     ms = timed("app features bwd atomic", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Atomic); });
     add("app features bwd atomic", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
     ms = timed("TV bwd (appearance planes)", false, [&] { field::tv_backward(app, 1.0f, dgrid); });

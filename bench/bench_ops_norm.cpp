@@ -18,6 +18,7 @@
 #include "host/runtime.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/nn/reduce_path.hpp"
 
 namespace stylerf::bench {
 namespace {
@@ -64,6 +65,16 @@ void bench_ops_norm(const BenchOptions& opt) {
     row("sum", sh, n, best_of(reps, [&] { nn::sum(x); }));
     row("has_nonfinite", sh, n, best_of(reps, [&] { nn::has_nonfinite(x); }));
     row("axpby", sh, 3 * n, best_of(reps, [&] { nn::axpby(0.5f, x2, 0.5f, x); }));
+    // The rows above take the device's default reduction path; the reductions once more on each path.
+    for (auto path : {nn::ReductionPath::PerItem, nn::ReductionPath::WorkGroup}) {
+      const auto old = nn::set_reduction_path(path);
+      const std::string tag = path == nn::ReductionPath::PerItem ? " (per-item)" : " (work-group)";
+      row("channel_stats_forward" + tag, sh, n, best_of(reps, [&] { nn::channel_stats_forward(x); }));
+      row("instance_norm_backward" + tag, sh, 3 * n, best_of(reps, [&] { nn::instance_norm_backward(x, st, dy); }));
+      row("mse_forward" + tag, sh, 2 * n, best_of(reps, [&] { nn::mse_forward(x, x2); }));
+      row("sum" + tag, sh, n, best_of(reps, [&] { nn::sum(x); }));
+      nn::set_reduction_path(old);
+    }
   }
   {
     const int h = s / 4;

@@ -53,7 +53,7 @@ double max_abs_error(const std::vector<float>& got, const std::vector<double>& w
 TEST_CASE("fixed-point scatter: bit-identical on a rerun and for any order of the points") {
   VMGrid g = VMGrid::create({9, 8, 7}, {4, 4, 8}, 0.3f, 61);
   // Clustered points, so many share texels: the case where a float atomic sum depends on arrival order.
-  const auto pts = testing::random_uniform(size_t(3) * 20000, 62, -0.3f, 0.2f);
+  const auto pts = testing::random_uniform(size_t(3) * (testing::small_run() ? 2000 : 20000), 62, -0.3f, 0.2f);
   const int n = int(pts.size() / 3), F = g.features();
   const auto gf = testing::random_normal(size_t(n) * F, 63);
   const auto first = features_grad(g, pts, gf, ScatterMode::Fixed);
@@ -81,9 +81,10 @@ TEST_CASE("fixed-point scatter: every sample on one texel, and samples on faces,
   VMGrid g = VMGrid::create({5, 6, 4}, {3, 2, 5}, 0.5f, 65);
   const int F = g.features();
   SUBCASE("20000 samples at one point inside a cell") {
+    const int n = testing::small_run() ? 2000 : 20000;
     std::vector<float> pts;
-    for (int i = 0; i < 20000; ++i) pts.insert(pts.end(), {0.13f, -0.41f, 0.27f});
-    const auto gf = testing::random_normal(size_t(20000) * F, 66);
+    for (int i = 0; i < n; ++i) pts.insert(pts.end(), {0.13f, -0.41f, 0.27f});
+    const auto gf = testing::random_normal(size_t(n) * F, 66);
     const auto got = features_grad(g, pts, gf, ScatterMode::Fixed);
     // The taps' weights are computed in float from float coordinates (relative error ~1e-6, the same for
     // every sample here); the sum itself adds nothing to that.
@@ -123,8 +124,8 @@ TEST_CASE("fixed-point scatter: empty, all-zero and all-outside inputs leave the
 
 TEST_CASE("fixed-point scatter: gradients near the ends of the float range keep their relative precision") {
   VMGrid g = VMGrid::create({6, 5, 7}, {4, 4, 4}, 0.4f, 71);
-  const auto pts = testing::random_uniform(size_t(3) * 3000, 72, -1.0f, 1.0f);
-  const int n = 3000, F = g.features();
+  const int n = testing::small_run() ? 500 : 3000, F = g.features();
+  const auto pts = testing::random_uniform(size_t(3) * n, 72, -1.0f, 1.0f);
   const auto base = testing::random_normal(size_t(n) * F, 73);
   for (float scale : {1e-30f, 1e-3f, 1e25f}) {
     CAPTURE(scale);

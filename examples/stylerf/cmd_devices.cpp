@@ -3,6 +3,8 @@
 
 #include "examples/stylerf/commands.hpp"
 #include "host/device.hpp"
+#include "lib/field/vm_grid.hpp"
+#include "lib/nn/reduce_path.hpp"
 
 namespace {
 int run_devices(int argc, char** argv) {
@@ -14,6 +16,13 @@ int run_devices(int argc, char** argv) {
   DeviceInfo chosen = choose_device(spec);
   std::cout << "chosen: [" << chosen.index << "] " << chosen.name
             << "   (pick with --device INDEX|cpu|gpu|NAME or STYLERF_DEVICE)\n";
+  // The paths the kernels take there by default, and the extensions they depend on.
+  auto yes = [&](const char* ext) { return chosen.has_extension(ext) ? "yes" : "no"; };
+  std::cout << "  grid scatter: " << stylerf::field::scatter_mode_name(stylerf::field::auto_scatter_mode(chosen))
+            << ", reductions: "
+            << (stylerf::nn::detail::group_reductions_by_default(chosen) ? "work-group" : "per-item")
+            << "; 64-bit atomics: " << yes("cl_khr_int64_base_atomics")
+            << ", float atomics: " << yes("cl_ext_float_atomics") << ", fp64: " << yes("cl_khr_fp64") << "\n";
   return 0;
 }
 stylerf::cli::Register reg("devices", "list OpenCL devices and the one stylerf would use", run_devices);

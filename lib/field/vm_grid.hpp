@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <string>
 
+#include "host/device.hpp"
 #include "host/tensor.hpp"
 
 namespace stylerf::field {
@@ -34,7 +35,9 @@ DensityActivation parse_density_activation(const std::string& s);  // "relu" | "
 // Auto: Private on CPU devices, Fixed elsewhere where the device has 64-bit atomics, else Atomic.
 enum class ScatterMode { Auto, Private, Fixed, Atomic };
 ScatterMode parse_scatter_mode(const std::string& s);  // "auto" | "private" | "fixed" | "atomic"
-// The mode Auto resolves to on the current device.
+// The mode Auto resolves to on a device; the mode a call with `mode` runs on the current device (Fixed on
+// a device without 64-bit atomics throws).
+ScatterMode auto_scatter_mode(const host::DeviceInfo& dev);
 ScatterMode resolved_scatter_mode(ScatterMode mode);
 const char* scatter_mode_name(ScatterMode mode);
 

@@ -35,15 +35,19 @@ static bool has_int64_atomics(const host::DeviceInfo& dev) {
   return dev.has_extension("cl_khr_int64_base_atomics");
 }
 
+ScatterMode auto_scatter_mode(const host::DeviceInfo& dev) {
+  // Measured (bench field): on a 2-core PoCL CPU the privatised scatter is the fastest (fixed point 26x
+  // slower there); devices with many compute units take a per-point scatter, where the fixed-point one
+  // needs no retry loop.
+  if (dev.type & CL_DEVICE_TYPE_CPU) return ScatterMode::Private;
+  return has_int64_atomics(dev) ? ScatterMode::Fixed : ScatterMode::Atomic;
+}
+
 ScatterMode resolved_scatter_mode(ScatterMode mode) {
   const auto& dev = host::Runtime::instance().device();
   if (mode == ScatterMode::Fixed && !has_int64_atomics(dev))
     throw Error("grid scatter 'fixed' needs cl_khr_int64_base_atomics, which " + dev.name + " does not report");
-  if (mode != ScatterMode::Auto) return mode;
-  // Measured (bench field): on a 2-core PoCL CPU the privatised scatter is the fastest; on GPUs the
-  // per-point variants, where the fixed-point one needs no retry loop.
-  if (dev.type & CL_DEVICE_TYPE_CPU) return ScatterMode::Private;
-  return has_int64_atomics(dev) ? ScatterMode::Fixed : ScatterMode::Atomic;
+  return mode == ScatterMode::Auto ? auto_scatter_mode(dev) : mode;
 }
 
 // Per-point kernels run in work-groups of 64: left to PoCL, a sample count such as 2735657 = 17*29*31*179

@@ -7,6 +7,7 @@
 #include "lib/nn/norm_internal.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/nn/reduce_internal.hpp"
+#include "lib/nn/reduce_path.hpp"
 
 namespace stylerf::nn {
 
@@ -29,7 +30,10 @@ Tensor mse_forward(const Tensor& a, const Tensor& b) {
   const int n = expect_pair(a, b, "mse_forward");
   const detail::Partition p = detail::partition(n);
   Tensor partials({p.parts}, "mse partials");
-  launch("loss", "sqdiff_partials", {size_t(p.parts)}, a, b, partials, n, p.chunk);
+  if (detail::use_group_reductions())
+    detail::launch_group_reduce("sqdiff_partials_group", size_t(p.parts), 1, a, b, partials, n, p.chunk);
+  else
+    launch("loss", "sqdiff_partials", {size_t(p.parts)}, a, b, partials, n, p.chunk);
   return detail::finish_sum(partials, p.parts, static_cast<float>(1.0 / n));
 }
 

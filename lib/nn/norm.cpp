@@ -5,6 +5,7 @@
 
 #include "host/error.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/reduce_path.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/norm_internal.hpp"
 #include "lib/nn/ops.hpp"
@@ -57,15 +58,22 @@ PreciseStats channel_stats_precise(const Tensor& x, float eps, const char* op, c
   r.stats.std = Tensor({d.n, d.c}, std::string(op) + " std");
   r.mean_lo = Tensor({d.n, d.c}, std::string(op) + " mean residual");
   const StatChunks ch = stat_chunks(d.hw);
-  if (ch.count == 1) {
+  const bool group = detail::use_group_reductions();
+  if (ch.count == 1 && !group) {
     launch("norm", "channel_stats_forward", {size_t(d.nc)}, x, r.stats.mean, r.stats.std, r.mean_lo, d.hw, eps, d.nc);
     return r;
   }
   Tensor psum({d.nc, ch.count}, std::string(op) + " chunk sums"), pd({d.nc, ch.count}, std::string(op) + " chunk d"),
       pq({d.nc, ch.count}, std::string(op) + " chunk d^2");
-  const host::Range parts(size_t(ch.count), size_t(d.nc));
-  launch("norm", "channel_sums_chunked", parts, x, psum, d.hw, ch.size, ch.count);
-  launch("norm", "channel_centred_sums_chunked", parts, x, psum, pd, pq, d.hw, ch.size, ch.count);
+  if (group) {
+    detail::launch_group_reduce("channel_sums_group", size_t(ch.count), size_t(d.nc), x, psum, d.hw, ch.size, ch.count);
+    detail::launch_group_reduce("channel_centred_sums_group", size_t(ch.count), size_t(d.nc), x, psum, pd, pq, d.hw,
+                                ch.size, ch.count);
+  } else {
+    const host::Range parts(size_t(ch.count), size_t(d.nc));
+    launch("norm", "channel_sums_chunked", parts, x, psum, d.hw, ch.size, ch.count);
+    launch("norm", "channel_centred_sums_chunked", parts, x, psum, pd, pq, d.hw, ch.size, ch.count);
+  }
   launch("norm", "channel_stats_finish", {size_t(d.nc)}, psum, pd, pq, r.stats.mean, r.stats.std, r.mean_lo, d.hw,
          ch.count, eps, d.nc);
   return r;
@@ -128,15 +136,20 @@ NormBackward norm_backward(const Tensor& x, const ChannelStats& stats, const Ten
   r.sdyhat = Tensor({d.n, d.c}, std::string(op) + " sum(dy*xhat)");
   Tensor delta({d.n, d.c}, std::string(op) + " mean residual");
   const StatChunks ch = stat_chunks(d.hw);
-  if (ch.count == 1) {
+  const bool group = detail::use_group_reductions();
+  if (ch.count == 1 && !group) {
     launch("norm", "norm_backward_sums", {size_t(d.nc)}, x, stats.mean, stats.std, dy, r.sdy, r.sdyhat, delta, d.hw,
            d.nc);
   } else {
     const std::string name(op);
     Tensor pg({d.nc, ch.count}, name + " chunk sum(dy)"), pgx({d.nc, ch.count}, name + " chunk sum(dy*d)"),
         px({d.nc, ch.count}, name + " chunk sum(d)");
-    launch("norm", "norm_backward_partials", host::Range(size_t(ch.count), size_t(d.nc)), x, stats.mean, dy, pg, pgx,
-           px, d.hw, ch.size, ch.count);
+    if (group)
+      detail::launch_group_reduce("norm_backward_partials_group", size_t(ch.count), size_t(d.nc), x, stats.mean, dy,
+                                  pg, pgx, px, d.hw, ch.size, ch.count);
+    else
+      launch("norm", "norm_backward_partials", host::Range(size_t(ch.count), size_t(d.nc)), x, stats.mean, dy, pg,
+             pgx, px, d.hw, ch.size, ch.count);
     launch("norm", "norm_backward_finish", {size_t(d.nc)}, pg, pgx, px, stats.std, r.sdy, r.sdyhat, delta, d.hw,
            ch.count, d.nc);
   }

@@ -8,6 +8,7 @@
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/nn/reduce_internal.hpp"
+#include "lib/nn/reduce_path.hpp"
 
 namespace stylerf::nn {
 
@@ -39,7 +40,10 @@ Tensor sum(const Tensor& x) {
   if (n == 0) return Tensor::zeros({1}, "sum result");
   const detail::Partition p = detail::partition(n);
   Tensor partials({p.parts}, "sum partials");
-  launch("reduce", "sum_partials", {size_t(p.parts)}, x, partials, n, p.chunk);
+  if (detail::use_group_reductions())
+    detail::launch_group_reduce("sum_partials_group", size_t(p.parts), 1, x, partials, n, p.chunk);
+  else
+    launch("reduce", "sum_partials", {size_t(p.parts)}, x, partials, n, p.chunk);
   return detail::finish_sum(partials, p.parts, 1.0f);
 }
 
