@@ -90,6 +90,8 @@ for s in $suites; do
     cmd=(bash tests/package_test.sh "$BUILD_DIR" "$PWD")  # installs, builds examples/embed, runs it
   elif [ "$s" = cli_doc ]; then
     cmd=(bash tests/cli_doc_test.sh "$BUILD_DIR" "$PWD")  # docs/cli.md against --help (no kernels run)
+  elif [[ "$s" == *_work_group ]]; then
+    cmd=(env STYLERF_REDUCTION=work-group "$BUILD_DIR/${s%_work_group}" --duration=true)  # CMakeLists.txt
   else
     cmd=("$BUILD_DIR/$s" --duration=true)  # per-case seconds in the log, for choosing what to shrink
     if [ -n "${EXCLUDE[$s]:-}" ]; then

@@ -1,6 +1,7 @@
 #include "lib/field/vm_scatter.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <string>
 
 #include "host/error.hpp"
@@ -47,7 +48,14 @@ ScatterMode resolved_scatter_mode(ScatterMode mode) {
   const auto& dev = host::Runtime::instance().device();
   if (mode == ScatterMode::Fixed && !has_int64_atomics(dev))
     throw Error("grid scatter 'fixed' needs cl_khr_int64_base_atomics, which " + dev.name + " does not report");
-  return mode == ScatterMode::Auto ? auto_scatter_mode(dev) : mode;
+  if (mode != ScatterMode::Auto) return mode;
+  // STYLERF_GRID_SCATTER overrides Auto (benches compare the modes on one device through whole steps).
+  static const ScatterMode from_env = [] {
+    const char* env = std::getenv("STYLERF_GRID_SCATTER");
+    return env && *env ? parse_scatter_mode(env) : ScatterMode::Auto;
+  }();
+  if (from_env != ScatterMode::Auto) return resolved_scatter_mode(from_env);
+  return auto_scatter_mode(dev);
 }
 
 // Per-point kernels run in work-groups of 64: left to PoCL, a sample count such as 2735657 = 17*29*31*179
