@@ -137,7 +137,8 @@ note icd "$ICD"
 note scene "$SCENE"
 note build "$BUILD"
 note started "$(date -u +%Y-%m-%dT%H:%M:%SZ)"
-if ! ldd "$STYLERF" | grep -q 'not found'; then :; else
+{ echo "=== ldd $STYLERF (LD_LIBRARY_PATH=${LD_LIBRARY_PATH:-})"; ldd "$STYLERF"; } >> "$LOG" 2>&1
+if ldd "$STYLERF" | grep -q 'not found'; then
   say "ldd: missing libraries: $(ldd "$STYLERF" | grep 'not found' | awk '{print $1}' | tr '\n' ' ')"
 fi
 
