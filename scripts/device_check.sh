@@ -17,7 +17,7 @@
 #   --quick        smaller sizes (patch and decoder steps at 64x64, one repeat, field --quick, the density
 #                  run 1 minute at 1/4 resolution); the default with --device cpu
 #   --full         the GPU sizes even with --device cpu
-#   --parts LIST   comma list of devices,patch,decoder,field,gemm,density,tests (default all)
+#   --parts LIST   comma list of devices,patch,decoder,field,ops,gemm,density,tests (default all)
 #   --jobs N       ctest -j (default 4 on a GPU, 2 on a CPU)
 #   --total S      seconds for all the parts together (default 450: 8 minutes less the unpacking)
 # Each part runs under `timeout` with its own budget, capped by what is left of --total; a part that fails
@@ -25,7 +25,7 @@
 set -uo pipefail
 
 REPO=$(cd "$(dirname "$0")/.." && pwd -P)
-BUNDLE="" BUILD="" DEVICE=gpu OUT="" QUICK="" PARTS="devices,patch,decoder,field,gemm,density,tests" JOBS="" TOTAL=450
+BUNDLE="" BUILD="" DEVICE=gpu OUT="" QUICK="" PARTS="devices,patch,decoder,field,ops,gemm,density,tests" JOBS="" TOTAL=450
 usage() { sed -n 2,27p "$0" | sed 's/^# \{0,1\}//'; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -258,7 +258,10 @@ if want decoder; then
   bench decoder_fast 20 decoder-step --decoder fast --size "$SIZE" --repeats "$REPEATS"
 fi
 # shellcheck disable=SC2086
-if want field; then bench field 40 field $FIELD_ARGS; fi
+if want field; then bench field 60 field $FIELD_ARGS; fi
+# The reductions on each path (per-item, work-group) and the device's default, [1,256,256,256].
+# shellcheck disable=SC2086
+if want ops; then bench ops_norm 40 ops --parts norm $([[ "$QUICK" == 1 ]] && echo --quick) --repeats "$REPEATS"; fi
 if want gemm; then bench gemm 40 gemm --quick --repeats "$REPEATS"; fi
 if want density; then
   if [[ -n "$SCENE" && -f "$SCENE/transforms_train.json" ]]; then
