@@ -10,6 +10,7 @@
 // chunk / WG terms and the tree log2(WG) levels, so rounding error is smaller than a blocked serial sum.
 //
 // Launch: global (chunks * WG, rows), local (WG, 1); lib/nn/reduce_path.cpp chooses these kernels.
+// Built as the program "norm+group_reduce" (norm.cl first: write_stats and the finishing kernels).
 
 #ifndef WG
 #define WG 256
@@ -58,13 +59,10 @@ __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void sqdiff_partials_gr
 }
 
 // ---- channel statistics: chunk k of channel c, outputs [nc][chunks] as norm.cl's chunked kernels -------
-// The approximate mean m0 of channel c from its chunk sums, added in order (as norm.cl's chunked_mean).
-inline float group_chunked_mean(__global const float* psum, int c, int chunks, int hw) {
-  float s = 0.0f;
-  for (int k = 0; k < chunks; ++k) s += psum[c * chunks + k];
-  return s / (float)hw;
-}
-
+// The approximate mean m0 is computed once, by channel_mean_group, and read by both the centred sums and
+// the finish: the correction mean = m0 + sum(x - m0) / hw is exact only for the very m0 the sums used, and
+// a GPU compiler may divide differently in two kernels (an H100 gave m0 one ulp apart: 5% errors in the
+// normalised values of a channel with mean 1e4 and std 1e-2).
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void channel_sums_group(
     __global const float* x, __global float* psum, int hw, int chunk, int chunks) {
   local float buf[WG];
@@ -77,15 +75,24 @@ __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void channel_sums_group
   if (l == 0) psum[c * chunks + k] = s;
 }
 
+// m0[c] = the chunk sums of channel c, added in order, / hw. Global (nc).
+__kernel void channel_mean_group(__global const float* psum, __global float* m0, int hw, int chunks, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  float s = 0.0f;
+  for (int k = 0; k < chunks; ++k) s += psum[c * chunks + k];
+  m0[c] = s / (float)hw;
+}
+
 // Sums of d = x - m0 and d^2 per chunk.
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void channel_centred_sums_group(
-    __global const float* x, __global const float* psum, __global float* pd, __global float* pq, int hw, int chunk,
+    __global const float* x, __global const float* m0s, __global float* pd, __global float* pq, int hw, int chunk,
     int chunks) {
   local float buf[WG];
   const int k = get_group_id(0), c = get_global_id(1), l = get_local_id(0);
   const int j0 = k * chunk, j1 = min(j0 + chunk, hw);
   __global const float* p = x + (long)c * hw;
-  const float m0 = group_chunked_mean(psum, c, chunks, hw);
+  const float m0 = m0s[c];
   float sd = 0.0f, sq = 0.0f;
   for (int j = j0 + l; j < j1; j += WG) {
     const float d = p[j] - m0;
@@ -98,6 +105,20 @@ __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void channel_centred_su
     pd[c * chunks + k] = sd;
     pq[c * chunks + k] = sq;
   }
+}
+
+// mean, mean_lo and std from the stored m0 and the chunk sums of d and d^2 (norm.cl's write_stats).
+__kernel void channel_stats_finish_group(__global const float* m0s, __global const float* pd, __global const float* pq,
+                                         __global float* mean, __global float* stdv, __global float* mean_lo, int hw,
+                                         int chunks, float eps, int nc) {
+  const int c = get_global_id(0);
+  if (c >= nc) return;
+  float sd = 0.0f, sq = 0.0f;
+  for (int k = 0; k < chunks; ++k) {
+    sd += pd[c * chunks + k];
+    sq += pq[c * chunks + k];
+  }
+  write_stats(c, m0s[c], sd, sq, hw, eps, mean, stdv, mean_lo);
 }
 
 // The normalisation backward's three sums per chunk: sum(dy), sum(dy * (x - mean)), sum(x - mean).

@@ -17,7 +17,7 @@
 #   --quick        smaller sizes (patch and decoder steps at 64x64, one repeat, field --quick, the density
 #                  run 1 minute at 1/4 resolution); the default with --device cpu
 #   --full         the GPU sizes even with --device cpu
-#   --parts LIST   comma list of devices,patch,decoder,field,ops,gemm,density,tests (default all)
+#   --parts LIST   comma list of devices,patch,decoder,field,ops,gemm,tune,density,tests (default all but tune)
 #   --jobs N       ctest -j (default 4 on a GPU, 2 on a CPU)
 #   --total S      seconds for all the parts together (default 450: 8 minutes less the unpacking)
 # Each part runs under `timeout` with its own budget, capped by what is left of --total; a part that fails
@@ -263,6 +263,16 @@ if want field; then bench field 60 field $FIELD_ARGS; fi
 # shellcheck disable=SC2086
 if want ops; then bench ops_norm 40 ops --parts norm $([[ "$QUICK" == 1 ]] && echo --quick) --repeats "$REPEATS"; fi
 if want gemm; then bench gemm 40 gemm --quick --repeats "$REPEATS"; fi
+# Tuning (only when asked: --parts ...,tune): stylerf tune --quick into the user tuning file, copied to $OUT,
+# then the GEMMs and the patch steps again with it.
+if want tune; then
+  run_part tune 170 "$STYLERF" tune --quick --device "$DEVICE"
+  TUNED=${STYLERF_CACHE_DIR:-$HOME/.cache/stylerf}/clblast-tuning.json
+  [[ -f "$TUNED" ]] && cp "$TUNED" "$OUT/clblast-tuning.json"
+  bench gemm_tuned 40 gemm --quick --repeats "$REPEATS"
+  bench patch_s3_paper_tuned 40 patch --stage 3 --profile paper --size "$SIZE" --repeats "$REPEATS"
+  bench patch_s2_paper_tuned 60 patch --stage 2 --profile paper --size "$SIZE" --repeats "$REPEATS"
+fi
 if want density; then
   if [[ -n "$SCENE" && -f "$SCENE/transforms_train.json" ]]; then
     # shellcheck disable=SC2086
@@ -355,7 +365,7 @@ for name, p in parts.items():
     elif name == "field" and j:
         p["rows_ms"] = {r["name"]: r["ms"] for r in j.get("rows", [])}
         p["rows_gb_s"] = {r["name"]: r.get("gb_s") for r in j.get("rows", [])}
-    elif name == "gemm" and j:
+    elif name.startswith("gemm") and j:
         p["auto_engine"] = j.get("auto_engine")
         p["results_agree"] = j.get("results_agree")
         p["best_gflops"] = {s["name"]: max(s["gflops"].items(), key=lambda kv: kv[1]) for s in j.get("shapes", [])}
@@ -452,7 +462,7 @@ for name, p in parts.items():
             k += " (" + ", ".join("%s %.3f" % kv for kv in top) + ")"
     elif name == "field" and p.get("rows_ms"):
         k = ", ".join("%s %.1f ms" % (r, ms) for r, ms in p["rows_ms"].items() if "bwd" in r and ("app" in r or "density" in r))
-    elif name == "gemm" and p.get("best_gflops"):
+    elif name.startswith("gemm") and p.get("best_gflops"):
         k = "auto %s; agree %s; " % (p.get("auto_engine"), p.get("results_agree")) + ", ".join(
             "%s %s %.0f" % (s, e, g) for s, (e, g) in list(p["best_gflops"].items())[:2]) + " GFLOP/s"
     elif name == "density":

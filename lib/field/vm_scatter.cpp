@@ -32,8 +32,9 @@ const char* scatter_mode_name(ScatterMode mode) {
   return "?";
 }
 
+// The fixed-point scatter needs 64-bit integer atomics and work-groups of 256 (its bound's reduction).
 static bool has_int64_atomics(const host::DeviceInfo& dev) {
-  return dev.has_extension("cl_khr_int64_base_atomics");
+  return dev.has_extension("cl_khr_int64_base_atomics") && dev.max_work_group >= 256;
 }
 
 ScatterMode auto_scatter_mode(const host::DeviceInfo& dev) {
@@ -47,7 +48,8 @@ ScatterMode auto_scatter_mode(const host::DeviceInfo& dev) {
 ScatterMode resolved_scatter_mode(ScatterMode mode) {
   const auto& dev = host::Runtime::instance().device();
   if (mode == ScatterMode::Fixed && !has_int64_atomics(dev))
-    throw Error("grid scatter 'fixed' needs cl_khr_int64_base_atomics, which " + dev.name + " does not report");
+    throw Error("grid scatter 'fixed' needs cl_khr_int64_base_atomics and work-groups of 256; " + dev.name +
+                " does not offer both");
   if (mode != ScatterMode::Auto) return mode;
   // STYLERF_GRID_SCATTER overrides Auto (benches compare the modes on one device through whole steps).
   static const ScatterMode from_env = [] {
@@ -84,13 +86,15 @@ static void scatter_private(const VMGrid& g, const Tensor& pts, const Tensor& ds
   if (copies > 1) launch("grid", "vm_reduce_copies", {size_t(g.numel())}, scratch, dgrid, int(g.numel()), copies - 1);
 }
 
-// Max-|x| partials of x into partials[0, parts): at most 256 chunks of at least 4096 elements.
+// Max-|x| partials of x into partials[0, parts): at most kBoundParts chunks, one work-group of
+// kBoundLanes each (BOUND_WG in kernels/grid_fixed.cl), each chunk at least 8 floats a lane.
+constexpr int kBoundParts = 4096, kBoundLanes = 256;
 static int bound_partials(const std::string& opts, const Tensor& x, Tensor& partials) {
   const int64_t n = x.numel();
-  const int parts = static_cast<int>(std::min<int64_t>(256, std::max<int64_t>(1, n / 4096)));
+  const int parts = static_cast<int>(std::clamp<int64_t>(n / (8 * kBoundLanes), 1, kBoundParts));
   const int64_t chunk = (n + parts - 1) / parts;
-  launch_with_local("grid+grid_fixed", "vm_fixed_bound_partials", opts, {size_t(parts)}, host::Range(0), x, partials,
-                    n, chunk);
+  launch_with_local("grid+grid_fixed", "vm_fixed_bound_partials", opts, {size_t(parts) * kBoundLanes},
+                    {size_t(kBoundLanes)}, x, partials, n, chunk);
   return parts;
 }
 
@@ -107,8 +111,8 @@ static void scatter_fixed(const VMGrid& g, const Tensor& pts, const Tensor& dsrc
     acc = Tensor({2 * g.numel()}, "grid gradient, fixed point");
     run("vm_fixed_zero", size_t(numel), acc, numel);
   }
-  Tensor& gpart = scratch_of(gpart_store, 256, "scatter bound partials");
-  Tensor& ppart = scratch_of(ppart_store, 256, "scatter bound partials");
+  Tensor& gpart = scratch_of(gpart_store, kBoundParts, "scatter bound partials");
+  Tensor& ppart = scratch_of(ppart_store, kBoundParts, "scatter bound partials");
   Tensor& state = scratch_of(state_store, 2, "scatter scale");
   const int ng = bound_partials(opts, dsrc, gpart), np = bound_partials(opts, g.params, ppart);
   run("vm_fixed_scale", 1, gpart, ng, ppart, np, n, state);

@@ -66,14 +66,18 @@ PreciseStats channel_stats_precise(const Tensor& x, float eps, const char* op, c
   Tensor psum({d.nc, ch.count}, std::string(op) + " chunk sums"), pd({d.nc, ch.count}, std::string(op) + " chunk d"),
       pq({d.nc, ch.count}, std::string(op) + " chunk d^2");
   if (group) {
+    Tensor m0({d.nc}, std::string(op) + " approximate mean");
     detail::launch_group_reduce("channel_sums_group", size_t(ch.count), size_t(d.nc), x, psum, d.hw, ch.size, ch.count);
-    detail::launch_group_reduce("channel_centred_sums_group", size_t(ch.count), size_t(d.nc), x, psum, pd, pq, d.hw,
+    launch(detail::kGroupReduceProgram, "channel_mean_group", {size_t(d.nc)}, psum, m0, d.hw, ch.count, d.nc);
+    detail::launch_group_reduce("channel_centred_sums_group", size_t(ch.count), size_t(d.nc), x, m0, pd, pq, d.hw,
                                 ch.size, ch.count);
-  } else {
-    const host::Range parts(size_t(ch.count), size_t(d.nc));
-    launch("norm", "channel_sums_chunked", parts, x, psum, d.hw, ch.size, ch.count);
-    launch("norm", "channel_centred_sums_chunked", parts, x, psum, pd, pq, d.hw, ch.size, ch.count);
+    launch(detail::kGroupReduceProgram, "channel_stats_finish_group", {size_t(d.nc)}, m0, pd, pq, r.stats.mean,
+           r.stats.std, r.mean_lo, d.hw, ch.count, eps, d.nc);
+    return r;
   }
+  const host::Range parts(size_t(ch.count), size_t(d.nc));
+  launch("norm", "channel_sums_chunked", parts, x, psum, d.hw, ch.size, ch.count);
+  launch("norm", "channel_centred_sums_chunked", parts, x, psum, pd, pq, d.hw, ch.size, ch.count);
   launch("norm", "channel_stats_finish", {size_t(d.nc)}, psum, pd, pq, r.stats.mean, r.stats.std, r.mean_lo, d.hw,
          ch.count, eps, d.nc);
   return r;

@@ -25,10 +25,12 @@ constexpr int kGroupLanes = 256;  // WG in kernels/group_reduce.cl
 bool use_group_reductions();
 bool group_reductions_by_default(const host::DeviceInfo& dev);
 
+// The program of the group_reduce.cl kernels (built after norm.cl, whose finishing code they share).
+constexpr const char* kGroupReduceProgram = "norm+group_reduce";
 // Launches a group_reduce.cl kernel over `groups` x `rows` work-groups of kGroupLanes lanes.
 template <class... Args>
 void launch_group_reduce(const char* kernel, size_t groups, size_t rows, const Args&... args) {
-  host::launch_with_local("group_reduce", kernel, "", host::Range(groups * kGroupLanes, rows),
+  host::launch_with_local(kGroupReduceProgram, kernel, "", host::Range(groups * kGroupLanes, rows),
                           host::Range(size_t(kGroupLanes), 1), args...);
 }
 

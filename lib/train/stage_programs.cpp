@@ -4,8 +4,10 @@
 #include <iomanip>
 #include <ostream>
 
+#include "host/gemm.hpp"
 #include "lib/field/vm_grid.hpp"
 #include "lib/nn/conv_algo.hpp"
+#include "lib/nn/reduce_path.hpp"
 #include "lib/render/composite_values.hpp"
 
 namespace stylerf::train {
@@ -29,6 +31,10 @@ std::vector<ProgramBuild> field_programs(const model::Geometry& geo, const field
                                    {"elementwise", ""},
                                    {"optim", ""}};
   for (const std::string& o : render::composite_value_build_options()) out.push_back({"composite", o});
+  // The device-dependent paths: work-group reductions, split-K GEMMs (the head's weight gradients, K =
+  // samples) and the fixed-point scatter, each where it runs.
+  if (nn::detail::use_group_reductions()) out.push_back({nn::detail::kGroupReduceProgram, ""});
+  if (host::gemm_split_k_parts(64, 64, 1 << 20) >= 2) out.push_back({"gemm_split", ""});
   if (field::resolved_scatter_mode(field::ScatterMode::Auto) == field::ScatterMode::Fixed) {
     out.push_back({"grid+grid_fixed", density});
     out.push_back({"grid+grid_fixed", field::rank_build_options(values.rank)});
