@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "bench/timing.hpp"
 #include "bench/bench.hpp"
 #include "bench/bench_setup.hpp"
 #include "host/error.hpp"
@@ -83,6 +84,7 @@ int bench_patch(const BenchOptions& opt) {
   for (int rep = 0; rep <= repeats; ++rep) {
     double t[kParts + 1];
     rt.finish();
+    rt.reset_timings();  // under STYLERF_PROFILE=1: print_top_kernels shows the last step
     t[0] = now_ms();
     m.zero_grad();
     model::FeatureField::Context fctx;
@@ -144,11 +146,13 @@ int bench_patch(const BenchOptions& opt) {
             << best_total / 1e3 << std::setprecision(1) << std::setw(12) << total_flops / 1e9 << "\n"
             << "samples " << samples << " (" << std::setprecision(1) << double(samples) / double(R) << " per ray), kept "
             << kept << "\n";
+  const std::string top = print_top_kernels(25);
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 2}, {"profile", model::decoder_profile_name(profile)},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};
+    if (!top.empty()) j["kernels"] = nlohmann::json::parse(top);
     host::write_file_atomic(opt.json_path, j.dump(2) + "\n");
     std::cout << "wrote " << opt.json_path << "\n";
   }

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "bench/timing.hpp"
 #include "bench/bench.hpp"
 #include "bench/bench_setup.hpp"
 #include "host/error.hpp"
@@ -128,6 +129,7 @@ int bench_patch_style(const BenchOptions& opt) {
     };
     m.zero_grad();
     rt.finish();
+    rt.reset_timings();  // under STYLERF_PROFILE=1: print_top_kernels shows the last step
     const double start = now_ms();
     double t = start;
     TimedSictHead head(m.features.field, m.sict);
@@ -204,12 +206,14 @@ int bench_patch_style(const BenchOptions& opt) {
             << best_total / 1e3 << std::setprecision(1) << std::setw(12) << total_flops / 1e9 << "\n"
             << "samples " << samples << " (" << std::setprecision(1) << double(samples) / double(R) << " per ray), kept "
             << kept << " (SICT points)\n";
+  const std::string top = print_top_kernels(25);
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
                         {"style_decoder", model::style_decoder_name(decoder_kind)},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};
+    if (!top.empty()) j["kernels"] = nlohmann::json::parse(top);
     host::write_file_atomic(opt.json_path, j.dump(2) + "\n");
     std::cout << "wrote " << opt.json_path << "\n";
   }

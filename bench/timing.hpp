@@ -16,4 +16,9 @@ struct Timing {
 
 Timing best_of(int repeats, const std::function<void()>& f);
 
+// Under STYLERF_PROFILE=1 (the runtime records every launch): the `top` kernels of the timings gathered
+// since the last reset, by total time, printed as a table; returns them as [[kernel, launches, ms], ...]
+// JSON text (empty when profiling is off). The patch benches reset at each step, so this is the last step.
+std::string print_top_kernels(int top);
+
 }  // namespace stylerf::bench
