@@ -183,11 +183,6 @@ int bench_field(const BenchOptions& opt) {
                               field::ScatterMode::Fixed);
     });
     add("density bwd fixed", ms, double(N), "Mpts/s", pts_bytes + N * 12.0 + 2 * taps + dens.numel() * 20.0);
-    ms = timed("density bwd atomic", false, [&] {
-      field::density_backward(dens, pts, sp, dsig, dgrid, field::DensityActivation::Softplus,
-                              field::ScatterMode::Atomic);
-    });
-    add("density bwd atomic", ms, double(N), "Mpts/s", pts_bytes + N * 8.0 + 2 * taps);
 
     // Early ray termination: the march evaluates the density as it goes (kernels/march_density.cl). On
     // this thin random grid no ray stops, so the row is the march + density pair above fused; on a dense
@@ -224,8 +219,6 @@ int bench_field(const BenchOptions& opt) {
     add("app features bwd private", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
     ms = timed("app features bwd fixed", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Fixed); });
     add("app features bwd fixed", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 8.0 + 2 * taps + app.numel() * 20.0);
-    ms = timed("app features bwd atomic", false, [&] { field::features_backward(app, sm.positions, dfeat, dgrid, field::ScatterMode::Atomic); });
-    add("app features bwd atomic", ms, double(Nm), "Mpts/s", Nm * 12.0 + Nm * 72 * 4.0 + 2 * taps);
     ms = timed("TV bwd (appearance planes)", false, [&] { field::tv_backward(app, 1.0f, dgrid); });
     add("TV bwd (appearance planes)", ms, double(app.numel()), "Mparam/s", app.numel() * 12.0);
 

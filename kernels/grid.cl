@@ -230,22 +230,8 @@ kernel void vm_features_forward(global const float* pts, global const float* gri
 // ---- sampling backward (scatter) --------------------------------------------------------------------------
 // d(plane_m[r] line_m[r]) = line_m[r] d(plane) + plane_m[r] d(line): tap k of the plane receives
 // g_r * line_m[r] * pw[k], tap k of the line g_r * plane_m[r] * lw[k]. Taps of zero weight are skipped
-// (they change nothing, and skipping keeps a non-finite neighbour from spreading NaN).
-
-// OpenCL 1.2 has no float atomics: compare-and-swap on the int bits. Every access to the cell is atomic:
-// the first CAS guesses 0 (a cell still at zero takes one CAS) and each retry uses the bits the failed CAS
-// saw. (A plain load of the cell before the CAS races with other work-items' CASes: harmless on hardware,
-// but a data race in OpenCL's memory model, which Oclgrind reports. Only GPUs use this path: CPU devices
-// take the privatised scatter.)
-inline void atomic_add_f(volatile global float* addr, float val) {
-  volatile global unsigned int* bits = (volatile global unsigned int*)addr;
-  unsigned int seen = 0u;
-  for (;;) {
-    const unsigned int expect = seen;
-    seen = atomic_cmpxchg(bits, expect, as_uint(as_float(expect) + val));
-    if (seen == expect) return;
-  }
-}
+// (they change nothing, and skipping keeps a non-finite neighbour from spreading NaN). Devices with many
+// compute units take the fixed-point scatter of grid_fixed.cl instead.
 
 // dst[0..n) += a * w for n = 8, 4, 1 (one tap of one rank chunk). The 8-wide add is two 4-wide
 // read-modify-writes on purpose: LLVM splits an unaligned 32-byte store into two 16-byte halves, and the
@@ -298,27 +284,12 @@ ALWAYS_INLINE void scatter_mode_private(const global float* restrict grid, globa
   }
 }
 
-// Atomic scatter of one mode (one float CAS per element: vectors do not help here).
-ALWAYS_INLINE void scatter_mode_atomic(const global float* grid, global float* dst, const ModeTaps* T,
-                                       const global float* gf, float g0, int per_rank) {
-  for (int r = 0; r < T->R; ++r) {
-    const float g = per_rank ? gf[r] : g0;
-    if (g == 0.0f) continue;
-    const float gp = g * line1(grid, T, r), gl = g * plane1(grid, T, r);
-    for (int k = 0; k < 4; ++k)
-      if (T->pw[k] != 0.0f) atomic_add_f(dst + T->pt[k] + r, gp * T->pw[k]);
-    for (int k = 0; k < 2; ++k)
-      if (T->lw[k] != 0.0f) atomic_add_f(dst + T->lt[k] + r, gl * T->lw[k]);
-  }
-}
-
 // Scatters point i's gradient into dst. mode 0: density, g = dsig[i] * act'(sigma[i]) for every rank;
-// mode 1: features, row i of dfeat [n, nfeat] (passed as dsig). per_rank/use_atomic are literals at the
-// call sites, so each combination compiles to its own straight-line code.
+// mode 1: features, row i of dfeat [n, nfeat] (passed as dsig). per_rank is a literal at the call sites,
+// so each case compiles to its own straight-line code.
 ALWAYS_INLINE void scatter_point(const global float* restrict grid, global float* restrict dst, const VMLayout* L,
                                  float3 p, int i,
-                                 const global float* dsig, const global float* sigma, int act, int per_rank,
-                                 int use_atomic) {
+                                 const global float* dsig, const global float* sigma, int act, int per_rank) {
   float g0 = 0.0f;
   const global float* gf = dsig;
   if (per_rank) {
@@ -334,31 +305,9 @@ ALWAYS_INLINE void scatter_point(const global float* restrict grid, global float
   cell_taps(L, &c, 0, &T0);
   cell_taps(L, &c, 1, &T1);
   cell_taps(L, &c, 2, &T2);
-  if (use_atomic) {
-    scatter_mode_atomic(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
-    scatter_mode_atomic(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
-    scatter_mode_atomic(grid, dst, &T2, gf + L->feat_off[2], g0, per_rank);
-  } else {
-    scatter_mode_private(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
-    scatter_mode_private(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
-    scatter_mode_private(grid, dst, &T2, gf + L->feat_off[2], g0, per_rank);
-  }
-}
-
-// One work-item per point, atomic adds into dgrid (accumulates). mode 0: density (dsig [n], sigma [n]);
-// mode 1: features (dsig is dfeat [n, nfeat], sigma unused).
-kernel void vm_scatter_atomic(global const float* pts, global const float* grid, global const float* dsig,
-                              global const float* sigma, global float* dgrid, int n, int rx, int ry, int rz, int r0,
-                              int r1, int r2, int mode, int act) {
-  const int i = get_global_id(0);
-  if (i >= n) return;
-  const float3 p = vload3(i, pts);
-  if (!inside_box(p)) return;
-  const VMLayout L = vm_layout(rx, ry, rz, r0, r1, r2);
-  if (mode == 0)
-    scatter_point(grid, dgrid, &L, p, i, dsig, sigma, act, 0, 1);
-  else
-    scatter_point(grid, dgrid, &L, p, i, dsig, sigma, act, 1, 1);
+  scatter_mode_private(grid, dst, &T0, gf + L->feat_off[0], g0, per_rank);
+  scatter_mode_private(grid, dst, &T1, gf + L->feat_off[1], g0, per_rank);
+  scatter_mode_private(grid, dst, &T2, gf + L->feat_off[2], g0, per_rank);
 }
 
 // Deterministic privatised scatter: work-item c (of `copies`) handles points [c*chunk, (c+1)*chunk) in
@@ -380,12 +329,12 @@ kernel void vm_scatter_private(global const float* pts, global const float* rest
   if (mode == 0) {
     for (int i = begin; i < end; ++i) {
       const float3 p = vload3(i, pts);
-      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 0, 0);
+      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 0);
     }
   } else {
     for (int i = begin; i < end; ++i) {
       const float3 p = vload3(i, pts);
-      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 1, 0);
+      if (inside_box(p)) scatter_point(grid, dst, &L, p, i, dsig, sigma, act, 1);
     }
   }
 }

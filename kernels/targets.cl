@@ -56,8 +56,9 @@ kernel void targets_gather(global const float* maps, global const int* view, glo
   }
 }
 
-// OpenCL 1.2 has no float atomics: compare-and-swap on the bits, every access atomic (no plain load of the
-// cell racing with other work-items' CASes: see atomic_add_f in grid.cl).
+// OpenCL 1.2 has no float atomics: compare-and-swap on the bits, every access atomic (a plain load of the
+// cell before the CAS would race with other work-items' CASes: harmless on hardware, but a data race in
+// OpenCL's memory model, which Oclgrind reports).
 inline void atomic_add_float(volatile global float* addr, float value) {
   volatile global uint* bits = (volatile global uint*)addr;
   uint seen = 0u;

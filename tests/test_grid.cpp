@@ -108,7 +108,7 @@ TEST_CASE("VM density backward matches finite differences of the reference (5^3,
     const auto fd = testing::finite_difference(loss, params, 1e-5);
     Tensor sigma = field::density_forward(g, tp, act);
     Tensor dsig = Tensor::from_host(std::vector<float>(gs.begin(), gs.end()), {n});
-    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
+    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed}) {
       CAPTURE(int(act));
       CAPTURE(int(mode));
       Tensor dgrid = Tensor::zeros(g.params.shape());
@@ -145,7 +145,7 @@ TEST_CASE("VM features backward matches finite differences, and every scatter mo
               1e-6, 1e-6, "reference analytic vs FD");
   Tensor tp = Tensor::from_host(pts, {n, 3});
   Tensor tg = Tensor::from_host(std::vector<float>(gf.begin(), gf.end()), {n, F});
-  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
+  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed}) {
     Tensor dgrid = Tensor::zeros(g.params.shape());
     field::features_backward(g, tp, tg, dgrid, mode);
     check_close(dgrid.to_host(), fd, 1e-4, 1e-5, "features grad");
@@ -156,7 +156,7 @@ TEST_CASE("VM scatter with many points (several gradient copies) matches the ref
   VMGrid g = VMGrid::create({9, 8, 7}, {4, 4, 8}, 0.3f, 23);
   GridRef ref = ref_of(g);
   auto params = testing::to_double(g.params.to_host());
-  // Clustered points so many hit the same cells (contention for the atomic path).
+  // Clustered points so many hit the same cells (contention for the per-point fixed-point path).
   auto pts = testing::random_uniform(size_t(3) * 20000, 9, -0.3f, 0.2f);
   const int n = int(pts.size() / 3), F = g.features();
   const auto gf = testing::random_normal(size_t(n) * F, 10);
@@ -165,7 +165,7 @@ TEST_CASE("VM scatter with many points (several gradient copies) matches the ref
   for (size_t k = 0; k < want.size(); ++k) want[k] = 1.0 + want1[k];  // accumulates into an existing gradient
   Tensor tp = Tensor::from_host(pts, {n, 3}), tg = Tensor::from_host(gf, {n, F});
   std::vector<float> first;
-  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic, ScatterMode::Private}) {
+  for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Private}) {
     Tensor dgrid = Tensor::full(g.params.shape(), 1.0f);
     field::features_backward(g, tp, tg, dgrid, mode);
     const auto got = dgrid.to_host();
@@ -215,7 +215,7 @@ TEST_CASE("VM backward with ranks that use every vector width (8, 4 and scalar t
     CHECK(active > n / 10);  // both branches of relu occur
     CHECK(active < n);
     const auto want_d = ref.features_grad(params, testing::to_double(pts), gd);
-    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed, ScatterMode::Atomic}) {
+    for (auto mode : {ScatterMode::Private, ScatterMode::Fixed}) {
       CAPTURE(int(mode));
       Tensor dgf = Tensor::zeros(g.params.shape());
       field::features_backward(g, tp, Tensor::from_host(gf, {n, F}), dgf, mode);

@@ -31,10 +31,11 @@ DensityActivation parse_density_activation(const std::string& s);  // "relu" | "
 // Fixed: one work-item per (point, component), 64-bit fixed-point integer atomics
 //   (kernels/grid_fixed.cl) — deterministic bit for bit on any device and chunking, for devices with many
 //   compute units; needs cl_khr_int64_base_atomics.
-// Atomic: one work-item per point with compare-and-swap float adds — order-dependent; kept to compare.
-// Auto: Private on CPU devices, Fixed elsewhere where the device has 64-bit atomics, else Atomic.
-enum class ScatterMode { Auto, Private, Fixed, Atomic };
-ScatterMode parse_scatter_mode(const std::string& s);  // "auto" | "private" | "fixed" | "atomic"
+// Auto: Private on CPU devices, Fixed elsewhere where the device has 64-bit atomics, else Private.
+// (A third mode, one work-item per point with compare-and-swap float adds, lost on both kinds of device
+// and was retired: docs/experiments.md.)
+enum class ScatterMode { Auto, Private, Fixed };
+ScatterMode parse_scatter_mode(const std::string& s);  // "auto" | "private" | "fixed"
 // The mode Auto resolves to on a device; the mode a call with `mode` runs on the current device (Fixed on
 // a device without 64-bit atomics throws).
 ScatterMode auto_scatter_mode(const host::DeviceInfo& dev);

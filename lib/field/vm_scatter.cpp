@@ -18,8 +18,7 @@ ScatterMode parse_scatter_mode(const std::string& s) {
   if (s == "auto") return ScatterMode::Auto;
   if (s == "private") return ScatterMode::Private;
   if (s == "fixed") return ScatterMode::Fixed;
-  if (s == "atomic") return ScatterMode::Atomic;
-  throw Error("unknown grid scatter mode '" + s + "' (auto, private, fixed, atomic)");
+  throw Error("unknown grid scatter mode '" + s + "' (auto, private, fixed)");
 }
 
 const char* scatter_mode_name(ScatterMode mode) {
@@ -27,7 +26,6 @@ const char* scatter_mode_name(ScatterMode mode) {
     case ScatterMode::Auto: return "auto";
     case ScatterMode::Private: return "private";
     case ScatterMode::Fixed: return "fixed";
-    case ScatterMode::Atomic: return "atomic";
   }
   return "?";
 }
@@ -38,11 +36,10 @@ static bool has_int64_atomics(const host::DeviceInfo& dev) {
 }
 
 ScatterMode auto_scatter_mode(const host::DeviceInfo& dev) {
-  // Measured (bench field): on a 2-core PoCL CPU the privatised scatter is the fastest (fixed point 26x
-  // slower there); devices with many compute units take a per-point scatter, where the fixed-point one
-  // needs no retry loop.
+  // Measured (bench field, app features backward): on the 2-core PoCL CPU private 275 ms, fixed 7992 ms;
+  // on an H100 private 180 ms, fixed 4.8 ms (docs/results.md).
   if (dev.type & CL_DEVICE_TYPE_CPU) return ScatterMode::Private;
-  return has_int64_atomics(dev) ? ScatterMode::Fixed : ScatterMode::Atomic;
+  return has_int64_atomics(dev) ? ScatterMode::Fixed : ScatterMode::Private;
 }
 
 ScatterMode resolved_scatter_mode(ScatterMode mode) {
@@ -132,11 +129,6 @@ void scatter_into_grid(const VMGrid& g, const Tensor& pts, const Tensor& dsrc, c
   switch (resolved_scatter_mode(mode)) {
     case ScatterMode::Fixed:
       scatter_fixed(g, pts, dsrc, sigma, dgrid, n, kind, act);
-      return;
-    case ScatterMode::Atomic:
-      launch_with_local("grid", "vm_scatter_atomic", rank_build_options(g.rank), {size_t(n)}, {kPointGroup}, pts,
-                        g.params, dsrc, sigma, dgrid, n, g.res[0], g.res[1], g.res[2], g.rank[0], g.rank[1], g.rank[2],
-                        kind, int(act));
       return;
     default:
       scatter_private(g, pts, dsrc, sigma, dgrid, n, kind, act);
