@@ -148,7 +148,8 @@ std::string Runtime::program_source(const std::string& program) const {
 }
 
 cl_program Runtime::build_program(const std::string& program, const std::string& options) {
-  const std::string source = program_source(program);
+  // kernels/common.cl (shared helpers, include-guarded) goes in front of every program.
+  const std::string source = (program == "common" ? "" : program_source("common") + "\n") + program_source(program);
   // STYLERF_CL_OPTIONS adds build options for every program, e.g. "-Drestrict=" for Oclgrind, whose
   // LLVM cannot build kernels with restrict pointers (scripts/oclgrind.sh).
   const char* extra = std::getenv("STYLERF_CL_OPTIONS");

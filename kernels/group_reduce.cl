@@ -107,18 +107,13 @@ __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void channel_centred_su
   }
 }
 
-// mean, mean_lo and std from the stored m0 and the chunk sums of d and d^2 (norm.cl's write_stats).
+// mean, mean_lo and std from the stored m0 and the chunk sums of d and d^2 (norm.cl).
 __kernel void channel_stats_finish_group(__global const float* m0s, __global const float* pd, __global const float* pq,
                                          __global float* mean, __global float* stdv, __global float* mean_lo, int hw,
                                          int chunks, float eps, int nc) {
   const int c = get_global_id(0);
   if (c >= nc) return;
-  float sd = 0.0f, sq = 0.0f;
-  for (int k = 0; k < chunks; ++k) {
-    sd += pd[c * chunks + k];
-    sq += pq[c * chunks + k];
-  }
-  write_stats(c, m0s[c], sd, sq, hw, eps, mean, stdv, mean_lo);
+  write_stats_from_chunks(c, m0s[c], pd, pq, chunks, hw, eps, mean, stdv, mean_lo);
 }
 
 // The normalisation backward's three sums per chunk: sum(dy), sum(dy * (x - mean)), sum(x - mean).

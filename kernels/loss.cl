@@ -1,12 +1,5 @@
 // Losses: MSE and the AdaIN style loss (mean/std matching). Their final sums use kernels/reduce.cl.
-
-#define BLOCK 64
-
-inline float hsum8(float8 v) {
-  float4 a = v.lo + v.hi;
-  float2 b = a.lo + a.hi;
-  return b.x + b.y;
-}
+// BLOCK and hsum8 come from kernels/common.cl, which the runtime puts in front of every program.
 
 // Stage 1 of mean((a-b)^2): partials[p] = sum over chunk p of (a-b)^2 (split as in reduce.cl).
 __kernel void sqdiff_partials(__global const float* a, __global const float* b, __global float* partials, int n,

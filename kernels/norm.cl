@@ -17,15 +17,9 @@
 // half an ulp of 1e4 (~5e-4, i.e. 5% of the std), so the stats kernel also returns the rounding
 // residual mean_lo (true mean ~ mean + mean_lo) and the normalising kernels subtract both:
 // (x - mean) is exact for x near mean, and then - mean_lo restores the lost digits.
+// BLOCK and hsum8 come from kernels/common.cl, which the runtime puts in front of every program.
 
-#define BLOCK 64
 #define SPAN 64
-
-inline float hsum8(float8 v) {
-  float4 a = v.lo + v.hi;
-  float2 b = a.lo + a.hi;
-  return b.x + b.y;
-}
 
 // Blocked float sum of p[0, n): pass 1.
 inline float blocked_sum(__global const float* p, int n) {
@@ -124,18 +118,26 @@ __kernel void channel_centred_sums_chunked(__global const float* x, __global con
   pq[c * chunks + k] = sq;
 }
 
+// write_stats of channel c from m0 and its chunk sums of d and d^2, added in chunk order (also the
+// work-group path's finish: kernels/group_reduce.cl).
+inline void write_stats_from_chunks(int c, float m0, __global const float* pd, __global const float* pq, int chunks,
+                                    int hw, float eps, __global float* mean, __global float* stdv,
+                                    __global float* mean_lo) {
+  float sd = 0.0f, sq = 0.0f;
+  for (int k = 0; k < chunks; ++k) {
+    sd += pd[c * chunks + k];
+    sq += pq[c * chunks + k];
+  }
+  write_stats(c, m0, sd, sq, hw, eps, mean, stdv, mean_lo);
+}
+
 // mean, mean_lo and std from the chunk sums.
 __kernel void channel_stats_finish(__global const float* psum, __global const float* pd, __global const float* pq,
                                    __global float* mean, __global float* stdv, __global float* mean_lo, int hw,
                                    int chunks, float eps, int nc) {
   const int c = get_global_id(0);
   if (c >= nc) return;
-  float sd = 0.0f, sq = 0.0f;
-  for (int k = 0; k < chunks; ++k) {
-    sd += pd[c * chunks + k];
-    sq += pq[c * chunks + k];
-  }
-  write_stats(c, chunked_mean(psum, c, chunks, hw), sd, sq, hw, eps, mean, stdv, mean_lo);
+  write_stats_from_chunks(c, chunked_mean(psum, c, chunks, hw), pd, pq, chunks, hw, eps, mean, stdv, mean_lo);
 }
 
 // y = ((x - mean) - mean_lo) / std

@@ -5,14 +5,7 @@
 // error proportional to BLOCK + chunk / (8 * BLOCK) rather than chunk). Stage 2: one work-item adds the
 // partials in order. The split depends on n only, so results do not depend on scheduling.
 // chunk is a multiple of 8, so every chunk but the last starts 32-byte aligned.
-
-#define BLOCK 64
-
-inline float hsum8(float8 v) {
-  float4 a = v.lo + v.hi;
-  float2 b = a.lo + a.hi;
-  return b.x + b.y;
-}
+// BLOCK and hsum8 come from kernels/common.cl, which the runtime puts in front of every program.
 
 __kernel void sum_partials(__global const float* x, __global float* partials, int n, int chunk) {
   const int p = get_global_id(0);

@@ -54,7 +54,15 @@ __kernel void running_stats_update(__global float* running_mean, __global float*
 }
 
 // ---- 3. channel self-attention ----------------------------------------------------------------------
-#define E 32
+// E, the embedding width, is the host's Sict::kEmbed, passed as -DSICT_EMBED (lib/style/sict.cpp,
+// sict_build_options): a build without it, or with a width the float16 loads below do not fit, fails.
+#ifndef SICT_EMBED
+#error "build sict.cl with -DSICT_EMBED=<style::Sict::kEmbed> (lib/style/sict.cpp: sict_build_options)"
+#endif
+#if SICT_EMBED != 32
+#error "sict.cl's channel attention holds a row's keys and values in two float16 registers: SICT_EMBED must be 32"
+#endif
+#define E SICT_EMBED
 
 // The softmax row i of a point: p_ij = exp(q_i k_j - m_i) / Z_i. The largest logit of row i is q_i times
 // the largest (q_i >= 0) or the smallest (q_i < 0) k_j, so m_i costs nothing and exp never overflows

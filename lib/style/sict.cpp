@@ -12,6 +12,13 @@ namespace stylerf::style {
 
 using host::Error;
 
+std::string sict_build_options() { return "-DSICT_EMBED=" + std::to_string(Sict::kEmbed); }
+
+template <class... Args>
+static void launch_sict(const char* kernel, const host::Range& global, const Args&... args) {
+  host::launch_with_local("sict", kernel, sict_build_options(), global, host::Range(0), args...);
+}
+
 SictMode parse_sict_mode(const std::string& s) {
   if (s == "volume-adaptive") return SictMode::VolumeAdaptive;
   if (s == "vanilla-in") return SictMode::VanillaIn;
@@ -43,7 +50,7 @@ Tensor point_norm_forward(const Tensor& x, const Tensor& mean, const Tensor& var
   host::expect_shape(mean, {cols}, "point_norm_forward", "mean");
   host::expect_shape(var, {cols}, "point_norm_forward", "var");
   Tensor y(x.shape(), "point_norm output");
-  host::launch("sict", "point_norm_forward", {size_t((cols + 7) / 8), size_t(rows)}, x, mean, var, y, rows, cols, eps);
+  launch_sict("point_norm_forward", {size_t((cols + 7) / 8), size_t(rows)}, x, mean, var, y, rows, cols, eps);
   return y;
 }
 
@@ -60,7 +67,7 @@ Tensor point_norm_backward(const Tensor& y, const Tensor& var, const Tensor& dy,
     sum_dy = sum_dyy = var;  // unused by the kernel
   }
   Tensor dx(y.shape(), "point_norm dx");
-  host::launch("sict", "point_norm_backward", {size_t((cols + 7) / 8), size_t(rows)}, y, var, dy, sum_dy, sum_dyy, dx,
+  launch_sict("point_norm_backward", {size_t((cols + 7) / 8), size_t(rows)}, y, var, dy, sum_dy, sum_dyy, dx,
                rows, cols, eps, fixed ? 1 : 0);
   return dx;
 }
@@ -69,7 +76,7 @@ Tensor channel_attention_forward(const Tensor& qkv) {
   check_rows("channel_attention_forward", qkv, 3 * Sict::kEmbed);
   const int rows = int(qkv.dim(0));
   Tensor out({rows, Sict::kEmbed}, "channel attention output");
-  host::launch("sict", "channel_attention_forward", {size_t(rows)}, qkv, out, rows);
+  launch_sict("channel_attention_forward", {size_t(rows)}, qkv, out, rows);
   return out;
 }
 
@@ -78,7 +85,7 @@ Tensor channel_attention_backward(const Tensor& qkv, const Tensor& dout) {
   const int rows = int(qkv.dim(0));
   host::expect_shape(dout, {rows, Sict::kEmbed}, "channel_attention_backward", "dout");
   Tensor d(qkv.shape(), "channel attention dqkv");
-  host::launch("sict", "channel_attention_backward", {size_t(rows)}, qkv, dout, d, rows);
+  launch_sict("channel_attention_backward", {size_t(rows)}, qkv, dout, d, rows);
   return d;
 }
 
@@ -141,7 +148,7 @@ Tensor Sict::backward(const Context& ctx, const Tensor& dy, bool need_dx) {
 
 void Sict::update_running(const Context& ctx) {
   if (mode != SictMode::VolumeAdaptive || !ctx.batch_stats) return;
-  host::launch("sict", "running_stats_update", {size_t(kChannels)}, running_mean.value, running_var.value, ctx.mean,
+  launch_sict("running_stats_update", {size_t(kChannels)}, running_mean.value, running_var.value, ctx.mean,
                ctx.var, kChannels, int(ctx.points), kMomentum);
 }
 

@@ -27,6 +27,8 @@ namespace stylerf::style {
 using host::Tensor;
 
 enum class SictMode { VolumeAdaptive, VanillaIn, None };
+// The build options of kernels/sict.cl: -DSICT_EMBED=Sict::kEmbed (the kernel refuses to build without).
+std::string sict_build_options();
 SictMode parse_sict_mode(const std::string& s);  // "volume-adaptive" | "vanilla-in" | "none"
 const char* sict_mode_name(SictMode m);
 

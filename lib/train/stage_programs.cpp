@@ -9,6 +9,7 @@
 #include "lib/nn/conv_algo.hpp"
 #include "lib/nn/reduce_path.hpp"
 #include "lib/render/composite_values.hpp"
+#include "lib/style/sict.hpp"
 
 namespace stylerf::train {
 
@@ -59,7 +60,8 @@ std::vector<ProgramBuild> feature_stage_programs(const model::FeatureModel& m) {
 std::vector<ProgramBuild> style_stage_programs(const model::StyleModel& m) {
   // Beyond stage 2's: SICT, DST, AdaIN's norms and the style losses' column statistics.
   std::vector<ProgramBuild> out = feature_stage_programs(m.features);
-  for (const char* p : {"sict", "dst", "norm", "columns"}) out.push_back({p, ""});
+  out.push_back({"sict", style::sict_build_options()});
+  for (const char* p : {"dst", "norm", "columns"}) out.push_back({p, ""});
   return out;
 }
 
