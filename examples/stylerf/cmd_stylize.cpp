@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
@@ -23,6 +24,7 @@
 #include "examples/stylerf/stylize_losses.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
+#include "lib/io/checkpoint.hpp"
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/scene_style_stats.hpp"
@@ -144,138 +146,310 @@ double mix_grid(const model::StyleModel& m, const model::SceneStyleStats& scene_
   return closest;
 }
 
-int run_stylize(int argc, char** argv) {
-  std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid_arg, region_spec, inside, outside, cache;
+// All of stylize's options, as parsed.
+struct StylizeArgs {
+  std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid, region, inside, outside, cache;
   std::vector<std::string> style_args;
   int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 0;
   bool no_losses = false, decoded_background = false;
+  bool test() const { return views == "test"; }
+};
+
+// Parses argv into a. Returns -1 to go on, else the exit code (the help was shown).
+int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
   po::options_description desc("stylerf stylize --ckpt STYLE_CKPT --style IMG --views test|path -o DIR [options]");
-  desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
-      "style", po::value(&style_args), "style image or folder of images (repeatable)")(
-      "views", po::value(&views)->default_value("path"), "test (held-out views, with losses beside 2D AdaIN) or path")(
-      "frames", po::value(&frames)->default_value(120), "frames of the camera path")(
-      "max-views", po::value(&max_views)->default_value(0), "render this many evenly spaced views (0: all)")(
-      "size", po::value(&size)->default_value(0), "longer image side in pixels (0: the scene's)")(
-      "mix", po::value(&mix), "weights w1,w2,... (one per --style, sum 1): interpolate the styles")(
-      "mix-grid", po::value(&mix_grid_arg), "A,B,C,D: the 5x5 four-corner interpolation sheet of the first view")(
-      "region", po::value(&region_spec), "box:x0,y0,z0,x1,y1,z1 | sphere:x,y,z,r | depth:d0,d1 (scene coordinates)")(
-      "style-inside", po::value(&inside), "style inside --region")("style-outside", po::value(&outside),
-                                                                     "style outside --region")(
-      "output,o", po::value(&out), "output directory")(
-      "scene", po::value(&scene_dir), "scene directory (default: the one the checkpoint was trained on)")(
-      "cache", po::value(&cache), "style-code cache folder ('none': memory only; default: the user cache)")(
-      "no-losses", po::bool_switch(&no_losses), "skip the per-view VGG losses")(
-      "decoded-background", po::bool_switch(&decoded_background),
+  desc.add_options()("help,h", "show this help")("ckpt", po::value(&a.ckpt), "style checkpoint (train-style)")(
+      "style", po::value(&a.style_args), "style image or folder of images (repeatable)")(
+      "views", po::value(&a.views)->default_value("path"),
+      "test (held-out views, with losses beside 2D AdaIN) or path")(
+      "frames", po::value(&a.frames)->default_value(120), "frames of the camera path")(
+      "max-views", po::value(&a.max_views)->default_value(0), "render this many evenly spaced views (0: all)")(
+      "size", po::value(&a.size)->default_value(0), "longer image side in pixels (0: the scene's)")(
+      "mix", po::value(&a.mix), "weights w1,w2,... (one per --style, sum 1): interpolate the styles")(
+      "mix-grid", po::value(&a.mix_grid), "A,B,C,D: the 5x5 four-corner interpolation sheet of the first view")(
+      "region", po::value(&a.region), "box:x0,y0,z0,x1,y1,z1 | sphere:x,y,z,r | depth:d0,d1 (scene coordinates)")(
+      "style-inside", po::value(&a.inside), "style inside --region")("style-outside", po::value(&a.outside),
+                                                                       "style outside --region")(
+      "output,o", po::value(&a.out), "output directory")(
+      "scene", po::value(&a.scene_dir), "scene directory (default: the one the checkpoint was trained on)")(
+      "cache", po::value(&a.cache), "style-code cache folder ('none': memory only; default: the user cache)")(
+      "no-losses", po::bool_switch(&a.no_losses), "skip the per-view VGG losses")(
+      "decoded-background", po::bool_switch(&a.decoded_background),
       "scenes with a background colour: keep the decoder's empty space instead of compositing over the colour")(
-      "fps", po::value(&fps)->default_value(30), "video frame rate")(
-      "chunk", po::value(&chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
-      "supersample", po::value(&supersample)->default_value(0),
+      "fps", po::value(&a.fps)->default_value(30), "video frame rate")(
+      "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
+      "supersample", po::value(&a.supersample)->default_value(0),
       "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
       "render); 0: the checkpoint's recipe's")(
-      "device", po::value(&device), "OpenCL device");
+      "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
-  if (vm.count("help") || ckpt.empty()) {
+  if (vm.count("help") || a.ckpt.empty()) {
     std::cout << desc;
     return vm.count("help") ? 0 : 2;
   }
-  // ---- options, checked before anything is loaded ----
-  if (views != "test" && views != "path") throw Error("--views must be test or path (got '" + views + "')");
-  if (frames < 1 || frames > 100000) throw Error("--frames must be in [1, 100000]");
-  if (max_views < 0) throw Error("--max-views must be >= 0");
-  if (size < 0 || size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
-  if (chunk < 1) throw Error("--chunk must be >= 1");
-  stylerf::cli::check_int_range("--supersample", supersample, 0, model::kMaxSupersample);
-  if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
-  if (out.empty()) throw Error("-o DIR is required");
-  const bool regions = !region_spec.empty();
-  if (regions && (inside.empty() || outside.empty()))
-    throw Error("--region needs both --style-inside and --style-outside");
-  if (!regions && (!inside.empty() || !outside.empty()))
-    throw Error("--style-inside and --style-outside need --region");
-  if (!mix_grid_arg.empty() && (regions || !mix.empty()))
-    throw Error("--mix-grid renders its own sheet: do not combine it with --mix or --region");
-  std::vector<std::string> grid_styles = mix_grid_arg.empty() ? std::vector<std::string>{} : split(mix_grid_arg, ',');
-  if (!mix_grid_arg.empty() && grid_styles.size() != 4) throw Error("--mix-grid takes four images A,B,C,D");
-  std::vector<std::string> styles;
-  if (regions) {
-    if (!style_args.empty()) throw Error("with --region, give the styles as --style-inside and --style-outside");
-    styles = expand_styles({inside, outside});
-    if (styles.size() != 2) throw Error("--style-inside and --style-outside each take one image");
-  } else if (!grid_styles.empty()) {
-    styles = expand_styles(grid_styles);
-  } else {
-    if (style_args.empty()) throw Error("give a style image with --style (or --mix-grid, or --region)");
-    styles = expand_styles(style_args);
-  }
+  return -1;
+}
+
+// What the options ask to stylise with: the style images (checked readable), the four corners of a mix
+// sheet, the mix weights; whether regions compose two styles.
+struct StyleChoice {
+  std::vector<std::string> styles, grid;
   std::vector<float> weights;
-  if (!mix.empty()) {
-    weights = parse_weights(mix);
-    style::check_mix_weights(weights, styles.size(), "--mix");
+  bool regions = false;
+};
+
+// Every option checked before anything is loaded.
+StyleChoice check_stylize_args(const StylizeArgs& a) {
+  if (a.views != "test" && a.views != "path") throw Error("--views must be test or path (got '" + a.views + "')");
+  if (a.frames < 1 || a.frames > 100000) throw Error("--frames must be in [1, 100000]");
+  if (a.max_views < 0) throw Error("--max-views must be >= 0");
+  if (a.size < 0 || a.size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
+  if (a.chunk < 1) throw Error("--chunk must be >= 1");
+  stylerf::cli::check_int_range("--supersample", a.supersample, 0, model::kMaxSupersample);
+  if (a.fps < 1 || a.fps > 240) throw Error("--fps must be in [1, 240]");
+  if (a.out.empty()) throw Error("-o DIR is required");
+  StyleChoice c;
+  c.regions = !a.region.empty();
+  if (c.regions && (a.inside.empty() || a.outside.empty()))
+    throw Error("--region needs both --style-inside and --style-outside");
+  if (!c.regions && (!a.inside.empty() || !a.outside.empty()))
+    throw Error("--style-inside and --style-outside need --region");
+  if (!a.mix_grid.empty() && (c.regions || !a.mix.empty()))
+    throw Error("--mix-grid renders its own sheet: do not combine it with --mix or --region");
+  if (!a.mix_grid.empty()) c.grid = split(a.mix_grid, ',');
+  if (!a.mix_grid.empty() && c.grid.size() != 4) throw Error("--mix-grid takes four images A,B,C,D");
+  if (c.regions) {
+    if (!a.style_args.empty()) throw Error("with --region, give the styles as --style-inside and --style-outside");
+    c.styles = expand_styles({a.inside, a.outside});
+    if (c.styles.size() != 2) throw Error("--style-inside and --style-outside each take one image");
+  } else if (!c.grid.empty()) {
+    c.styles = expand_styles(c.grid);
+  } else {
+    if (a.style_args.empty()) throw Error("give a style image with --style (or --mix-grid, or --region)");
+    c.styles = expand_styles(a.style_args);
   }
+  if (!a.mix.empty()) {
+    c.weights = parse_weights(a.mix);
+    style::check_mix_weights(c.weights, c.styles.size(), "--mix");
+  }
+  return c;
+}
 
-  // ---- loading (not counted in the timings) ----
-  cli::init_runtime(device, false);
-  const auto ck = stylerf::io::load_checkpoint(ckpt, "");
-  if (ck.kind != "style")
-    throw Error("checkpoint " + ckpt + " holds a '" + ck.kind + "' stage, not a trained stylizer; train one with "
-                "`stylerf train-style --features " + ckpt + "`");
-  const auto m = model::StyleModel::load(ck);
-  if (supersample == 0) supersample = m.inference_supersample;
-  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
-  auto lo = stylerf::scene::load_options_from_meta(smeta);
-  lo.load_images = views == "test" && !no_losses;
-  if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
-  stylerf::scene::check_scene_dir_format(smeta, scene_dir, ckpt);
-  const auto scene = stylerf::scene::load_scene(scene_dir, lo);
-  stylerf::scene::check_same_scene(smeta, scene, lo.downsample, ckpt);
-  auto vgg = stylerf::nn::VggEncoder::load_default();
-  std::unique_ptr<cli::ViewLosses> losses;
-  if (!no_losses) losses = std::make_unique<cli::ViewLosses>(m, vgg, views == "test");
-
+// The views to render: the held-out cameras or the default path, `max_views` of them evenly picked, at
+// the asked size. ids: their indices among the held-out views or the path's frames.
+std::vector<stylerf::scene::Camera> pick_cameras(const StylizeArgs& a, const stylerf::scene::Scene& scene,
+                                                 std::vector<int>& ids) {
   std::vector<stylerf::scene::Camera> cams;
-  std::vector<int> ids;
-  if (views == "test") {
+  if (a.test()) {
     if (scene.test.empty()) throw Error("scene " + scene.root + " has no held-out views; use --views path");
     for (const auto& v : scene.test) cams.push_back(v.camera);
   } else {
-    cams = stylerf::scene::default_path(scene, frames);
+    cams = stylerf::scene::default_path(scene, a.frames);
   }
-  {
-    const int n = int(cams.size()), k = max_views > 0 ? std::min(max_views, n) : n;
-    std::vector<stylerf::scene::Camera> picked;
-    for (int j = 0; j < k; ++j) ids.push_back(int(int64_t(j) * n / k)), picked.push_back(cams[ids.back()].with_longer_side(size));
-    cams = picked;
+  const int n = int(cams.size()), k = a.max_views > 0 ? std::min(a.max_views, n) : n;
+  std::vector<stylerf::scene::Camera> picked;
+  for (int j = 0; j < k; ++j) {
+    ids.push_back(int(int64_t(j) * n / k));
+    picked.push_back(cams[size_t(ids.back())].with_longer_side(a.size));
   }
-  std::unique_ptr<model::RegionHead> region;
-  if (regions)
-    region = std::make_unique<model::RegionHead>(model::Region::parse(region_spec, cams),
-                                                 model::RegionSpace::of(m.features.geo, scene));
-  fs::create_directories(out);
+  return picked;
+}
 
-  // ---- the work: encode the styles, then each view ----
-  const auto t_work = Clock::now();
-  style::StyleEncoder enc(m.dst, vgg, cache == "none" ? "" : cache.empty() ? style::StyleEncoder::default_cache_dir() : cache);
-  nlohmann::json style_rows = nlohmann::json::array();
+// Each style encoded (or read from the cache), with the scene's statistics attached; a row per style.
+std::vector<style::StyleCode> encode_styles(style::StyleEncoder& enc, const model::SceneStyleStats& scene_stats,
+                                            const std::vector<std::string>& styles, nlohmann::json& rows) {
   std::vector<style::StyleCode> codes;
-  const model::SceneStyleStats scene_stats(m, scene);  // the vgg-adain-relu4 decoder's, once per scene
   for (const auto& s : styles) {
     const auto t = Clock::now();
     const auto e = enc.encode(s);
     codes.push_back(e.code);
     scene_stats.attach(codes.back());
-    style_rows.push_back({{"path", s}, {"key", e.key}, {"from_cache", e.from_cache}, {"encode_s", seconds_since(t)}});
+    rows.push_back({{"path", s}, {"key", e.key}, {"from_cache", e.from_cache}, {"encode_s", seconds_since(t)}});
     std::cout << "style " << s << (e.from_cache ? " (cached)" : "") << ": " << std::fixed << std::setprecision(3)
               << seconds_since(t) << " s\n";
   }
+  return codes;
+}
+
+// One output set per style; or one of the mixed styles; or one of the two regions.
+std::vector<Job> make_jobs(const StylizeArgs& a, const StyleChoice& c, const std::vector<style::StyleCode>& codes,
+                           const model::SceneStyleStats& scene_stats) {
+  std::vector<Job> jobs;
+  if (c.regions) {
+    jobs.push_back({"regions", a.out, codes[0], codes[1], ""});
+  } else if (!c.weights.empty()) {
+    jobs.push_back({"mix", a.out, style::mix_codes(codes, c.weights), {}, ""});
+    scene_stats.attach(jobs.back().code);
+  } else {
+    for (size_t i = 0; i < c.styles.size(); ++i) {
+      const std::string name = fs::path(c.styles[i]).stem().string();
+      jobs.push_back({name, c.styles.size() == 1 ? a.out : (fs::path(a.out) / name).string(), codes[i], {},
+                      c.styles[i]});
+    }
+  }
+  for (const auto& j : jobs) fs::create_directories(j.dir);
+  return jobs;
+}
+
+// Timings of the view loop, from the start of the work; the losses timed apart.
+struct RenderTiming {
+  double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
+  int frames = 0;
+  double fps_after() const { return frames > 1 ? (frames - 1) / std::max(1e-9, frame_time_after) : 0.0; }
+};
+
+// What every view needs: the model, the scene, the region (or none), the losses (or none).
+struct ViewWork {
+  const model::StyleModel& m;
+  const stylerf::scene::Scene& scene;
+  const model::RegionHead* region;
+  cli::ViewLosses* losses;
+};
+
+// Each view: its content rendered once (depth EXR, region mask), then each job's frame and losses.
+nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::vector<stylerf::scene::Camera>& cams,
+                            const std::vector<int>& ids, const std::vector<Job>& jobs, Clock::time_point t_work,
+                            RenderTiming& t) {
+  const bool test = a.test();
+  nlohmann::json per_view = nlohmann::json::array();
+  for (size_t vi = 0; vi < cams.size(); ++vi) {
+    const auto& cam = cams[vi];
+    const auto tc = Clock::now();
+    const auto cc = w.m.render_camera_content(w.scene, cam, a.chunk, w.region, a.supersample);
+    t.content_s += seconds_since(tc);
+    const std::string stem = test ? "test_" : "frame_";
+    const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
+    write_depth(cc, cli::numbered(a.out, "depth_", idx, digits, ".exr"));
+    if (w.region)
+      stylerf::io::save_png(cli::numbered(a.out, "mask_", idx, digits, ".png"),
+                            cli::grey_image(cc.region_mask, cc.width, cc.height));
+    nlohmann::json row = {{"view", idx}, {"styles", nlohmann::json::object()}};
+    if (w.losses) {
+      const auto tl = Clock::now();
+      w.losses->begin_view(w.scene, test ? &w.scene.test[size_t(ids[vi])] : nullptr, cam, cc);
+      t.loss_s += seconds_since(tl);
+    }
+    for (size_t ji = 0; ji < jobs.size(); ++ji) {
+      const Job& j = jobs[ji];
+      auto rgb = w.region ? w.m.stylize_camera_regions(cc, j.code, j.outside, cam.width, cam.height)
+                          : w.m.stylize_camera(cc, j.code, cam.width, cam.height);
+      if (!a.decoded_background) w.m.over_background(rgb, cc, cam.width, cam.height);
+      stylerf::io::save_png(cli::numbered(j.dir, stem, idx, digits, ".png"),
+                            cli::interleaved_image(rgb, cam.width, cam.height));
+      ++t.frames;
+      const double now = seconds_since(t_work) - t.loss_s;  // losses are timed apart
+      if (t.first_frame_s < 0) t.first_frame_s = now;
+      t.frame_time_after = now - t.first_frame_s;
+      if (w.losses) {
+        const auto tl = Clock::now();
+        row["styles"][j.name] = w.losses->measure(rgb, cam.width, ji);
+        t.loss_s += seconds_since(tl);
+      }
+    }
+    per_view.push_back(row);
+    std::cout << "  view " << vi + 1 << "/" << cams.size() << "  " << std::fixed << std::setprecision(2)
+              << t.fps_after() << " frames/s" << std::endl;
+  }
+  return per_view;
+}
+
+// The videos (ffmpeg), metrics.json and the closing lines.
+void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& w, const std::vector<Job>& jobs,
+                    const std::vector<stylerf::scene::Camera>& cams, const nlohmann::json& style_rows,
+                    double encode_s, const RenderTiming& t, const nlohmann::json& per_view) {
+  nlohmann::json vids = nlohmann::json::array();
+  if (cams.size() > 1)
+    for (const auto& j : jobs)
+      if (cli::write_video(j.dir, a.test() ? "test_%03d.png" : "frame_%04d.png", "video.mp4", a.fps, std::cout))
+        vids.push_back((fs::path(j.dir) / "video.mp4").string());
+  nlohmann::json doc = {
+      {"checkpoint", a.ckpt},
+      {"scene", w.scene.root},
+      {"views", a.views},
+      {"size", {cams.front().width, cams.front().height}},
+      {"styles", style_rows},
+      {"outputs", nlohmann::json::array()},
+      {"timing",
+       {{"encode_styles_s", encode_s},
+        {"first_frame_s", t.first_frame_s},
+        {"frames", t.frames},
+        {"frames_per_s_after_first", t.fps_after()},
+        {"content_render_s_per_view", t.content_s / double(cams.size())},
+        {"losses_s", t.loss_s},
+        {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
+                 "excluded from frames/s"}}},
+      {"videos", vids},
+      {"per_view", per_view}};
+  for (const auto& j : jobs) doc["outputs"].push_back({{"name", j.name}, {"dir", j.dir}});
+  if (c.regions) doc["region"] = a.region;
+  if (!c.weights.empty()) doc["mix"] = c.weights;
+  if (w.losses) doc["mean_losses"] = w.losses->means();
+  stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(), doc.dump(2) + "\n");
+  std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
+            << t.first_frame_s << " s; then " << t.fps_after() << " frames/s (" << t.frames << " frames)\n";
+  if (w.losses) std::cout << w.losses->summary();
+  std::cout << "-> " << a.out << "/metrics.json\n";
+}
+
+// The style checkpoint at a.ckpt (refused unless it holds a trained stylizer).
+stylerf::io::Checkpoint load_style_checkpoint(const std::string& path) {
+  auto ck = stylerf::io::load_checkpoint(path, "");
+  if (ck.kind != "style")
+    throw Error("checkpoint " + path + " holds a '" + ck.kind + "' stage, not a trained stylizer; train one with "
+                "`stylerf train-style --features " + path + "`");
+  return ck;
+}
+
+// The scene the checkpoint was trained on (or --scene), checked to be that scene.
+stylerf::scene::Scene open_stylize_scene(StylizeArgs& a, const stylerf::io::Checkpoint& ck) {
+  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
+  auto lo = stylerf::scene::load_options_from_meta(smeta);
+  lo.load_images = a.test() && !a.no_losses;
+  if (a.scene_dir.empty()) a.scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
+  stylerf::scene::check_scene_dir_format(smeta, a.scene_dir, a.ckpt);
+  auto scene = stylerf::scene::load_scene(a.scene_dir, lo);
+  stylerf::scene::check_same_scene(smeta, scene, lo.downsample, a.ckpt);
+  return scene;
+}
+
+int run_stylize(int argc, char** argv) {
+  StylizeArgs a;
+  if (const int code = parse_stylize_args(argc, argv, a); code >= 0) return code;
+  const StyleChoice choice = check_stylize_args(a);
+
+  // ---- loading (not counted in the timings) ----
+  cli::init_runtime(a.device, false);
+  const auto ck = load_style_checkpoint(a.ckpt);
+  const auto m = model::StyleModel::load(ck);
+  if (a.supersample == 0) a.supersample = m.inference_supersample;
+  const auto scene = open_stylize_scene(a, ck);
+  auto vgg = stylerf::nn::VggEncoder::load_default();
+  std::unique_ptr<cli::ViewLosses> losses;
+  if (!a.no_losses) losses = std::make_unique<cli::ViewLosses>(m, vgg, a.test());
+  std::vector<int> ids;
+  const std::vector<stylerf::scene::Camera> cams = pick_cameras(a, scene, ids);
+  std::unique_ptr<model::RegionHead> region;
+  if (choice.regions)
+    region = std::make_unique<model::RegionHead>(model::Region::parse(a.region, cams),
+                                                 model::RegionSpace::of(m.features.geo, scene));
+  fs::create_directories(a.out);
+
+  // ---- the work: encode the styles, then each view ----
+  const auto t_work = Clock::now();
+  style::StyleEncoder enc(m.dst, vgg,
+                          a.cache == "none" ? "" : a.cache.empty() ? style::StyleEncoder::default_cache_dir() : a.cache);
+  nlohmann::json style_rows = nlohmann::json::array();
+  const model::SceneStyleStats scene_stats(m, scene);  // the vgg-adain-relu4 decoder's, once per scene
+  const std::vector<style::StyleCode> codes = encode_styles(enc, scene_stats, choice.styles, style_rows);
   const double encode_s = seconds_since(t_work);
-  if (!grid_styles.empty()) {
+  if (!choice.grid.empty()) {
     const auto& cam = cams.front();
-    const auto cc = m.render_camera_content(scene, cam, chunk, nullptr, supersample);
-    const double closest =
-        mix_grid(m, scene_stats, cc, codes, cam.width, cam.height, !decoded_background, (fs::path(out) / "mix_grid.png").string());
-    stylerf::host::write_file_atomic((fs::path(out) / "metrics.json").string(),
+    const auto cc = m.render_camera_content(scene, cam, a.chunk, nullptr, a.supersample);
+    const double closest = mix_grid(m, scene_stats, cc, codes, cam.width, cam.height, !a.decoded_background,
+                                    (fs::path(a.out) / "mix_grid.png").string());
+    stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(),
                                      nlohmann::json{{"styles", style_rows},
                                                     {"encode_s", encode_s},
                                                     {"sheet_s", seconds_since(t_work)},
@@ -283,99 +457,13 @@ int run_stylize(int argc, char** argv) {
                                          "\n");
     return 0;
   }
-  std::vector<Job> jobs;
-  if (regions) {
-    jobs.push_back({"regions", out, codes[0], codes[1], ""});
-  } else if (!weights.empty()) {
-    jobs.push_back({"mix", out, style::mix_codes(codes, weights), {}, ""});
-    scene_stats.attach(jobs.back().code);
-  } else {
-    for (size_t i = 0; i < styles.size(); ++i) {
-      const std::string name = fs::path(styles[i]).stem().string();
-      jobs.push_back({name, styles.size() == 1 ? out : (fs::path(out) / name).string(), codes[i], {}, styles[i]});
-    }
-  }
-  for (const auto& j : jobs) fs::create_directories(j.dir);
+  const std::vector<Job> jobs = make_jobs(a, choice, codes, scene_stats);
   if (losses)
     for (const auto& j : jobs) losses->add_style(j.style_path);
-
-  const bool test = views == "test";
-  double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
-  int frames_done = 0;
-  nlohmann::json per_view = nlohmann::json::array();
-  for (size_t vi = 0; vi < cams.size(); ++vi) {
-    const auto& cam = cams[vi];
-    auto t = Clock::now();
-    const auto cc = m.render_camera_content(scene, cam, chunk, region.get(), supersample);
-    content_s += seconds_since(t);
-    const std::string stem = test ? "test_" : "frame_";
-    const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
-    write_depth(cc, cli::numbered(out, "depth_", idx, digits, ".exr"));
-    if (region) {
-      stylerf::io::save_png(cli::numbered(out, "mask_", idx, digits, ".png"),
-                            cli::grey_image(cc.region_mask, cc.width, cc.height));
-    }
-    nlohmann::json row = {{"view", idx}, {"styles", nlohmann::json::object()}};
-    if (losses) {
-      const auto tl = Clock::now();
-      losses->begin_view(scene, test ? &scene.test[size_t(ids[vi])] : nullptr, cam, cc);
-      loss_s += seconds_since(tl);
-    }
-    for (size_t ji = 0; ji < jobs.size(); ++ji) {
-      const Job& j = jobs[ji];
-      auto rgb = region ? m.stylize_camera_regions(cc, j.code, j.outside, cam.width, cam.height)
-                        : m.stylize_camera(cc, j.code, cam.width, cam.height);
-      if (!decoded_background) m.over_background(rgb, cc, cam.width, cam.height);
-      const std::string png = cli::numbered(j.dir, stem, idx, digits, ".png");
-      stylerf::io::save_png(png, cli::interleaved_image(rgb, cam.width, cam.height));
-      ++frames_done;
-      const double now = seconds_since(t_work) - loss_s;  // losses are timed apart
-      if (first_frame_s < 0) first_frame_s = now;
-      frame_time_after = now - first_frame_s;
-      if (losses) {
-        const auto tl = Clock::now();
-        row["styles"][j.name] = losses->measure(rgb, cam.width, ji);
-        loss_s += seconds_since(tl);
-      }
-    }
-    per_view.push_back(row);
-    std::cout << "  view " << vi + 1 << "/" << cams.size() << "  " << std::fixed << std::setprecision(2)
-              << (frames_done > 1 ? (frames_done - 1) / std::max(1e-9, frame_time_after) : 0.0)
-              << " frames/s" << std::endl;
-  }
-  const double fps_after = frames_done > 1 ? (frames_done - 1) / std::max(1e-9, frame_time_after) : 0.0;
-  nlohmann::json vids = nlohmann::json::array();
-  if (cams.size() > 1)
-    for (const auto& j : jobs)
-      if (cli::write_video(j.dir, test ? "test_%03d.png" : "frame_%04d.png", "video.mp4", fps, std::cout))
-        vids.push_back((fs::path(j.dir) / "video.mp4").string());
-  nlohmann::json doc = {
-      {"checkpoint", ckpt},
-      {"scene", scene.root},
-      {"views", views},
-      {"size", {cams.front().width, cams.front().height}},
-      {"styles", style_rows},
-      {"outputs", nlohmann::json::array()},
-      {"timing",
-       {{"encode_styles_s", encode_s},
-        {"first_frame_s", first_frame_s},
-        {"frames", frames_done},
-        {"frames_per_s_after_first", fps_after},
-        {"content_render_s_per_view", content_s / double(cams.size())},
-        {"losses_s", loss_s},
-        {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
-                 "excluded from frames/s"}}},
-      {"videos", vids},
-      {"per_view", per_view}};
-  for (const auto& j : jobs) doc["outputs"].push_back({{"name", j.name}, {"dir", j.dir}});
-  if (region) doc["region"] = region_spec;
-  if (!weights.empty()) doc["mix"] = weights;
-  if (losses) doc["mean_losses"] = losses->means();
-  stylerf::host::write_file_atomic((fs::path(out) / "metrics.json").string(), doc.dump(2) + "\n");
-  std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
-            << first_frame_s << " s; then " << fps_after << " frames/s (" << frames_done << " frames)\n";
-  if (losses) std::cout << losses->summary();
-  std::cout << "-> " << out << "/metrics.json\n";
+  const ViewWork work{m, scene, region.get(), losses.get()};
+  RenderTiming timing;
+  const nlohmann::json per_view = render_views(a, work, cams, ids, jobs, t_work, timing);
+  finish_stylize(a, choice, work, jobs, cams, style_rows, encode_s, timing, per_view);
   return 0;
 }
 
