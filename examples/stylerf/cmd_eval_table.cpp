@@ -147,204 +147,258 @@ void markdown_rows(std::ostream& md, const std::vector<MethodRows>& methods) {
 
 }  // namespace
 
-int run_eval_table(int argc, char** argv) {
+// All of eval table's options, as parsed.
+struct TableArgs {
   std::vector<std::string> groups, style_args;
   std::string out, device, lpips_net = "vgg";
   PathOptions p;
   int max_styles = 5, fps = 8;
   bool no_lpips = false;
+};
+
+// Parses argv into a. Returns -1 to go on, else the exit code (the help was shown).
+int parse_table_args(int argc, char** argv, TableArgs& a) {
   po::options_description desc("stylerf eval table --scene-ckpts DENSITY[,STYLE...] [...] -o DIR [options]");
   desc.add_options()("help,h", "show this help")(
-      "scene-ckpts", po::value(&groups)->multitoken(),
+      "scene-ckpts", po::value(&a.groups)->multitoken(),
       "per scene: a density checkpoint, then style checkpoints of that scene (comma-separated)")(
-      "styles", po::value(&style_args)->multitoken(),
+      "styles", po::value(&a.style_args)->multitoken(),
       "style images or folders (default: the first style checkpoint's held-out styles)")(
-      "max-styles", po::value(&max_styles)->default_value(5), "styles per scene, evenly spaced (0: all)")(
-      "frames", po::value(&p.frames)->default_value(16), "frames compared: the first N of the path")(
-      "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
-      "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
-      "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
-      "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
-      "lpips-net", po::value(&lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")("fps", po::value(&fps)->default_value(8),
-                                                          "side-by-side video frame rate")(
-      "output,o", po::value(&out), "output directory")("chunk", po::value(&p.chunk)->default_value(8192),
-                                                        "rays per renderer call")(
-      "supersample", po::value(&p.supersample)->default_value(0),
+      "max-styles", po::value(&a.max_styles)->default_value(5), "styles per scene, evenly spaced (0: all)")(
+      "frames", po::value(&a.p.frames)->default_value(16), "frames compared: the first N of the path")(
+      "path-frames", po::value(&a.p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
+      "size", po::value(&a.p.size)->default_value(0), "longer image side (0: the scene's)")(
+      "depth-tol", po::value(&a.p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
+      "no-lpips", po::bool_switch(&a.no_lpips), "RMSE only")(
+      "lpips-net", po::value(&a.lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")(
+      "fps", po::value(&a.fps)->default_value(8), "side-by-side video frame rate")(
+      "output,o", po::value(&a.out), "output directory")(
+      "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(
+      "supersample", po::value(&a.p.supersample)->default_value(0),
       "StyleRF: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
-      "device", po::value(&device), "OpenCL device");
+      "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
-  if (vm.count("help") || groups.empty()) {
+  if (vm.count("help") || a.groups.empty()) {
     std::cout << desc;
     return vm.count("help") ? 0 : 2;
   }
-  check_path_options(p);
-  const eval::LpipsNet net = eval::parse_lpips_net(lpips_net);
-  if (out.empty()) throw Error("-o DIR is required");
-  if (max_styles < 0) throw Error("--max-styles must be >= 0");
-  if (fps < 1 || fps > 240) throw Error("--fps must be in [1, 240]");
+  return -1;
+}
+
+// The checkpoints of each scene group and the styles to score, checked before the work: the groups'
+// files, the style images, the style checkpoints (loaded once; a wrong kind is refused early).
+struct TableInputs {
   std::vector<std::vector<std::string>> scene_ckpts;
-  for (const auto& g : groups) {
-    scene_ckpts.push_back(split(g, ','));
-    if (scene_ckpts.back().empty()) throw Error("--scene-ckpts: an empty group");
-    for (const auto& f : scene_ckpts.back())
+  std::vector<std::vector<io::Checkpoint>> style_cks;
+  std::vector<std::string> explicit_styles, default_styles;
+  const std::vector<std::string>& styles() const { return explicit_styles.empty() ? default_styles : explicit_styles; }
+};
+
+TableInputs check_table_args(const TableArgs& a) {
+  check_path_options(a.p);
+  if (a.out.empty()) throw Error("-o DIR is required");
+  if (a.max_styles < 0) throw Error("--max-styles must be >= 0");
+  if (a.fps < 1 || a.fps > 240) throw Error("--fps must be in [1, 240]");
+  TableInputs in;
+  for (const auto& g : a.groups) {
+    in.scene_ckpts.push_back(split(g, ','));
+    if (in.scene_ckpts.back().empty()) throw Error("--scene-ckpts: an empty group");
+    for (const auto& f : in.scene_ckpts.back())
       if (!fs::is_regular_file(f)) throw Error("--scene-ckpts: " + f + " is not a file");
   }
-  std::vector<std::string> explicit_styles;
-  for (const auto& a : style_args) {
-    if (fs::is_directory(a)) {
-      const auto files = style::style_images_in(a, &std::cout);
-      explicit_styles.insert(explicit_styles.end(), files.begin(), files.end());
+  for (const auto& s : a.style_args) {
+    if (fs::is_directory(s)) {
+      const auto files = style::style_images_in(s, &std::cout);
+      in.explicit_styles.insert(in.explicit_styles.end(), files.begin(), files.end());
     } else {
-      const std::string why = io::image_unreadable_reason(a);
-      if (!why.empty()) throw Error("--styles " + a + ": " + why);
-      explicit_styles.push_back(a);
+      const std::string why = io::image_unreadable_reason(s);
+      if (!why.empty()) throw Error("--styles " + s + ": " + why);
+      in.explicit_styles.push_back(s);
     }
   }
-  if (!style_args.empty() && explicit_styles.empty()) throw Error("--styles: no readable image");
-
-  // The style checkpoints of every group, loaded once (before the work: a wrong kind is refused early).
-  std::vector<std::vector<io::Checkpoint>> style_cks(scene_ckpts.size());
-  for (size_t gi = 0; gi < scene_ckpts.size(); ++gi)
-    for (size_t i = 1; i < scene_ckpts[gi].size(); ++i) {
-      style_cks[gi].push_back(io::load_checkpoint(scene_ckpts[gi][i], ""));
-      if (style_cks[gi].back().kind != "style")
-        throw Error("--scene-ckpts: " + scene_ckpts[gi][i] + " holds a '" + style_cks[gi].back().kind +
+  if (!a.style_args.empty() && in.explicit_styles.empty()) throw Error("--styles: no readable image");
+  in.style_cks.resize(in.scene_ckpts.size());
+  for (size_t gi = 0; gi < in.scene_ckpts.size(); ++gi)
+    for (size_t i = 1; i < in.scene_ckpts[gi].size(); ++i) {
+      in.style_cks[gi].push_back(io::load_checkpoint(in.scene_ckpts[gi][i], ""));
+      if (in.style_cks[gi].back().kind != "style")
+        throw Error("--scene-ckpts: " + in.scene_ckpts[gi][i] + " holds a '" + in.style_cks[gi].back().kind +
                     "' stage, not a style stage");
     }
   // Without --styles: the held-out styles (never trained on) of the first style checkpoint given, for
   // every scene, so scenes without a style stage are scored on the same styles.
-  std::vector<std::string> default_styles;
-  for (const auto& group : style_cks)
+  for (const auto& group : in.style_cks)
     for (const auto& ck : group)
-      if (explicit_styles.empty() && default_styles.empty()) {
-        default_styles = ck.meta.value("styles", nlohmann::json::object())
-                             .value("holdout", nlohmann::json::array())
-                             .get<std::vector<std::string>>();
-        if (default_styles.empty()) throw Error(ck.path + " holds no held-out styles; give --styles");
+      if (in.explicit_styles.empty() && in.default_styles.empty()) {
+        in.default_styles = ck.meta.value("styles", nlohmann::json::object())
+                                .value("holdout", nlohmann::json::array())
+                                .get<std::vector<std::string>>();
+        if (in.default_styles.empty()) throw Error(ck.path + " holds no held-out styles; give --styles");
       }
+  return in;
+}
 
-  init_runtime(device, false);
-  auto adain = style::AdainModel::load_default();
-  std::unique_ptr<eval::Lpips> lpips;
-  if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));
-  const auto dist = lpips_distance(lpips.get());
-  fs::create_directories(out);
-  const auto t_all = Clock::now();
-  std::vector<SceneResult> results;
-  std::vector<std::string> used_folders;
-  for (size_t gi = 0; gi < scene_ckpts.size(); ++gi) {
-    const auto& group = scene_ckpts[gi];
-    const auto ck_d = io::load_checkpoint(group.front(), "");
-    if (ck_d.kind != "density")
-      throw Error("--scene-ckpts: the first checkpoint of a group must be a density checkpoint; " + group.front() +
-                  " holds a '" + ck_d.kind + "' stage");
-    if (explicit_styles.empty() && default_styles.empty())
-      throw Error("--styles is needed: no style checkpoint was given to take held-out styles from");
-    const auto scene = scene_of_checkpoint(ck_d);
-    const auto density = model::load_model(ck_d);
-    for (const auto& ck : style_cks[gi]) check_same_scene_of(ck_d, ck, scene);
-    const std::vector<std::string> styles =
-        pick_evenly(explicit_styles.empty() ? default_styles : explicit_styles, max_styles);
+// What scoring one scene's styles needs: the frames compared and how to score them.
+struct SceneWork {
+  const scene::Scene& scene;
+  const PathSetup& path;
+  const std::vector<io::Image>& rgb;
+  const eval::MaskedDistance* dist;
+  const PathOptions& p;
+};
 
-    SceneResult res;
-    res.name = scene.name;
-    // Groups of the same scene (e.g. two recipes' density checkpoints) get folders of their own.
-    std::string folder = scene.name;
-    for (int k = 2; std::count(used_folders.begin(), used_folders.end(), folder); ++k)
-      folder = scene.name + "_" + std::to_string(k);
-    used_folders.push_back(folder);
-    const fs::path sdir = fs::path(out) / folder;
-    fs::create_directories(sdir);
-    std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
-    const PathSetup path = path_setup(density.geo, scene, p);
-    std::cout << "  geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
-              << path.cams.front().height << ", warps in " << fmt(path.seconds, 1) << " s\n";
-    const auto rgb = eval::rgb_frames(density, scene, path.cams, p.chunk);
-    MethodRows rgb_rows{"RGB (unstylised floor)", {""}, {eval::score_frames(rgb, path.warps, dist.get())}};
-    std::cout << "  RGB: " << score_line(rgb_rows.scores.back()) << "\n";
-    MethodRows adain_rows{"AdaIN (per frame)", {}, {}};
-    std::vector<std::unique_ptr<model::StyleModel>> models;
-    std::vector<std::unique_ptr<style::StyleEncoder>> encoders;  // one per model: its codes are its own
-    std::vector<model::SceneStyleStats> scene_stats;              // one per model: its views rendered once
-    std::vector<MethodRows> style_rows;
-    for (const auto& ck : style_cks[gi]) {
-      models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
-      scene_stats.emplace_back(*models.back(), scene);
-      encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
-                                                               style::StyleEncoder::default_cache_dir()));
-      style_rows.push_back({style_model_label(ck), {}, {}});
-    }
-    std::vector<io::Image> first_adain, first_stylerf;
-    for (size_t si = 0; si < styles.size(); ++si) {
-      const std::string& st = styles[si];
-      const auto t = Clock::now();
-      const auto a = eval::adain_frames(adain, rgb, eval::load_style_for_eval(st));
-      adain_rows.styles.push_back(st);
-      adain_rows.scores.push_back(eval::score_frames(a, path.warps, dist.get()));
-      std::cout << "  [" << si + 1 << "/" << styles.size() << "] " << fs::path(st).stem().string() << "\n    AdaIN: "
-                << score_line(adain_rows.scores.back()) << "\n";
-      if (si == 0) first_adain = a;
-      for (size_t mi = 0; mi < models.size(); ++mi) {
-        style::StyleCode code = encoders[mi]->encode(st).code;
-        scene_stats[mi].attach(code);
-        const auto f =
-            eval::stylerf_frames(*models[mi], scene, path.cams, code, models[mi]->features.geo.has_background,
-                                p.chunk, p.supersample > 0 ? p.supersample : models[mi]->inference_supersample);
-        style_rows[mi].styles.push_back(st);
-        style_rows[mi].scores.push_back(eval::score_frames(f, path.warps, dist.get()));
-        std::cout << "    " << style_rows[mi].name << ": " << score_line(style_rows[mi].scores.back()) << "\n";
-        if (si == 0 && mi == 0) first_stylerf = f;
-      }
-      std::cout << "    (" << fmt(seconds_since(t), 1) << " s)" << std::endl;
-    }
-    res.methods.push_back(rgb_rows);
-    res.methods.push_back(adain_rows);
-    for (auto& m : style_rows) res.methods.push_back(m);
-
-    // Side-by-side video of the first style: AdaIN | StyleRF.
-    if (!first_stylerf.empty()) {
-      const fs::path vdir = sdir / "side_by_side";
-      fs::create_directories(vdir);
-      for (size_t i = 0; i < first_adain.size(); ++i)
-        io::save_png(numbered(vdir, "frame_", int(i), 4, ".png"), side_by_side(first_adain[i], first_stylerf[i]));
-      write_video(vdir.string(), "frame_%04d.png", "side_by_side.mp4", fps, std::cout);
-    }
-    // Per-frame short-range RMSE.
-    std::vector<eval::PlotSeries> series;
-    for (size_t i = 0; i < res.methods.size(); ++i)
-      series.push_back({res.methods[i].name, eval::plot_colour(int(i)), res.methods[i].per_pair_rmse()});
-    eval::PlotLabels labels;
-    labels.title = scene.name + ": short-range consistency per frame pair (lower is steadier)";
-    labels.x_label = "frame pair (t - 1, t) along the path";
-    labels.y_label = "RMSE of the warped frame (RGB in [0, 1])";
-    labels.x_first = 1;
-    host::write_file_atomic((sdir / "per_frame_rmse.svg").string(), eval::line_plot_svg(series, labels));
-
-    nlohmann::json mj = nlohmann::json::array();
-    for (const auto& m : res.methods) {
-      nlohmann::json per = nlohmann::json::array();
-      for (size_t i = 0; i < m.scores.size(); ++i) per.push_back({{"style", m.styles[i]}, {"score", m.scores[i].to_json()}});
-      mj.push_back({{"method", m.name},
-                    {"short", {{"lpips", m.mean(false, true)}, {"rmse", m.mean(false, false)}}},
-                    {"long", {{"lpips", m.mean(true, true)}, {"rmse", m.mean(true, false)}}},
-                    {"per_style", per}});
-    }
-    res.json = {{"scene", scene.name},
-                {"checkpoints", group},
-                {"frames", {path.cams.front().width, path.cams.front().height}},
-                {"methods", mj}};
-    results.push_back(std::move(res));
+// Per style: per-frame AdaIN of the RGB frames, then each style checkpoint's frames, each scored. Rows:
+// AdaIN, then one per checkpoint; first_*: the first style's frames (the side-by-side video).
+std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::Checkpoint>& cks,
+                                     const std::vector<std::string>& styles, style::AdainModel& adain,
+                                     std::vector<io::Image>& first_adain, std::vector<io::Image>& first_stylerf) {
+  MethodRows adain_rows{"AdaIN (per frame)", {}, {}};
+  std::vector<std::unique_ptr<model::StyleModel>> models;
+  std::vector<std::unique_ptr<style::StyleEncoder>> encoders;  // one per model: its codes are its own
+  std::vector<model::SceneStyleStats> scene_stats;              // one per model: its views rendered once
+  std::vector<MethodRows> rows;
+  for (const auto& ck : cks) {
+    models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
+    scene_stats.emplace_back(*models.back(), w.scene);
+    encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
+                                                             style::StyleEncoder::default_cache_dir()));
+    rows.push_back({style_model_label(ck), {}, {}});
   }
+  for (size_t si = 0; si < styles.size(); ++si) {
+    const std::string& st = styles[si];
+    const auto t = Clock::now();
+    const auto a = eval::adain_frames(adain, w.rgb, eval::load_style_for_eval(st));
+    adain_rows.styles.push_back(st);
+    adain_rows.scores.push_back(eval::score_frames(a, w.path.warps, w.dist));
+    std::cout << "  [" << si + 1 << "/" << styles.size() << "] " << fs::path(st).stem().string() << "\n    AdaIN: "
+              << score_line(adain_rows.scores.back()) << "\n";
+    if (si == 0) first_adain = a;
+    for (size_t mi = 0; mi < models.size(); ++mi) {
+      style::StyleCode code = encoders[mi]->encode(st).code;
+      scene_stats[mi].attach(code);
+      const auto f = eval::stylerf_frames(*models[mi], w.scene, w.path.cams, code,
+                                          models[mi]->features.geo.has_background, w.p.chunk,
+                                          w.p.supersample > 0 ? w.p.supersample : models[mi]->inference_supersample);
+      rows[mi].styles.push_back(st);
+      rows[mi].scores.push_back(eval::score_frames(f, w.path.warps, w.dist));
+      std::cout << "    " << rows[mi].name << ": " << score_line(rows[mi].scores.back()) << "\n";
+      if (si == 0 && mi == 0) first_stylerf = f;
+    }
+    std::cout << "    (" << fmt(seconds_since(t), 1) << " s)" << std::endl;
+  }
+  rows.insert(rows.begin(), adain_rows);
+  return rows;
+}
 
-  // ---- the table ----
+// The scene's folder: the side-by-side video of the first style (AdaIN | StyleRF) and the per-frame
+// short-range RMSE plot.
+void write_scene_outputs(const fs::path& sdir, const SceneResult& res, const std::vector<io::Image>& first_adain,
+                         const std::vector<io::Image>& first_stylerf, int fps) {
+  if (!first_stylerf.empty()) {
+    const fs::path vdir = sdir / "side_by_side";
+    fs::create_directories(vdir);
+    for (size_t i = 0; i < first_adain.size(); ++i)
+      io::save_png(numbered(vdir, "frame_", int(i), 4, ".png"), side_by_side(first_adain[i], first_stylerf[i]));
+    write_video(vdir.string(), "frame_%04d.png", "side_by_side.mp4", fps, std::cout);
+  }
+  std::vector<eval::PlotSeries> series;
+  for (size_t i = 0; i < res.methods.size(); ++i)
+    series.push_back({res.methods[i].name, eval::plot_colour(int(i)), res.methods[i].per_pair_rmse()});
+  eval::PlotLabels labels;
+  labels.title = res.name + ": short-range consistency per frame pair (lower is steadier)";
+  labels.x_label = "frame pair (t - 1, t) along the path";
+  labels.y_label = "RMSE of the warped frame (RGB in [0, 1])";
+  labels.x_first = 1;
+  host::write_file_atomic((sdir / "per_frame_rmse.svg").string(), eval::line_plot_svg(series, labels));
+}
+
+nlohmann::json methods_json(const std::vector<MethodRows>& methods) {
+  nlohmann::json mj = nlohmann::json::array();
+  for (const auto& m : methods) {
+    nlohmann::json per = nlohmann::json::array();
+    for (size_t i = 0; i < m.scores.size(); ++i) per.push_back({{"style", m.styles[i]}, {"score", m.scores[i].to_json()}});
+    mj.push_back({{"method", m.name},
+                  {"short", {{"lpips", m.mean(false, true)}, {"rmse", m.mean(false, false)}}},
+                  {"long", {{"lpips", m.mean(true, true)}, {"rmse", m.mean(true, false)}}},
+                  {"per_style", per}});
+  }
+  return mj;
+}
+
+// One scene group: its density checkpoint's geometry and RGB frames, then every style scored.
+SceneResult eval_scene(const TableArgs& a, const TableInputs& in, size_t gi, style::AdainModel& adain,
+                       const eval::MaskedDistance* dist, std::vector<std::string>& used_folders) {
+  const auto& group = in.scene_ckpts[gi];
+  const auto ck_d = io::load_checkpoint(group.front(), "");
+  if (ck_d.kind != "density")
+    throw Error("--scene-ckpts: the first checkpoint of a group must be a density checkpoint; " + group.front() +
+                " holds a '" + ck_d.kind + "' stage");
+  if (in.styles().empty())
+    throw Error("--styles is needed: no style checkpoint was given to take held-out styles from");
+  const auto scene = scene_of_checkpoint(ck_d);
+  const auto density = model::load_model(ck_d);
+  for (const auto& ck : in.style_cks[gi]) check_same_scene_of(ck_d, ck, scene);
+  const std::vector<std::string> styles = pick_evenly(in.styles(), a.max_styles);
+
+  SceneResult res;
+  res.name = scene.name;
+  // Groups of the same scene (e.g. two recipes' density checkpoints) get folders of their own.
+  std::string folder = scene.name;
+  for (int k = 2; std::count(used_folders.begin(), used_folders.end(), folder); ++k)
+    folder = scene.name + "_" + std::to_string(k);
+  used_folders.push_back(folder);
+  const fs::path sdir = fs::path(a.out) / folder;
+  fs::create_directories(sdir);
+  std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
+  const PathSetup path = path_setup(density.geo, scene, a.p);
+  std::cout << "  geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
+            << path.cams.front().height << ", warps in " << fmt(path.seconds, 1) << " s\n";
+  const auto rgb = eval::rgb_frames(density, scene, path.cams, a.p.chunk);
+  MethodRows rgb_rows{"RGB (unstylised floor)", {""}, {eval::score_frames(rgb, path.warps, dist)}};
+  std::cout << "  RGB: " << score_line(rgb_rows.scores.back()) << "\n";
+  std::vector<io::Image> first_adain, first_stylerf;
+  res.methods.push_back(rgb_rows);
+  for (auto& m : score_styles({scene, path, rgb, dist, a.p}, in.style_cks[gi], styles, adain, first_adain,
+                              first_stylerf))
+    res.methods.push_back(m);
+  write_scene_outputs(sdir, res, first_adain, first_stylerf, a.fps);
+  res.json = {{"scene", scene.name},
+              {"checkpoints", group},
+              {"frames", {path.cams.front().width, path.cams.front().height}},
+              {"methods", methods_json(res.methods)}};
+  return res;
+}
+
+// Over all scenes: methods by name (in first-seen order), every style's score of every scene.
+std::vector<MethodRows> all_scenes_rows(const std::vector<SceneResult>& results) {
+  std::map<std::string, std::vector<const MethodRows*>> by_name;
+  std::vector<std::string> order;
+  for (const auto& r : results)
+    for (const auto& m : r.methods) {
+      if (!by_name.count(m.name)) order.push_back(m.name);
+      by_name[m.name].push_back(&m);
+    }
+  std::vector<MethodRows> all;
+  for (const auto& name : order) {
+    MethodRows m{name, {}, {}};
+    for (const auto* part : by_name[name])
+      for (size_t i = 0; i < part->scores.size(); ++i) m.scores.push_back(part->scores[i]), m.styles.push_back(part->styles[i]);
+    all.push_back(m);
+  }
+  return all;
+}
+
+// table.md: the protocol, then a table per scene (and over all scenes).
+std::string table_markdown(const TableArgs& a, const std::vector<SceneResult>& results, bool lpips, double total) {
+  const PathOptions& p = a.p;
   std::ostringstream md;
   md << "# Consistency (StyleRF Table 1 protocol, by the scenes' own geometry)\n\n"
      << "First " << p.frames << " frames of each scene's default path of " << p.path_frames
      << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
      << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
-     << (lpips ? lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
+     << (lpips ? a.lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
      << ". StyleRF content: "
      << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n, averaged)")
          : std::to_string(p.supersample) + "x" + std::to_string(p.supersample) +
@@ -357,33 +411,45 @@ int run_eval_table(int argc, char** argv) {
     md << "\n## " << r.name << "\n\n";
     markdown_rows(md, r.methods);
   }
-  if (results.size() > 1) {  // over all scenes: methods by name, means of the scene means
-    std::map<std::string, std::vector<const MethodRows*>> by_name;
-    std::vector<std::string> order;
-    for (const auto& r : results)
-      for (const auto& m : r.methods) {
-        if (!by_name.count(m.name)) order.push_back(m.name);
-        by_name[m.name].push_back(&m);
-      }
-    std::vector<MethodRows> all;
-    for (const auto& name : order) {
-      MethodRows m{name, {}, {}};
-      for (const auto* part : by_name[name])
-        for (size_t i = 0; i < part->scores.size(); ++i) m.scores.push_back(part->scores[i]), m.styles.push_back(part->styles[i]);
-      all.push_back(m);
-    }
+  if (results.size() > 1) {
     md << "\n## All scenes\n\n";
-    markdown_rows(md, all);
+    markdown_rows(md, all_scenes_rows(results));
   }
-  const double total = seconds_since(t_all);
   md << "\n(" << fmt(total, 0) << " s in all)\n";
-  nlohmann::json doc = {{"frames", p.frames},         {"path_frames", p.path_frames}, {"depth_tolerance", p.depth_tolerance},
-                        {"supersample", p.supersample},
-                        {"lpips", lpips ? lpips_net : std::string("none")}, {"seconds", total},          {"scenes", nlohmann::json::array()}};
+  return md.str();
+}
+
+int run_eval_table(int argc, char** argv) {
+  TableArgs a;
+  if (const int code = parse_table_args(argc, argv, a); code >= 0) return code;
+  const eval::LpipsNet net = eval::parse_lpips_net(a.lpips_net);
+  const TableInputs in = check_table_args(a);
+
+  init_runtime(a.device, false);
+  auto adain = style::AdainModel::load_default();
+  std::unique_ptr<eval::Lpips> lpips;
+  if (!a.no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));
+  const auto dist = lpips_distance(lpips.get());
+  fs::create_directories(a.out);
+  const auto t_all = Clock::now();
+  std::vector<SceneResult> results;
+  std::vector<std::string> used_folders;
+  for (size_t gi = 0; gi < in.scene_ckpts.size(); ++gi)
+    results.push_back(eval_scene(a, in, gi, adain, dist.get(), used_folders));
+
+  const double total = seconds_since(t_all);
+  const std::string md = table_markdown(a, results, lpips != nullptr, total);
+  nlohmann::json doc = {{"frames", a.p.frames},
+                        {"path_frames", a.p.path_frames},
+                        {"depth_tolerance", a.p.depth_tolerance},
+                        {"supersample", a.p.supersample},
+                        {"lpips", lpips ? a.lpips_net : std::string("none")},
+                        {"seconds", total},
+                        {"scenes", nlohmann::json::array()}};
   for (const auto& r : results) doc["scenes"].push_back(r.json);
-  host::write_file_atomic((fs::path(out) / "table.md").string(), md.str());
-  host::write_file_atomic((fs::path(out) / "table.json").string(), doc.dump(2) + "\n");
-  std::cout << "\n" << md.str() << "-> " << out << "/table.md, table.json\n";
+  host::write_file_atomic((fs::path(a.out) / "table.md").string(), md);
+  host::write_file_atomic((fs::path(a.out) / "table.json").string(), doc.dump(2) + "\n");
+  std::cout << "\n" << md << "-> " << a.out << "/table.md, table.json\n";
   return 0;
 }
 
