@@ -39,6 +39,29 @@ namespace model = stylerf::model;
 
 using stylerf::cli::seconds_since;
 
+// The stylised path by a style checkpoint, for one style image (encoded through the cache).
+std::vector<stylerf::io::Image> stylised_frames(const model::StyleModel& m, const stylerf::scene::Scene& scene,
+                                                const std::vector<stylerf::scene::Camera>& cams,
+                                                const std::string& style_path, const cli::PathOptions& p) {
+  stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
+  stylerf::style::StyleEncoder enc(m.dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
+  stylerf::style::StyleCode code = enc.encode(style_path).code;
+  stylerf::model::SceneStyleStats(m, scene).attach(code);
+  return eval::stylerf_frames(m, scene, cams, code, m.features.geo.has_background, p.chunk,
+                              p.supersample > 0 ? p.supersample : m.inference_supersample);
+}
+
+// The density checkpoint's RGB path, or (with a style image) per-frame 2D AdaIN of it.
+std::vector<stylerf::io::Image> unstylised_frames(const model::DensityModel& density,
+                                                  const stylerf::scene::Scene& scene,
+                                                  const std::vector<stylerf::scene::Camera>& cams,
+                                                  const std::string& adain_style, const cli::PathOptions& p) {
+  auto frames = eval::rgb_frames(density, scene, cams, p.chunk);
+  if (adain_style.empty()) return frames;
+  auto adain = stylerf::style::AdainModel::load_default();
+  return eval::adain_frames(adain, frames, eval::load_style_for_eval(adain_style));
+}
+
 int run_consistency(int argc, char** argv) {
   std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg";
   cli::PathOptions p;
@@ -101,21 +124,9 @@ int run_consistency(int argc, char** argv) {
   std::cout << "geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
             << path.cams.front().height << " rendered and warped in " << path.seconds << " s\n";
   const auto t1 = Clock::now();
-  std::vector<stylerf::io::Image> frames;
-  if (method == "stylerf") {
-    stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
-    stylerf::style::StyleEncoder enc(styled->dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
-    stylerf::style::StyleCode code = enc.encode(style_path).code;
-    stylerf::model::SceneStyleStats(*styled, scene).attach(code);
-    frames = eval::stylerf_frames(*styled, scene, path.cams, code, styled->features.geo.has_background, p.chunk,
-                                  p.supersample > 0 ? p.supersample : styled->inference_supersample);
-  } else {
-    frames = eval::rgb_frames(*density, scene, path.cams, p.chunk);
-    if (method == "adain") {
-      auto adain = stylerf::style::AdainModel::load_default();
-      frames = eval::adain_frames(adain, frames, eval::load_style_for_eval(style_path));
-    }
-  }
+  const std::vector<stylerf::io::Image> frames =
+      method == "stylerf" ? stylised_frames(*styled, scene, path.cams, style_path, p)
+                          : unstylised_frames(*density, scene, path.cams, method == "adain" ? style_path : "", p);
   const double render_s = seconds_since(t1);
   const auto t2 = Clock::now();
   const auto dist = cli::lpips_distance(lpips.get());
