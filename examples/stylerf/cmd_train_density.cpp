@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <memory>
+#include <set>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -53,171 +55,205 @@ std::array<int, 3> parse_rank(const std::string& s, const std::string& flag) {
   return {v[0], v[1], v[2]};
 }
 
-int run_train_density(int argc, char** argv) {
-  namespace train = stylerf::train;
+namespace train = stylerf::train;
+namespace cli = stylerf::cli;
+
+// All of train-density's options, as parsed (`given`: the options set on the command line).
+struct DensityArgs {
   std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
-                        app_rank, shading, recipe;
+                    app_rank, shading, recipe;
   int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1, ert = 1e-4f;
   double minutes = 0;
   bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
+  int64_t vfinal = 0, vinit = 0;  // parsed --final-voxels / --init-voxels (0: the default)
+  std::set<std::string> given;
+  bool has(const char* option) const { return given.count(option) > 0; }
+};
+
+// Parses argv into a. Returns -1 to go on, else the exit code (the help was shown).
+int parse_density_args(int argc, char** argv, DensityArgs& a) {
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
-      "output,o", po::value(&out), "checkpoint file to write (safetensors)")(
-      "downsample", po::value(&downsample)->default_value(1), "image downsample factor")(
-      "iters", po::value(&iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
-      "minutes", po::value(&minutes), "train for this much time: the schedule (events, lr decay) is fitted to it "
-                                      "from the measured step rate (replaces --iters)")(
-      "batch", po::value(&batch)->default_value(4096), "rays per step")(
-      "ndc", po::value(&ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
-      "view-dependence", po::bool_switch(&view_dep), "view-dependent colour (off unless asked for)")(
-      "density-activation", po::value(&act), "relu | softplus (default: TensoRF's config for the format)")(
-      "final-voxels", po::value(&final_voxels), "final grid voxels, e.g. 300^3 (Blender default) or 640^3 (LLFF)")(
-      "init-voxels", po::value(&init_voxels), "initial grid voxels (default 128^3)")(
-      "upsample-at", po::value(&upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
-      "mask-at", po::value(&mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
-      "no-alpha-mask", po::bool_switch(&no_mask), "never build the alpha mask")(
-      "shading", po::value(&shading), "deferred (default: one MLP per ray on its mean feature) | per-sample "
-                                      "(TensoRF: one MLP per kept sample)")(
-      "recipe", po::value(&recipe)->default_value("fast"),
+  desc.add_options()("help,h", "show this help")("scene", po::value(&a.dir), "scene directory (Blender or LLFF format)")(
+      "output,o", po::value(&a.out), "checkpoint file to write (safetensors)")(
+      "downsample", po::value(&a.downsample)->default_value(1), "image downsample factor")(
+      "iters", po::value(&a.iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
+      "minutes", po::value(&a.minutes), "train for this much time: the schedule (events, lr decay) is fitted to it "
+                                        "from the measured step rate (replaces --iters)")(
+      "batch", po::value(&a.batch)->default_value(4096), "rays per step")(
+      "ndc", po::value(&a.ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
+      "view-dependence", po::bool_switch(&a.view_dep), "view-dependent colour (off unless asked for)")(
+      "density-activation", po::value(&a.act), "relu | softplus (default: TensoRF's config for the format)")(
+      "final-voxels", po::value(&a.final_voxels), "final grid voxels, e.g. 300^3 (Blender default) or 640^3 (LLFF)")(
+      "init-voxels", po::value(&a.init_voxels), "initial grid voxels (default 128^3)")(
+      "upsample-at", po::value(&a.upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
+      "mask-at", po::value(&a.mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
+      "no-alpha-mask", po::bool_switch(&a.no_mask), "never build the alpha mask")(
+      "shading", po::value(&a.shading), "deferred (default: one MLP per ray on its mean feature) | per-sample "
+                                        "(TensoRF: one MLP per kept sample)")(
+      "recipe", po::value(&a.recipe)->default_value("fast"),
       "fast: deferred shading (measured better at equal time) | paper: per-sample shading, TensoRF's (stage 1 "
       "of the paper); --shading overrides")(
-      "ert", po::value(&ert),
+      "ert", po::value(&a.ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
       "for NDC scenes, whose rays rarely turn opaque)")(
-      "density-rank", po::value(&density_rank), "density ranks per mode, e.g. 16,4,4")(
-      "app-rank", po::value(&app_rank), "appearance ranks per mode, e.g. 48,12,12")(
-      "lr-grid", po::value(&lr_grid), "grid learning rate (default 0.02)")(
-      "lr-net", po::value(&lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
-      "seed", po::value(&seed)->default_value(0), "random seed (init, rays, jitter)")(
-      "resume", po::bool_switch(&resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
-      "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
-      "log-every", po::value(&log_every)->default_value(100), "iterations between progress lines")(
-      "ckpt-every", po::value(&ckpt_every)->default_value(1000), "iterations between checkpoints")(
-      "eval-views", po::value(&eval_views)->default_value(5),
+      "density-rank", po::value(&a.density_rank), "density ranks per mode, e.g. 16,4,4")(
+      "app-rank", po::value(&a.app_rank), "appearance ranks per mode, e.g. 48,12,12")(
+      "lr-grid", po::value(&a.lr_grid), "grid learning rate (default 0.02)")(
+      "lr-net", po::value(&a.lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
+      "seed", po::value(&a.seed)->default_value(0), "random seed (init, rays, jitter)")(
+      "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
+      "force", po::bool_switch(&a.force), "overwrite an existing checkpoint at -o")(
+      "log-every", po::value(&a.log_every)->default_value(100), "iterations between progress lines")(
+      "ckpt-every", po::value(&a.ckpt_every)->default_value(1000), "iterations between checkpoints")(
+      "eval-views", po::value(&a.eval_views)->default_value(5),
       "held-out views for the final PSNR, evenly spaced (0: all; timed apart from training)")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
-      "profile", po::bool_switch(&profile), "print per-kernel times at the end");
+      "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "profile", po::bool_switch(&a.profile), "print per-kernel times at the end");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
+  for (const auto& kv : vm)
+    if (!kv.second.defaulted()) a.given.insert(kv.first);
   if (vm.count("help") || argc <= 1) {
     std::cout << desc;
     return vm.count("help") ? 0 : 2;
   }
-  // Every number is checked before anything loads: 0 or NaN never silently mean "the default".
-  namespace cli = stylerf::cli;
-  if (dir.empty()) throw Error("--scene DIR is required");
-  cli::check_int_range("--downsample", downsample, 1, 64);
-  if (vm.count("iters")) cli::check_int_range("--iters", iters, 1, 10000000);
-  if (vm.count("minutes")) cli::check_range("--minutes", minutes, 0.01, 100000);
-  if (minutes > 0 && (vm.count("iters") || resume)) throw Error("--minutes goes without --iters and --resume");
-  cli::check_int_range("--batch", batch, 1, 1 << 22);
-  cli::check_int_range("--log-every", log_every, 0, 100000000);
-  cli::check_int_range("--ckpt-every", ckpt_every, 0, 100000000);
-  cli::check_int_range("--eval-views", eval_views, 0, 100000);
-  if (vm.count("lr-grid")) cli::check_range("--lr-grid", lr_grid, 1e-8, 10);
-  if (vm.count("ert")) cli::check_range("--ert", ert, 0.0, 0.5);
-  if (shading.empty() && train::parse_recipe(recipe) == train::Recipe::Paper) shading = "per-sample";
-  if (!shading.empty() && shading != "per-sample" && shading != "deferred")
-    throw Error("--shading: unknown '" + shading + "' (per-sample, deferred)");
-  if (vm.count("lr-net")) cli::check_range("--lr-net", lr_net, 1e-8, 10);
-  if (resume && (vm.count("final-voxels") || vm.count("init-voxels") || vm.count("upsample-at") || vm.count("mask-at") ||
-                 vm.count("density-rank") || vm.count("app-rank") || vm.count("lr-grid") || vm.count("lr-net") ||
-                 vm.count("density-activation") || vm.count("shading")))
-    throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
-  const int64_t vfinal = final_voxels.empty() ? 0 : parse_voxels(final_voxels, "--final-voxels");
-  const int64_t vinit = init_voxels.empty() ? 0 : parse_voxels(init_voxels, "--init-voxels");
-  if (vinit > 0 && vfinal > 0 && vinit > vfinal)
-    throw Error("--init-voxels (" + init_voxels + ") must not exceed --final-voxels (" + final_voxels + ")");
-  cli::check_checkpoint_output(out, resume, force);
-  stylerf::cli::init_runtime(device, profile);
+  return -1;
+}
 
-  stylerf::scene::LoadOptions lo;
-  lo.downsample = downsample;
-  lo.ndc = stylerf::scene::parse_switch(ndc, "--ndc");
-  lo.view_dependence = view_dep;
-  lo.log = &std::cout;
-  const auto scene = stylerf::scene::load_scene(dir, lo);
+// Every number is checked before anything loads: 0 or NaN never silently mean "the default".
+void check_density_args(DensityArgs& a) {
+  if (a.dir.empty()) throw Error("--scene DIR is required");
+  cli::check_int_range("--downsample", a.downsample, 1, 64);
+  if (a.has("iters")) cli::check_int_range("--iters", a.iters, 1, 10000000);
+  if (a.has("minutes")) cli::check_range("--minutes", a.minutes, 0.01, 100000);
+  if (a.minutes > 0 && (a.has("iters") || a.resume)) throw Error("--minutes goes without --iters and --resume");
+  cli::check_int_range("--batch", a.batch, 1, 1 << 22);
+  cli::check_int_range("--log-every", a.log_every, 0, 100000000);
+  cli::check_int_range("--ckpt-every", a.ckpt_every, 0, 100000000);
+  cli::check_int_range("--eval-views", a.eval_views, 0, 100000);
+  if (a.has("lr-grid")) cli::check_range("--lr-grid", a.lr_grid, 1e-8, 10);
+  if (a.has("ert")) cli::check_range("--ert", a.ert, 0.0, 0.5);
+  if (a.shading.empty() && train::parse_recipe(a.recipe) == train::Recipe::Paper) a.shading = "per-sample";
+  if (!a.shading.empty() && a.shading != "per-sample" && a.shading != "deferred")
+    throw Error("--shading: unknown '" + a.shading + "' (per-sample, deferred)");
+  if (a.has("lr-net")) cli::check_range("--lr-net", a.lr_net, 1e-8, 10);
+  if (a.resume)
+    for (const char* o : {"final-voxels", "init-voxels", "upsample-at", "mask-at", "density-rank", "app-rank",
+                          "lr-grid", "lr-net", "density-activation", "shading"})
+      if (a.has(o))
+        throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
+  a.vfinal = a.final_voxels.empty() ? 0 : parse_voxels(a.final_voxels, "--final-voxels");
+  a.vinit = a.init_voxels.empty() ? 0 : parse_voxels(a.init_voxels, "--init-voxels");
+  if (a.vinit > 0 && a.vfinal > 0 && a.vinit > a.vfinal)
+    throw Error("--init-voxels (" + a.init_voxels + ") must not exceed --final-voxels (" + a.final_voxels + ")");
+  cli::check_checkpoint_output(a.out, a.resume, a.force);
+}
 
-  std::unique_ptr<train::DensityTrainer> trainer;
-  if (resume) {
-    const auto ck = stylerf::io::load_checkpoint(out, "density");
-    if (ck.meta.contains("scene") && ck.meta["scene"].value("name", scene.name) != scene.name)
-      throw Error("--resume: checkpoint " + out + " was trained on scene '" + ck.meta["scene"].value("name", "") +
-                  "', not '" + scene.name + "'");
-    trainer = std::make_unique<train::DensityTrainer>(scene, ck);
-    std::cout << "resuming from " << out << " at iteration " << trainer->iteration() << "\n";
-    if (iters > 0 && iters <= trainer->iteration())
-      throw Error("--resume --iters " + std::to_string(iters) + ": checkpoint " + out + " is already at iteration " +
-                  std::to_string(trainer->iteration()) + "; give a larger --iters to train further");
-    if (iters > 0) {
-      // Extending (or shortening) a resumed run: only the horizon changes.
-      const int had = trainer->config().schedule.iters;
-      if (iters != had) std::cout << "  --iters " << iters << " replaces the checkpoint's " << had << " (lr decay horizon)\n";
-      trainer->set_total_iters(iters);
-    }
-  } else {
-    auto cfg = train::default_density_config(scene);
-    // A run of N iterations gets the schedule a budget of N iterations gets (Schedule::fitted): TensoRF's
-    // events (upsampling from 2000, masks) would otherwise never fire in a short run.
-    if (iters > 0) cfg.schedule = cfg.schedule.fitted(iters);
-    cfg.batch = batch;
-    cfg.seed = seed;
-    if (!act.empty()) cfg.model.act = stylerf::field::parse_density_activation(act);
-    if (vfinal > 0) cfg.schedule.voxels_final = vfinal;
-    if (vinit > 0) cfg.schedule.voxels_init = vinit;
-    if (cfg.schedule.voxels_init > cfg.schedule.voxels_final)
-      throw Error("--init-voxels " + std::to_string(cfg.schedule.voxels_init) + " exceeds the final grid's " +
-                  std::to_string(cfg.schedule.voxels_final) + " voxels; pass a larger --final-voxels");
-    if (vm.count("upsample-at")) cfg.schedule.upsample_at = train::parse_int_list(upsample_at, "--upsample-at");
-    if (vm.count("mask-at")) cfg.schedule.mask_at = train::parse_int_list(mask_at, "--mask-at");
-    if (no_mask) cfg.alpha_mask = false;
-    if (!density_rank.empty()) cfg.model.density_rank = parse_rank(density_rank, "--density-rank");
-    if (!app_rank.empty()) cfg.model.app_rank = parse_rank(app_rank, "--app-rank");
-    if (lr_grid > 0) cfg.lr_grid = lr_grid;
-    if (lr_net > 0) cfg.lr_net = lr_net;
-    if (!shading.empty()) cfg.model.deferred_shading = shading == "deferred";
-    trainer = std::make_unique<train::DensityTrainer>(scene, cfg);
+// The trainer resumed from the checkpoint at -o (same scene; --iters only moves the horizon).
+std::unique_ptr<train::DensityTrainer> resume_density_trainer(const DensityArgs& a, const stylerf::scene::Scene& scene) {
+  const auto ck = stylerf::io::load_checkpoint(a.out, "density");
+  if (ck.meta.contains("scene") && ck.meta["scene"].value("name", scene.name) != scene.name)
+    throw Error("--resume: checkpoint " + a.out + " was trained on scene '" + ck.meta["scene"].value("name", "") +
+                "', not '" + scene.name + "'");
+  auto trainer = std::make_unique<train::DensityTrainer>(scene, ck);
+  std::cout << "resuming from " << a.out << " at iteration " << trainer->iteration() << "\n";
+  if (a.iters > 0 && a.iters <= trainer->iteration())
+    throw Error("--resume --iters " + std::to_string(a.iters) + ": checkpoint " + a.out + " is already at iteration " +
+                std::to_string(trainer->iteration()) + "; give a larger --iters to train further");
+  if (a.iters > 0) {
+    const int had = trainer->config().schedule.iters;
+    if (a.iters != had)
+      std::cout << "  --iters " << a.iters << " replaces the checkpoint's " << had << " (lr decay horizon)\n";
+    trainer->set_total_iters(a.iters);
   }
-  if (vm.count("ert")) trainer->model().geo.ert_threshold = ert;
-  const auto& cfg = trainer->config();
-  std::cout << "density stage: " << trainer->model().describe() << "\n"
+  return trainer;
+}
+
+// A new trainer: the scene format's defaults, then the options given.
+std::unique_ptr<train::DensityTrainer> new_density_trainer(const DensityArgs& a, const stylerf::scene::Scene& scene) {
+  auto cfg = train::default_density_config(scene);
+  // A run of N iterations gets the schedule a budget of N iterations gets (Schedule::fitted): TensoRF's
+  // events (upsampling from 2000, masks) would otherwise never fire in a short run.
+  if (a.iters > 0) cfg.schedule = cfg.schedule.fitted(a.iters);
+  cfg.batch = a.batch;
+  cfg.seed = a.seed;
+  if (!a.act.empty()) cfg.model.act = stylerf::field::parse_density_activation(a.act);
+  if (a.vfinal > 0) cfg.schedule.voxels_final = a.vfinal;
+  if (a.vinit > 0) cfg.schedule.voxels_init = a.vinit;
+  if (cfg.schedule.voxels_init > cfg.schedule.voxels_final)
+    throw Error("--init-voxels " + std::to_string(cfg.schedule.voxels_init) + " exceeds the final grid's " +
+                std::to_string(cfg.schedule.voxels_final) + " voxels; pass a larger --final-voxels");
+  if (a.has("upsample-at")) cfg.schedule.upsample_at = train::parse_int_list(a.upsample_at, "--upsample-at");
+  if (a.has("mask-at")) cfg.schedule.mask_at = train::parse_int_list(a.mask_at, "--mask-at");
+  if (a.no_mask) cfg.alpha_mask = false;
+  if (!a.density_rank.empty()) cfg.model.density_rank = parse_rank(a.density_rank, "--density-rank");
+  if (!a.app_rank.empty()) cfg.model.app_rank = parse_rank(a.app_rank, "--app-rank");
+  if (a.lr_grid > 0) cfg.lr_grid = a.lr_grid;
+  if (a.lr_net > 0) cfg.lr_net = a.lr_net;
+  if (!a.shading.empty()) cfg.model.deferred_shading = a.shading == "deferred";
+  return std::make_unique<train::DensityTrainer>(scene, cfg);
+}
+
+void print_density_setup(train::DensityTrainer& trainer, const stylerf::scene::Scene& scene) {
+  const auto& cfg = trainer.config();
+  const float ert = trainer.model().geo.ert_threshold;
+  std::cout << "density stage: " << trainer.model().describe() << "\n"
             << "  activation " << (cfg.model.act == stylerf::field::DensityActivation::Relu ? "relu" : "softplus")
             << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", shading "
             << (cfg.model.deferred_shading ? "deferred" : "per sample") << ", early termination "
-            << (trainer->model().geo.ert_threshold > 0 ? "below " + std::to_string(trainer->model().geo.ert_threshold)
-                                                         : std::string("off"))
-            << ", background "
+            << (ert > 0 ? "below " + std::to_string(ert) : std::string("off")) << ", background "
             << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
             << "  " << cfg.schedule.describe() << "\n"
             << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
             << " betas (" << cfg.beta1 << ", " << cfg.beta2 << "), L1 " << cfg.l1_initial << " -> " << cfg.l1_rest
             << ", TV density " << cfg.tv_density << " app " << cfg.tv_app << std::endl;
+}
+
+// Held-out PSNR, timed apart from training.
+void report_density_psnr(train::DensityTrainer& trainer, const stylerf::scene::Scene& scene, int eval_views) {
+  if (scene.test.empty()) return;
+  const auto t_eval = std::chrono::steady_clock::now();
+  const auto scores = train::evaluate_views(trainer.model(), scene, eval_views, false);
+  std::cout << "test PSNR " << std::setprecision(2) << train::mean_psnr(scores) << " dB over " << scores.size()
+            << " held-out views (evaluation " << std::setprecision(1)
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_eval).count()
+            << " s, beside the training time; --eval-views 0 for all " << scene.test.size() << ")" << std::endl;
+}
+
+int run_train_density(int argc, char** argv) {
+  DensityArgs a;
+  if (const int code = parse_density_args(argc, argv, a); code >= 0) return code;
+  check_density_args(a);
+  stylerf::cli::init_runtime(a.device, a.profile);
+
+  stylerf::scene::LoadOptions lo;
+  lo.downsample = a.downsample;
+  lo.ndc = stylerf::scene::parse_switch(a.ndc, "--ndc");
+  lo.view_dependence = a.view_dep;
+  lo.log = &std::cout;
+  const auto scene = stylerf::scene::load_scene(a.dir, lo);
+  auto trainer = a.resume ? resume_density_trainer(a, scene) : new_density_trainer(a, scene);
+  if (a.has("ert")) trainer->model().geo.ert_threshold = a.ert;
+  print_density_setup(*trainer, scene);
 
   train::RunOptions ro;
   ro.log = &std::cout;
-  ro.log_every = log_every;
-  ro.checkpoint = out;
-  ro.checkpoint_every = ckpt_every;
-  ro.time_budget_s = minutes * 60.0;
-  ro.fit_schedule_to_budget = minutes > 0;
-  ro.scene_meta = stylerf::scene::scene_meta(dir, lo, scene);
+  ro.log_every = a.log_every;
+  ro.checkpoint = a.out;
+  ro.checkpoint_every = a.ckpt_every;
+  ro.time_budget_s = a.minutes * 60.0;
+  ro.fit_schedule_to_budget = a.minutes > 0;
+  ro.scene_meta = stylerf::scene::scene_meta(a.dir, lo, scene);
   const auto sum = train::run_density_training(*trainer, ro);
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9) << " it/s); checkpoint "
-            << out << "\n";
-  if (!scene.test.empty()) {
-    const auto t_eval = std::chrono::steady_clock::now();
-    const auto scores = train::evaluate_views(trainer->model(), scene, eval_views, false);
-    std::cout << "test PSNR " << std::setprecision(2) << train::mean_psnr(scores) << " dB over " << scores.size()
-              << " held-out views (evaluation " << std::setprecision(1)
-              << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_eval).count()
-              << " s, beside the training time; --eval-views 0 for all " << scene.test.size() << ")" << std::endl;
-  }
+            << a.out << "\n";
+  report_density_psnr(*trainer, scene, a.eval_views);
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
-  if (profile) std::cout << stylerf::host::Runtime::instance().timing_report();
+  if (a.profile) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }
 
