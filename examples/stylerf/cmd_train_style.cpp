@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <memory>
+#include <set>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -25,9 +27,11 @@ namespace {
 
 using stylerf::host::Error;
 
-int run_train_style(int argc, char** argv) {
-  namespace train = stylerf::train;
-  namespace model = stylerf::model;
+namespace train = stylerf::train;
+namespace model = stylerf::model;
+
+// All of train-style's options, as parsed (`given`: the options set on the command line).
+struct StyleArgs {
   std::string features_path, styles_dir, out, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name, style_decoder_name, recipe_name;
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
@@ -37,139 +41,140 @@ int run_train_style(int argc, char** argv) {
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
-  // --help lists what a user sets; --help-all adds the ablations and the run's plumbing.
+  std::set<std::string> given;
+  bool has(const char* option) const { return given.count(option) > 0; }
+};
+
+// Parses argv into a. --help lists what a user sets; --help-all adds the ablations and the run's plumbing.
+// Returns -1 to go on, else the exit code (a help was shown).
+int parse_style_args(int argc, char** argv, StyleArgs& a) {
   po::options_description desc("stylerf train-style --features CKPT --styles DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("help-all", "also show the ablation and logging options")(
-      "features", po::value(&features_path), "feature-stage checkpoint")(
-      "styles", po::value(&styles_dir), "folder of style images (.jpg/.png)")(
-      "holdout-styles", po::value(&holdout)->default_value(12), "styles held out of training (evaluated, never trained on)")(
-      "output,o", po::value(&out), "style checkpoint to write")(
-      "iters", po::value(&iters), "iterations (default 25000, the paper's)")(
-      "minutes", po::value(&minutes), "train for this much time (replaces --iters)")(
-      "recipe", po::value(&recipe_name),
+      "features", po::value(&a.features_path), "feature-stage checkpoint")(
+      "styles", po::value(&a.styles_dir), "folder of style images (.jpg/.png)")(
+      "holdout-styles", po::value(&a.holdout)->default_value(12), "styles held out of training (evaluated, never trained on)")(
+      "output,o", po::value(&a.out), "style checkpoint to write")(
+      "iters", po::value(&a.iters), "iterations (default 25000, the paper's)")(
+      "minutes", po::value(&a.minutes), "train for this much time (replaces --iters)")(
+      "recipe", po::value(&a.recipe_name),
       "fast | paper: the settings below that a flag does not give (default: the feature checkpoint's profile's "
       "name; fast is the best measured, paper the paper's)")(
-      "style-size", po::value(&style_size),
+      "style-size", po::value(&a.style_size),
       "each style image is resized to this square, then a random 256 x 256 crop of it is the step's style; 512: "
       "the paper's; 256: the whole image, the scale eval-style and stylize feed the model")(
-      "warm-start", po::value(&warm),
+      "warm-start", po::value(&a.warm),
       "first N steps in 2D on a map per training view (no rendering; fast profile)")(
-      "warm-maps", po::value(&warm_maps_name),
+      "warm-maps", po::value(&a.warm_maps_name),
       "the warm start's maps: vgg (stage 2's cached relu3_1 targets of the photographs) | rendered (the feature "
       "field rendered once per training view: what rendered steps and inference feed the stylizer)")(
-      "style-decoder", po::value(&style_decoder_name),
+      "style-decoder", po::value(&a.style_decoder_name),
       "what draws the stylised maps: stage2 (the feature stage's decoder, fine-tuned: the paper's) | vgg-adain "
       "(VGG's frozen relu3_1 -> relu4_1, then AdaIN's pretrained decoder, fine-tuned at --lr-decoder; fast profile) | "
       "vgg-adain-relu4 (vgg-adain with relu4_1 re-normalised to the style's relu4_1 statistics: not the "
       "paper's; docs/results.md)")(
-      "lr-stylizer", po::value(&lr_stylizer), "stylizer learning rate")(
-      "lr-decoder", po::value(&lr_decoder), "decoder fine-tuning learning rate")(
-      "lr-decay", po::value(&lr_decay),
+      "lr-stylizer", po::value(&a.lr_stylizer), "stylizer learning rate")(
+      "lr-decoder", po::value(&a.lr_decoder), "decoder fine-tuning learning rate")(
+      "lr-decay", po::value(&a.lr_decay),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
-      "seed", po::value(&seed)->default_value(0), "random seed")(
-      "resume", po::bool_switch(&resume), "continue from the checkpoint at -o")(
-      "force", po::bool_switch(&force), "overwrite an existing checkpoint at -o")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "seed", po::value(&a.seed)->default_value(0), "random seed")(
+      "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o")(
+      "force", po::bool_switch(&a.force), "overwrite an existing checkpoint at -o")(
+      "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
   po::options_description more("ablations and plumbing (--help-all)");
-  more.add_options()("sict", po::value(&sict_name)->default_value("volume-adaptive"),
+  more.add_options()("sict", po::value(&a.sict_name)->default_value("volume-adaptive"),
                      "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
-      "dst", po::value(&dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
-      "decoder-warm", po::value(&decoder_warm)->default_value(0),
+      "dst", po::value(&a.dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
+      "decoder-warm", po::value(&a.decoder_warm)->default_value(0),
       "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
       "profile)")(
-      "patch", po::value(&patch)->default_value(256), "patch side in pixels (multiple of 8)")(
-      "log-every", po::value(&log_every)->default_value(10), "iterations between progress lines")(
-      "eval-every", po::value(&eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
-      "eval-styles", po::value(&eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
-      "ckpt-every", po::value(&ckpt_every)->default_value(200), "iterations between checkpoints")(
-      "timing", po::bool_switch(&timing), "print per-kernel times at the end");
+      "patch", po::value(&a.patch)->default_value(256), "patch side in pixels (multiple of 8)")(
+      "log-every", po::value(&a.log_every)->default_value(10), "iterations between progress lines")(
+      "eval-every", po::value(&a.eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
+      "eval-styles", po::value(&a.eval_styles)->default_value(0), "held-out styles in each evaluation (0: all)")(
+      "ckpt-every", po::value(&a.ckpt_every)->default_value(200), "iterations between checkpoints")(
+      "timing", po::bool_switch(&a.timing), "print per-kernel times at the end");
   po::options_description all;
   all.add(desc).add(more);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, all), vm);
   po::notify(vm);
+  for (const auto& kv : vm)
+    if (!kv.second.defaulted()) a.given.insert(kv.first);
   if (vm.count("help-all")) {
     std::cout << all;
     return 0;
   }
-  if (vm.count("help") || out.empty() || (!resume && (features_path.empty() || styles_dir.empty()))) {
+  if (vm.count("help") || a.out.empty() || (!a.resume && (a.features_path.empty() || a.styles_dir.empty()))) {
     std::cout << desc << "\n(also --sict, --dst, --decoder-warm, --patch, --log-every, --eval-every, --eval-styles, "
                          "--ckpt-every, --timing: --help-all)\n";
     return vm.count("help") ? 0 : 2;
   }
-  if (vm.count("iters") && iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(iters) + ")");
-  if (vm.count("minutes") && !(minutes > 0 && std::isfinite(minutes)))
+  return -1;
+}
+
+// Every option checked before anything loads (names and values).
+void check_style_args(const StyleArgs& a) {
+  if (a.has("iters") && a.iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(a.iters) + ")");
+  if (a.has("minutes") && !(a.minutes > 0 && std::isfinite(a.minutes)))
     throw Error("--minutes must be a positive number of minutes");
-  if (minutes > 0 && iters > 0) throw Error("--minutes and --iters exclude each other");
-  if (patch < 8 || patch % 8) throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(patch) + ")");
-  if (style_size < 256 || style_size > 4096)
-    throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(style_size));
-  if (warm < 0 || decoder_warm < 0 || log_every < 0 || eval_every < 0 || ckpt_every < 0 || eval_styles < 0)
+  if (a.minutes > 0 && a.iters > 0) throw Error("--minutes and --iters exclude each other");
+  if (a.patch < 8 || a.patch % 8)
+    throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(a.patch) + ")");
+  if (a.style_size < 256 || a.style_size > 4096)
+    throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(a.style_size));
+  if (a.warm < 0 || a.decoder_warm < 0 || a.log_every < 0 || a.eval_every < 0 || a.ckpt_every < 0 || a.eval_styles < 0)
     throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
-  if (!(lr_stylizer > 0) || !std::isfinite(lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
-  if (!(lr_decoder > 0) || !std::isfinite(lr_decoder)) throw Error("--lr-decoder must be a positive number");
-  if (!(lr_decay > 0 && lr_decay <= 1))
-    throw Error("--lr-decay must be in (0, 1], got " + std::to_string(lr_decay));
-  if (dst_name != "bias" && dst_name != "no-bias") throw Error("--dst must be bias or no-bias, got '" + dst_name + "'");
-  const auto sict_mode = stylerf::style::parse_sict_mode(sict_name);
-  if (!recipe_name.empty()) train::parse_recipe(recipe_name);  // refused before any work
-  if (vm.count("warm-maps")) train::parse_warm_maps(warm_maps_name);
-  if (vm.count("style-decoder")) model::parse_style_decoder(style_decoder_name);
-  stylerf::cli::check_checkpoint_output(out, resume, force);
-  stylerf::cli::init_runtime(device, timing);
+  if (!(a.lr_stylizer > 0) || !std::isfinite(a.lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
+  if (!(a.lr_decoder > 0) || !std::isfinite(a.lr_decoder)) throw Error("--lr-decoder must be a positive number");
+  if (!(a.lr_decay > 0 && a.lr_decay <= 1))
+    throw Error("--lr-decay must be in (0, 1], got " + std::to_string(a.lr_decay));
+  if (a.dst_name != "bias" && a.dst_name != "no-bias")
+    throw Error("--dst must be bias or no-bias, got '" + a.dst_name + "'");
+  stylerf::style::parse_sict_mode(a.sict_name);
+  if (!a.recipe_name.empty()) train::parse_recipe(a.recipe_name);
+  if (a.has("warm-maps")) train::parse_warm_maps(a.warm_maps_name);
+  if (a.has("style-decoder")) model::parse_style_decoder(a.style_decoder_name);
+  stylerf::cli::check_checkpoint_output(a.out, a.resume, a.force);
+}
 
-  std::unique_ptr<stylerf::io::Checkpoint> ck;
-  ck = std::make_unique<stylerf::io::Checkpoint>(resume ? stylerf::io::load_checkpoint(out, "style")
-                                                        : stylerf::io::load_checkpoint(features_path, "features"));
-  const nlohmann::json scene_meta = ck->meta.value("scene", nlohmann::json::object());
-  const std::string dir = stylerf::scene::scene_dir_from_meta(scene_meta);
-  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
-  lo.log = &std::cout;
-  const auto scene = stylerf::scene::load_scene(dir, lo);
-  stylerf::scene::check_same_scene(scene_meta, scene, lo.downsample, resume ? out : features_path);
+// A new trainer: the recipe's settings (default: the feature checkpoint's profile's name), then every flag
+// given over them.
+std::unique_ptr<train::StyleTrainer> new_style_trainer(const StyleArgs& a, const stylerf::scene::Scene& scene,
+                                                      const stylerf::io::Checkpoint& ck) {
+  model::FeatureModel fm = model::FeatureModel::load(ck);
+  const std::string profile = model::decoder_profile_name(fm.profile);
+  const auto recipe = train::parse_recipe(a.recipe_name.empty() ? profile : a.recipe_name);
+  if (recipe == train::Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
+    throw Error("--recipe fast needs a fast-profile feature checkpoint; " + a.features_path + " has the " + profile +
+                " profile (use --recipe paper)");
+  train::StyleTrainConfig cfg = train::style_recipe(recipe);
+  cfg.sict = stylerf::style::parse_sict_mode(a.sict_name);
+  cfg.dst_bias = a.dst_name == "bias";
+  if (a.iters > 0) cfg.iters = a.iters;
+  cfg.patch = a.patch;
+  if (a.has("style-size")) cfg.style_size = a.style_size;
+  if (a.has("lr-stylizer")) cfg.lr_stylizer = a.lr_stylizer;
+  if (a.has("lr-decoder")) cfg.lr_decoder = a.lr_decoder;
+  if (a.has("lr-decay")) cfg.lr_decay_ratio = a.lr_decay;
+  if (a.has("warm-start")) cfg.warm_start = a.warm;
+  if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
+  if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
+  std::cout << "recipe " << train::recipe_name(recipe) << "\n";
+  cfg.decoder_warm = a.decoder_warm;
+  cfg.seed = a.seed;
+  auto styles = train::StyleSet::from_dir(a.styles_dir, a.holdout, &std::cout);
+  return std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
+}
 
-  std::unique_ptr<train::StyleTrainer> trainer;
-  if (resume) {
-    trainer = std::make_unique<train::StyleTrainer>(scene, *ck, &std::cout);
-    std::cout << "resuming from " << out << " at iteration " << trainer->iteration() << "\n";
-    if (iters > 0) trainer->set_total_iters(iters);
-    if (trainer->done() && minutes <= 0)
-      throw Error("--resume: checkpoint " + out + " is already at iteration " + std::to_string(trainer->iteration()) +
-                  "; pass a larger --iters to continue");
-  } else {
-    model::FeatureModel fm = model::FeatureModel::load(*ck);
-    // The recipe's settings, then every flag given over them.
-    const std::string profile = model::decoder_profile_name(fm.profile);
-    const auto recipe = train::parse_recipe(recipe_name.empty() ? profile : recipe_name);
-    if (recipe == train::Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
-      throw Error("--recipe fast needs a fast-profile feature checkpoint; " + features_path + " has the " + profile +
-                  " profile (use --recipe paper)");
-    train::StyleTrainConfig cfg = train::style_recipe(recipe);
-    cfg.sict = sict_mode;
-    cfg.dst_bias = dst_name == "bias";
-    if (iters > 0) cfg.iters = iters;
-    cfg.patch = patch;
-    if (vm.count("style-size")) cfg.style_size = style_size;
-    if (vm.count("lr-stylizer")) cfg.lr_stylizer = lr_stylizer;
-    if (vm.count("lr-decoder")) cfg.lr_decoder = lr_decoder;
-    if (vm.count("lr-decay")) cfg.lr_decay_ratio = lr_decay;
-    if (vm.count("warm-start")) cfg.warm_start = warm;
-    if (vm.count("warm-maps")) cfg.warm_maps = train::parse_warm_maps(warm_maps_name);
-    if (vm.count("style-decoder")) cfg.style_decoder = model::parse_style_decoder(style_decoder_name);
-    std::cout << "recipe " << train::recipe_name(recipe) << "\n";
-    cfg.decoder_warm = decoder_warm;
-    cfg.seed = seed;
-    auto styles = train::StyleSet::from_dir(styles_dir, holdout, &std::cout);
-    trainer = std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
-  }
-  const auto& cfg = trainer->config();
-  auto& m = trainer->model();
+void print_style_setup(train::StyleTrainer& trainer) {
+  const auto& cfg = trainer.config();
+  auto& m = trainer.model();
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << "\n"
-            << "  " << trainer->styles().train.size() << " training styles, " << trainer->styles().holdout.size()
+            << "  " << trainer.styles().train.size() << " training styles, " << trainer.styles().holdout.size()
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
@@ -181,23 +186,52 @@ int run_train_style(int argc, char** argv) {
                                    : "")
             << (cfg.decoder_warm > 0 ? "; " + std::to_string(cfg.decoder_warm) + " decoder warm-up steps before them" : "")
             << std::endl;
+}
+
+int run_train_style(int argc, char** argv) {
+  StyleArgs a;
+  if (const int code = parse_style_args(argc, argv, a); code >= 0) return code;
+  check_style_args(a);
+  stylerf::cli::init_runtime(a.device, a.timing);
+
+  const auto ck = a.resume ? stylerf::io::load_checkpoint(a.out, "style")
+                           : stylerf::io::load_checkpoint(a.features_path, "features");
+  const nlohmann::json scene_meta = ck.meta.value("scene", nlohmann::json::object());
+  const std::string dir = stylerf::scene::scene_dir_from_meta(scene_meta);
+  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
+  lo.log = &std::cout;
+  const auto scene = stylerf::scene::load_scene(dir, lo);
+  stylerf::scene::check_same_scene(scene_meta, scene, lo.downsample, a.resume ? a.out : a.features_path);
+
+  std::unique_ptr<train::StyleTrainer> trainer;
+  if (a.resume) {
+    trainer = std::make_unique<train::StyleTrainer>(scene, ck, &std::cout);
+    std::cout << "resuming from " << a.out << " at iteration " << trainer->iteration() << "\n";
+    if (a.iters > 0) trainer->set_total_iters(a.iters);
+    if (trainer->done() && a.minutes <= 0)
+      throw Error("--resume: checkpoint " + a.out + " is already at iteration " + std::to_string(trainer->iteration()) +
+                  "; pass a larger --iters to continue");
+  } else {
+    trainer = new_style_trainer(a, scene, ck);
+  }
+  print_style_setup(*trainer);
 
   train::StyleRunOptions ro;
   ro.log = &std::cout;
-  ro.log_every = log_every;
-  ro.eval_every = eval_every;
-  ro.eval_styles = eval_styles;
-  ro.checkpoint = out;
-  ro.checkpoint_every = ckpt_every;
-  ro.time_budget_s = minutes * 60.0;
+  ro.log_every = a.log_every;
+  ro.eval_every = a.eval_every;
+  ro.eval_styles = a.eval_styles;
+  ro.checkpoint = a.out;
+  ro.checkpoint_every = a.ckpt_every;
+  ro.time_budget_s = a.minutes * 60.0;
   ro.scene_meta = scene_meta;
-  if (minutes > 0 && !resume) trainer->set_total_iters(1000000);  // refitted from the measured rate
+  if (a.minutes > 0 && !a.resume) trainer->set_total_iters(1000000);  // refitted from the measured rate
   const auto sum = train::run_style_training(*trainer, ro);
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.seconds / std::max(1, sum.iterations) << " s/it); checkpoint "
-            << out << std::endl;
+            << a.out << std::endl;
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
-  if (timing) std::cout << stylerf::host::Runtime::instance().timing_report();
+  if (a.timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }
 
