@@ -149,11 +149,9 @@ int bench_render(const BenchOptions& opt) {
   if (opt.ckpt.empty()) throw host::Error("bench render: --ckpt (a density checkpoint) is required");
   const auto ck = io::load_checkpoint(opt.ckpt, "density");
   const json smeta = ck.meta.value("scene", json::object());
-  const std::string dir = opt.scene.empty() ? scene::scene_dir_from_meta(smeta) : opt.scene;
-  auto lo = scene::load_options_from_meta(smeta);
-  scene::check_scene_dir_format(smeta, dir, opt.ckpt);
-  const auto sc = scene::load_scene(dir, lo);
-  if (!smeta.empty()) scene::check_same_scene(smeta, sc, lo.downsample, opt.ckpt);
+  scene::SceneOverrides o;
+  o.dir = opt.scene;
+  const auto sc = scene::open_scene_for(smeta, opt.ckpt, o).scene;
   if (sc.test.empty()) throw host::Error("bench render: scene " + sc.root + " has no held-out views");
   const int views = opt.quick ? 1 : opt.views, steps = opt.quick ? 2 : opt.steps;
   model::DensityModel m = model::load_model(ck);

@@ -25,9 +25,9 @@ Setup setup_from(const BenchOptions& opt) {
     else
       throw Error("bench patch: --ckpt " + opt.ckpt + " holds a '" + ck.kind + "' stage (density, features or style)");
     const auto meta = ck.meta.value("scene", nlohmann::json::object());
-    auto lo = scene::load_options_from_meta(meta);
-    lo.load_images = false;
-    s.scene = scene::load_scene(scene::scene_dir_from_meta(meta), lo);
+    scene::SceneOverrides o;
+    o.load_images = false;
+    s.scene = scene::open_scene_for(meta, opt.ckpt, o).scene;
     if (s.scene.format != "blender") s.rank = {48, 12, 12};
     s.cam = s.scene.train.at(0).camera.resized(S, S);
     s.source = opt.ckpt + " (" + s.scene.name + ", first training camera at " + std::to_string(S) + "x" +

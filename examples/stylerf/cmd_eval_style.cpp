@@ -48,9 +48,7 @@ int run_eval_style(int argc, char** argv) {
   stylerf::cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "style");
   const auto model = stylerf::model::StyleModel::load(ck);
-  const nlohmann::json scene_meta = ck.meta.value("scene", nlohmann::json::object());
-  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
-  const auto scene = stylerf::scene::load_scene(stylerf::scene::scene_dir_from_meta(scene_meta), lo);
+  const auto scene = stylerf::scene::open_scene_for(ck.meta.value("scene", nlohmann::json::object()), ckpt).scene;
   std::vector<std::string> styles;
   if (!styles_dir.empty()) {
     styles = train::StyleSet::from_dir(styles_dir, 0, &std::cout).train;

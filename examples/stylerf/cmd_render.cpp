@@ -173,13 +173,11 @@ int run_render(int argc, char** argv) {
   FrameRenderer renderer(ck);
   if (vm.count("ert")) renderer.set_ert(ert);
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
-  if (scene_dir.empty()) scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
-  auto lo = stylerf::scene::load_options_from_meta(smeta);
-  lo.load_images = views == "test";
-  lo.log = &std::cout;
-  stylerf::scene::check_scene_dir_format(smeta, scene_dir, ckpt);
-  const auto scene = stylerf::scene::load_scene(scene_dir, lo);
-  if (!smeta.empty()) stylerf::scene::check_same_scene(smeta, scene, lo.downsample, ckpt);
+  stylerf::scene::SceneOverrides o;
+  o.dir = scene_dir;
+  o.load_images = views == "test";
+  o.log = &std::cout;
+  const auto scene = stylerf::scene::open_scene_for(smeta, ckpt, o).scene;
   std::cout << renderer.describe() << "\n";
   if (out.empty()) out = ckpt + "_render_" + views;
   fs::create_directories(out);

@@ -403,15 +403,11 @@ stylerf::io::Checkpoint load_style_checkpoint(const std::string& path) {
 }
 
 // The scene the checkpoint was trained on (or --scene), checked to be that scene.
-stylerf::scene::Scene open_stylize_scene(StylizeArgs& a, const stylerf::io::Checkpoint& ck) {
-  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
-  auto lo = stylerf::scene::load_options_from_meta(smeta);
-  lo.load_images = a.test() && !a.no_losses;
-  if (a.scene_dir.empty()) a.scene_dir = stylerf::scene::scene_dir_from_meta(smeta);
-  stylerf::scene::check_scene_dir_format(smeta, a.scene_dir, a.ckpt);
-  auto scene = stylerf::scene::load_scene(a.scene_dir, lo);
-  stylerf::scene::check_same_scene(smeta, scene, lo.downsample, a.ckpt);
-  return scene;
+stylerf::scene::Scene open_stylize_scene(const StylizeArgs& a, const stylerf::io::Checkpoint& ck) {
+  stylerf::scene::SceneOverrides o;
+  o.dir = a.scene_dir;
+  o.load_images = a.test() && !a.no_losses;
+  return stylerf::scene::open_scene_for(ck.meta.value("scene", nlohmann::json::object()), a.ckpt, o).scene;
 }
 
 int run_stylize(int argc, char** argv) {

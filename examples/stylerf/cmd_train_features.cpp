@@ -189,12 +189,12 @@ int run_train_features(int argc, char** argv) {
   stylerf::cli::init_runtime(a.device, a.timing);
 
   FeatureSource src = open_feature_source(a);
-  if (a.dir.empty()) a.dir = stylerf::scene::scene_dir_from_meta(src.scene_meta);
-  auto lo = stylerf::scene::load_options_from_meta(src.scene_meta);
-  if (a.downsample > 0) lo.downsample = a.downsample;
-  lo.log = &std::cout;
-  const auto scene = stylerf::scene::load_scene(a.dir, lo);
-  stylerf::scene::check_same_scene(src.scene_meta, scene, lo.downsample, a.resume ? a.out : a.density_path);
+  stylerf::scene::SceneOverrides o;
+  o.dir = a.dir;
+  o.downsample = a.downsample;
+  o.log = &std::cout;
+  const auto opened = stylerf::scene::open_scene_for(src.scene_meta, a.resume ? a.out : a.density_path, o);
+  const stylerf::scene::Scene& scene = opened.scene;
   auto trainer = make_feature_trainer(a, profile, scene, src);
   print_feature_setup(*trainer);
 
@@ -204,7 +204,7 @@ int run_train_features(int argc, char** argv) {
   ro.checkpoint = a.out;
   ro.checkpoint_every = a.ckpt_every;
   ro.time_budget_s = a.minutes * 60.0;
-  ro.scene_meta = stylerf::scene::scene_meta(a.dir, lo, scene);
+  ro.scene_meta = stylerf::scene::scene_meta(opened.dir, opened.options, scene);
   ro.density_meta = src.density_meta;
   if (a.minutes > 0 && !a.resume) trainer->set_total_iters(1000000);  // refitted from the measured rate
   const auto sum = train::run_feature_training(*trainer, ro);

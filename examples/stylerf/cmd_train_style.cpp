@@ -197,11 +197,9 @@ int run_train_style(int argc, char** argv) {
   const auto ck = a.resume ? stylerf::io::load_checkpoint(a.out, "style")
                            : stylerf::io::load_checkpoint(a.features_path, "features");
   const nlohmann::json scene_meta = ck.meta.value("scene", nlohmann::json::object());
-  const std::string dir = stylerf::scene::scene_dir_from_meta(scene_meta);
-  auto lo = stylerf::scene::load_options_from_meta(scene_meta);
-  lo.log = &std::cout;
-  const auto scene = stylerf::scene::load_scene(dir, lo);
-  stylerf::scene::check_same_scene(scene_meta, scene, lo.downsample, a.resume ? a.out : a.features_path);
+  stylerf::scene::SceneOverrides o;
+  o.log = &std::cout;
+  const auto scene = stylerf::scene::open_scene_for(scene_meta, a.resume ? a.out : a.features_path, o).scene;
 
   std::unique_ptr<train::StyleTrainer> trainer;
   if (a.resume) {

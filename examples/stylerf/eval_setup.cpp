@@ -16,14 +16,10 @@ namespace stylerf::cli {
 using host::Error;
 
 scene::Scene scene_of_checkpoint(const io::Checkpoint& ck, const std::string& dir_arg) {
-  const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
-  auto lo = scene::load_options_from_meta(smeta);
-  lo.load_images = false;
-  const std::string dir = dir_arg.empty() ? scene::scene_dir_from_meta(smeta) : dir_arg;
-  scene::check_scene_dir_format(smeta, dir, ck.path);
-  scene::Scene s = scene::load_scene(dir, lo);
-  scene::check_same_scene(smeta, s, lo.downsample, ck.path);
-  return s;
+  scene::SceneOverrides o;
+  o.dir = dir_arg;
+  o.load_images = false;
+  return scene::open_scene_for(ck.meta.value("scene", nlohmann::json::object()), ck.path, o).scene;
 }
 
 void check_same_scene_of(const io::Checkpoint& a, const io::Checkpoint& b, const scene::Scene& scene) {

@@ -26,9 +26,9 @@ int main(int argc, char** argv) {
 
     // The scene's cameras (no images needed), from where the checkpoint says it was trained.
     const nlohmann::json meta = ck.meta.value("scene", nlohmann::json::object());
-    scene::LoadOptions lo = scene::load_options_from_meta(meta);
-    lo.load_images = false;
-    const scene::Scene scene = scene::load_scene(scene::scene_dir_from_meta(meta), lo);
+    scene::SceneOverrides o;
+    o.load_images = false;
+    const scene::Scene scene = scene::open_scene_for(meta, argv[1], o).scene;
     const auto& views = scene.test.empty() ? scene.train : scene.test;
     const scene::Camera cam = views.at(argc > 4 ? size_t(std::atoi(argv[4])) % views.size() : 0).camera;
 

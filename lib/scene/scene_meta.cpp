@@ -59,4 +59,19 @@ void check_scene_dir_format(const nlohmann::json& meta, const std::string& dir, 
     throw host::Error("checkpoint " + checkpoint + " was trained on scene '" + name + "' (" + format + "), but " + dir +
                       " is " + (blender ? "a Blender-format scene" : "an LLFF capture"));
 }
+
+CheckpointScene open_scene_for(const nlohmann::json& meta, const std::string& checkpoint,
+                               const SceneOverrides& overrides) {
+  CheckpointScene out;
+  out.options = load_options_from_meta(meta);
+  if (overrides.downsample > 0) out.options.downsample = overrides.downsample;
+  out.options.load_images = overrides.load_images;
+  out.options.log = overrides.log;
+  out.dir = overrides.dir.empty() ? scene_dir_from_meta(meta) : overrides.dir;
+  if (!meta.empty()) check_scene_dir_format(meta, out.dir, checkpoint);
+  out.scene = load_scene(out.dir, out.options);
+  if (!meta.empty()) check_same_scene(meta, out.scene, out.options.downsample, checkpoint);
+  return out;
+}
+
 }  // namespace stylerf::scene
