@@ -14,4 +14,15 @@ inline float hsum8(float8 v) {
   return b.x + b.y;
 }
 
+// A work-group's lanes combine their values in buf[0, lanes) (lanes a power of two, every lane calling,
+// buf filled and a barrier passed): buf[0] = OP over all of them, in a fixed tree order (deterministic).
+// OP is a two-argument function or macro, e.g. fmax or TREE_ADD.
+#define TREE_ADD(a, b) ((a) + (b))
+#define LOCAL_TREE(buf, lanes, OP)                                                   \
+  for (int tree_s = (lanes) / 2; tree_s > 0; tree_s >>= 1) {                         \
+    const int tree_l = (int)get_local_id(0);                                         \
+    if (tree_l < tree_s) (buf)[tree_l] = OP((buf)[tree_l], (buf)[tree_l + tree_s]);  \
+    barrier(CLK_LOCAL_MEM_FENCE);                                                    \
+  }
+
 #endif  // STYLERF_COMMON_CL

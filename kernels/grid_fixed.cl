@@ -46,10 +46,7 @@ kernel __attribute__((reqd_work_group_size(BOUND_WG, 1, 1))) void vm_fixed_bound
   }
   buf[l] = bad ? INFINITY : m;
   barrier(CLK_LOCAL_MEM_FENCE);
-  for (int s = BOUND_WG / 2; s > 0; s >>= 1) {
-    if (l < s) buf[l] = fmax(buf[l], buf[l + s]);
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
+  LOCAL_TREE(buf, BOUND_WG, fmax)
   if (l == 0) partials[p] = buf[0];
 }
 

@@ -22,10 +22,7 @@ inline float group_sum(float v, local float* buf) {
   const int l = get_local_id(0);
   buf[l] = v;
   barrier(CLK_LOCAL_MEM_FENCE);
-  for (int s = WG / 2; s > 0; s >>= 1) {
-    if (l < s) buf[l] += buf[l + s];
-    barrier(CLK_LOCAL_MEM_FENCE);
-  }
+  LOCAL_TREE(buf, WG, TREE_ADD)
   const float r = buf[0];
   barrier(CLK_LOCAL_MEM_FENCE);
   return r;
