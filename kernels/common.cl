@@ -14,6 +14,21 @@ inline float hsum8(float8 v) {
   return b.x + b.y;
 }
 
+// Blocked float sum of p[0, n): float8 accumulators, a fresh one every BLOCK vectors, then the scalar tail.
+inline float blocked_sum(__global const float* p, int n) {
+  const int n8 = n / 8;
+  float8 total = 0.0f;
+  for (int b = 0; b < n8; b += BLOCK) {
+    const int e = min(b + BLOCK, n8);
+    float8 acc = 0.0f;
+    for (int i = b; i < e; ++i) acc += vload8(i, p);
+    total += acc;
+  }
+  float s = hsum8(total);
+  for (int i = n8 * 8; i < n; ++i) s += p[i];
+  return s;
+}
+
 // A work-group's lanes combine their values in buf[0, lanes) (lanes a power of two, every lane calling,
 // buf filled and a barrier passed): buf[0] = OP over all of them, in a fixed tree order (deterministic).
 // OP is a two-argument function or macro, e.g. fmax or TREE_ADD.

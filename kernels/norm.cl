@@ -17,24 +17,9 @@
 // half an ulp of 1e4 (~5e-4, i.e. 5% of the std), so the stats kernel also returns the rounding
 // residual mean_lo (true mean ~ mean + mean_lo) and the normalising kernels subtract both:
 // (x - mean) is exact for x near mean, and then - mean_lo restores the lost digits.
-// BLOCK and hsum8 come from kernels/common.cl, which the runtime puts in front of every program.
+// BLOCK, hsum8 and blocked_sum (pass 1) come from kernels/common.cl, which the runtime puts in front of every program.
 
 #define SPAN 64
-
-// Blocked float sum of p[0, n): pass 1.
-inline float blocked_sum(__global const float* p, int n) {
-  const int n8 = n / 8;
-  float8 total = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 acc = 0.0f;
-    for (int i = b; i < e; ++i) acc += vload8(i, p);
-    total += acc;
-  }
-  float s = hsum8(total);
-  for (int i = n8 * 8; i < n; ++i) s += p[i];
-  return s;
-}
 
 // Pass 2 over p[0, n): *sd = sum(d), *sq = sum(d^2) with d = x - m0, blocked as above.
 inline void centred_sums(__global const float* p, int n, float m0, float* sd_out, float* sq_out) {

@@ -5,25 +5,13 @@
 // error proportional to BLOCK + chunk / (8 * BLOCK) rather than chunk). Stage 2: one work-item adds the
 // partials in order. The split depends on n only, so results do not depend on scheduling.
 // chunk is a multiple of 8, so every chunk but the last starts 32-byte aligned.
-// BLOCK and hsum8 come from kernels/common.cl, which the runtime puts in front of every program.
+// BLOCK, hsum8 and blocked_sum come from kernels/common.cl, which the runtime puts in front of every program.
 
 __kernel void sum_partials(__global const float* x, __global float* partials, int n, int chunk) {
   const int p = get_global_id(0);
   const int begin = p * chunk;
   if (begin >= n) return;
-  const int end = min(begin + chunk, n);
-  __global const float* q = x + begin;
-  const int n8 = (end - begin) / 8;
-  float8 total = 0.0f;
-  for (int b = 0; b < n8; b += BLOCK) {
-    const int e = min(b + BLOCK, n8);
-    float8 acc = 0.0f;
-    for (int i = b; i < e; ++i) acc += vload8(i, q);
-    total += acc;
-  }
-  float s = hsum8(total);
-  for (int i = begin + n8 * 8; i < end; ++i) s += x[i];
-  partials[p] = s;
+  partials[p] = blocked_sum(x + begin, min(begin + chunk, n) - begin);
 }
 
 // Counts the NaN and Inf elements of each chunk. Tests the exponent bits rather than calling isfinite,
