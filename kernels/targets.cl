@@ -26,6 +26,31 @@ inline Taps target_taps(float px, float py, int hf, int wf) {
   return t;
 }
 
+// The four tap rows (C floats each) of view map m at taps t, and their bilinear weights.
+typedef struct {
+  const global float* p[4];  // (i0, j0), (i0, j1), (i1, j0), (i1, j1)
+  float w[4];
+} TapRows;
+
+inline void tap_rows(const global float* m, Taps t, int wf, int C, TapRows* r) {
+  r->p[0] = m + ((size_t)t.i0 * wf + t.j0) * C;
+  r->p[1] = m + ((size_t)t.i0 * wf + t.j1) * C;
+  r->p[2] = m + ((size_t)t.i1 * wf + t.j0) * C;
+  r->p[3] = m + ((size_t)t.i1 * wf + t.j1) * C;
+  r->w[0] = (1.0f - t.ly) * (1.0f - t.lx);
+  r->w[1] = (1.0f - t.ly) * t.lx;
+  r->w[2] = t.ly * (1.0f - t.lx);
+  r->w[3] = t.ly * t.lx;
+}
+
+// Channels [c, c + 8) interpolated.
+inline float8 tap_chunk(const TapRows* r, int c) {
+  float8 a = r->w[0] * vload8(0, r->p[0] + c);
+  a = fma((float8)(r->w[1]), vload8(0, r->p[1] + c), a);
+  a = fma((float8)(r->w[2]), vload8(0, r->p[2] + c), a);
+  return fma((float8)(r->w[3]), vload8(0, r->p[3] + c), a);
+}
+
 // out[r][c] = bilinear of maps[view[r]] at pixel_xy[r]. A view index outside [0, V) or a non-finite position
 // gives a row of NaN, so a bad input shows up in the loss instead of reading some other pixel.
 kernel void targets_gather(global const float* maps, global const int* view, global const float* pixel_xy, int R,
@@ -39,21 +64,9 @@ kernel void targets_gather(global const float* maps, global const int* view, glo
     for (int c = 0; c < C; c += 8) vstore8((float8)(NAN), 0, dst + c);
     return;
   }
-  const Taps t = target_taps(px, py, hf, wf);
-  const global float* m = maps + (size_t)v * hf * wf * C;
-  const global float* p00 = m + ((size_t)t.i0 * wf + t.j0) * C;
-  const global float* p01 = m + ((size_t)t.i0 * wf + t.j1) * C;
-  const global float* p10 = m + ((size_t)t.i1 * wf + t.j0) * C;
-  const global float* p11 = m + ((size_t)t.i1 * wf + t.j1) * C;
-  const float w00 = (1.0f - t.ly) * (1.0f - t.lx), w01 = (1.0f - t.ly) * t.lx;
-  const float w10 = t.ly * (1.0f - t.lx), w11 = t.ly * t.lx;
-  for (int c = 0; c < C; c += 8) {
-    float8 a = w00 * vload8(0, p00 + c);
-    a = fma((float8)(w01), vload8(0, p01 + c), a);
-    a = fma((float8)(w10), vload8(0, p10 + c), a);
-    a = fma((float8)(w11), vload8(0, p11 + c), a);
-    vstore8(a, 0, dst + c);
-  }
+  TapRows rows;
+  tap_rows(maps + (size_t)v * hf * wf * C, target_taps(px, py, hf, wf), wf, C, &rows);
+  for (int c = 0; c < C; c += 8) vstore8(tap_chunk(&rows, c), 0, dst + c);
 }
 
 // OpenCL 1.2 has no float atomics: compare-and-swap on the bits, every access atomic (a plain load of the
@@ -103,21 +116,13 @@ kernel void targets_patch(global const float* maps, int v, int hf, int wf, int C
   const int p = get_global_id(0);
   if (p >= ho * wo) return;
   const int i = p / wo, j = p - i * wo;
-  const Taps t = target_taps(x0 + scale * (j + 0.5f), y0 + scale * (i + 0.5f), hf, wf);
-  const global float* m = maps + (size_t)v * hf * wf * C;
-  const global float* p00 = m + ((size_t)t.i0 * wf + t.j0) * C;
-  const global float* p01 = m + ((size_t)t.i0 * wf + t.j1) * C;
-  const global float* p10 = m + ((size_t)t.i1 * wf + t.j0) * C;
-  const global float* p11 = m + ((size_t)t.i1 * wf + t.j1) * C;
-  const float w00 = (1.0f - t.ly) * (1.0f - t.lx), w01 = (1.0f - t.ly) * t.lx;
-  const float w10 = t.ly * (1.0f - t.lx), w11 = t.ly * t.lx;
+  TapRows rows;
+  tap_rows(maps + (size_t)v * hf * wf * C, target_taps(x0 + scale * (j + 0.5f), y0 + scale * (i + 0.5f), hf, wf),
+           wf, C, &rows);
   const size_t plane = (size_t)ho * wo;
   global float* dst = out + p;
   for (int c = 0; c < C; c += 8) {
-    float8 a = w00 * vload8(0, p00 + c);
-    a = fma((float8)(w01), vload8(0, p01 + c), a);
-    a = fma((float8)(w10), vload8(0, p10 + c), a);
-    a = fma((float8)(w11), vload8(0, p11 + c), a);
+    const float8 a = tap_chunk(&rows, c);
     const float s[8] = {a.s0, a.s1, a.s2, a.s3, a.s4, a.s5, a.s6, a.s7};
     for (int k = 0; k < 8; ++k) dst[(size_t)(c + k) * plane] = s[k];
   }
