@@ -35,7 +35,7 @@ int run_scene_info(int argc, char** argv) {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::cout << s.describe();
   const auto path = stylerf::scene::default_path(s, 8);
-  std::cout << "  render path: " << (s.format == "llff-forward" || s.effects.ndc ? "spiral" : "orbit") << ", first camera at ("
+  std::cout << "  render path: " << (s.format.find("-forward") != std::string::npos || s.effects.ndc ? "spiral" : "orbit") << ", first camera at ("
             << path[0].c2w[0][3] << ", " << path[0].c2w[1][3] << ", " << path[0].c2w[2][3] << ")\n";
   std::cout << "  loaded in " << secs << " s\n";
   return 0;

@@ -8,6 +8,7 @@
 
 #include "host/error.hpp"
 #include "lib/io/npy.hpp"
+#include "lib/scene/capture_geometry.hpp"
 #include "lib/scene/image_files.hpp"
 #include "lib/scene/poses.hpp"
 
@@ -18,8 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kForwardFacingMaxAngle = 30.0;  // fern 9.5, horns 14.1; the object captures 73..121
-constexpr double kBoundFactor = 0.75;            // LLFF's bd_factor: nearest bound -> 1 / 0.75
 constexpr int kHoldEvery = 8;
 
 std::string fmt(double v) {
@@ -177,110 +176,18 @@ Scene load_llff(const std::string& dir, const LoadOptions& opts) {
     if (opts.load_images) rgb[i] = interleave(iw == w && ih == h ? img : io::resize(img, w, h));
   }
 
-  // --- geometry: forward-facing or object-centric -------------------------------------------------
-  std::vector<Vec3> view_dirs(n);
-  for (int i = 0; i < n; ++i) view_dirs[i] = scale(poses[i].axis(2), -1.0);
-  const double spread = max_view_angle_degrees(view_dirs);
-  const bool forward = spread < kForwardFacingMaxAngle;
-  s.format = forward ? "llff-forward" : "llff-object";
-  s.notes.push_back(std::string(forward ? "forward-facing" : "object-centric") + " capture: viewing directions lie within " +
-                    fmt(spread) + " degrees of their mean (forward-facing below " + fmt(kForwardFacingMaxAngle) + ")");
-  s.effects.ndc = opts.ndc == Switch::automatic ? forward : opts.ndc == Switch::on;
-  if (opts.ndc != Switch::automatic) s.notes.push_back(std::string("NDC forced ") + (s.effects.ndc ? "on" : "off") + " by --ndc");
-
-  const double min_near = *std::min_element(near_b.begin(), near_b.end());
-  const double max_far = *std::max_element(far_b.begin(), far_b.end());
-  if (forward) {
-    // Rescale so the nearest content sits at 1/0.75: the NDC near plane z = -1 is then in front of it.
-    const double sc = 1.0 / (min_near * kBoundFactor);
-    for (Pose& p : poses)
-      for (int r = 0; r < 3; ++r) p.m[r][3] *= sc;
-    const Pose avg = average_pose(poses);
-    for (Pose& p : poses) p = relative(avg, p);
-    s.depth_near = float(min_near * sc);
-    s.depth_far = float(max_far * sc);
-    s.ndc_near = 1.0f;
-    if (s.effects.ndc) {
-      s.near = 0.0f;
-      s.far = 1.0f;
-      const float box[2][3] = {{-1.5f, -1.67f, -1.0f}, {1.5f, 1.67f, 1.0f}};
-      std::copy(&box[0][0], &box[0][0] + 6, &s.aabb[0][0]);
-    } else {
-      // World-space rays: the box holds every camera frustum between the bounds (capped at 4x the
-      // nearest bound, where a forward-facing capture has little parallax left).
-      s.near = float(s.depth_near * 0.9);
-      s.far = float(std::min<double>(s.depth_far, 4.0 * s.depth_near * 1.0));
-      for (int k = 0; k < 3; ++k) s.aabb[0][k] = 1e30f, s.aabb[1][k] = -1e30f;
-      for (const Pose& p : poses)
-        for (double depth : {double(s.near), double(s.far)})
-          for (int cy = -1; cy <= 1; cy += 2)
-            for (int cx = -1; cx <= 1; cx += 2) {
-              Vec3 d_cam{cx * 0.5 * w / fx, cy * 0.5 * h / fy, -1.0};
-              for (int k = 0; k < 3; ++k) {
-                double v = p.m[k][3] + depth * (p.m[k][0] * d_cam[0] + p.m[k][1] * d_cam[1] + p.m[k][2] * d_cam[2]);
-                s.aabb[0][k] = std::min(s.aabb[0][k], float(v));
-                s.aabb[1][k] = std::max(s.aabb[1][k], float(v));
-              }
-            }
-      s.far = float(s.far * std::sqrt(1.0 + 0.25 * (w / fx) * (w / fx) + 0.25 * (h / fy) * (h / fy)));
-    }
-  } else {
-    // Centre on the point every camera looks at, make the mean camera "up" +z, cameras at distance ~1.
-    std::vector<Vec3> origins(n);
-    for (int i = 0; i < n; ++i) origins[i] = poses[i].axis(3);
-    const Vec3 focus = nearest_point_to_lines(origins, view_dirs);
-    int in_front = 0;
-    for (int i = 0; i < n; ++i) in_front += dot(sub(focus, origins[i]), view_dirs[i]) > 0;
-    if (in_front * 2 < n)
-      s.notes.push_back("warning: the common focus point lies behind " + std::to_string(n - in_front) +
-                        " cameras; this may not be an object-centric capture (try --ndc on)");
-    Vec3 up{0, 0, 0}, front{0, 0, 0};
-    double mean_dist = 0;
+  // --- geometry: forward-facing or object-centric (shared with the COLMAP and nerfstudio loaders) ----
+  {
+    std::vector<CaptureView> cv(n);
     for (int i = 0; i < n; ++i) {
-      up = add(up, poses[i].axis(1));
-      front = add(front, sub(origins[i], focus));
-      mean_dist += norm(sub(origins[i], focus)) / n;
+      cv[i].pose = poses[i];
+      cv[i].near = near_b[i];
+      cv[i].far = far_b[i];
+      cv[i].tan_x = 0.5 * w / fx;
+      cv[i].tan_y = 0.5 * h / fy;
     }
-    const Vec3 z = normalize(up);
-    Vec3 x = sub(front, scale(z, dot(front, z)));
-    if (norm(x) < 1e-9 * (1 + norm(front))) x = std::fabs(z[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-    x = normalize(sub(x, scale(z, dot(x, z))));
-    const Vec3 y = cross(z, x);
-    const Vec3 rows[3] = {x, y, z};
-    const double sc = 1.0 / mean_dist;
-    for (Pose& p : poses) {
-      Pose q;
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) q.m[r][c] = dot(rows[r], p.axis(c));
-        q.m[r][3] = dot(rows[r], sub(p.axis(3), focus)) * sc;
-      }
-      p = q;
-    }
-    // The content nearest to each camera is at distance near_i, so the object reaches at least
-    // dist_i - near_i from the centre; the median over cameras (robust to a close table edge) with a
-    // margin sizes the box, capped inside the camera sphere.
-    std::vector<double> reach(n);
-    for (int i = 0; i < n; ++i) reach[i] = norm(poses[i].axis(3)) - near_b[i] * sc;
-    std::vector<double> sorted = reach;
-    std::sort(sorted.begin(), sorted.end());
-    const double median = sorted[n / 2];
-    const double half = std::clamp(1.5 * median, 0.1, 0.9);
-    for (int k = 0; k < 3; ++k) s.aabb[0][k] = float(-half), s.aabb[1][k] = float(half);
-    s.notes.push_back("object box: half-size " + fmt(half) + " (median reach of the near bounds " + fmt(median) +
-                      ", x1.5), cameras at mean distance 1 from the focus point");
-    s.depth_near = float(min_near * sc);
-    s.depth_far = float(max_far * sc);
-    s.near = float(std::max(0.05, std::min(s.depth_near * 0.9, 1.0 - half * std::sqrt(3.0))));
-    double max_dist = 0;
-    for (const Pose& p : poses) max_dist = std::max(max_dist, norm(p.axis(3)));
-    s.far = float(max_dist + half * std::sqrt(3.0));
-    if (s.effects.ndc) {
-      s.near = 0.0f;
-      s.far = 1.0f;
-      s.ndc_near = float(s.depth_near);
-      const float box[2][3] = {{-1.5f, -1.67f, -1.0f}, {1.5f, 1.67f, 1.0f}};
-      std::copy(&box[0][0], &box[0][0] + 6, &s.aabb[0][0]);
-    }
+    normalise_capture(cv, "llff", opts, s, npy);
+    for (int i = 0; i < n; ++i) poses[i] = cv[i].pose;
   }
 
   // --- split ----------------------------------------------------------------------------------------
