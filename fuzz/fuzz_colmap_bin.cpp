@@ -1,6 +1,8 @@
 // COLMAP binary models: the first byte picks the file (0 cameras.bin, 1 images.bin, 2 points3D.bin; modulo
 // 3) and the rest is its content. The reader must refuse truncated files, counts larger than the file,
 // unknown camera models and non-finite values with an Error, and never allocate by a count it was given.
+#include <sys/stat.h>
+
 #include "fuzz/fuzz_common.hpp"
 #include "lib/scene/colmap_model.hpp"
 

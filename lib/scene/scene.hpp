@@ -51,7 +51,7 @@ struct View {
 
 struct Scene {
   std::string name, root;
-  std::string format;  // "blender", "llff-forward", "llff-object", "colmap-forward|object", "nerfstudio-forward|object"
+  std::string format;  // "blender", "llff-forward", "llff-object"
   std::vector<View> train, test;
   float near = 0, far = 1;  // ray-parameter range (NDC: 0..1)
   float ndc_near = 1;       // world-space plane z = -ndc_near that NDC rays start on (NDC scenes only)
@@ -78,8 +78,7 @@ struct LoadOptions {
   std::ostream* log = nullptr;        // where describe() is printed after loading (nullptr: silent)
 };
 
-// Picks the format from the files in `dir` (transforms_train.json -> Blender, poses_bounds.npy -> LLFF,
-// transforms.json -> nerfstudio, sparse/0 or sparse/ with cameras.bin|txt -> COLMAP; see colmap_loader.hpp),
+// Picks the format from the files in `dir` (transforms_train.json -> Blender, poses_bounds.npy -> LLFF),
 // loads, validates (counts, finite poses, readable images of one size) and prints describe() to opts.log.
 Scene load_scene(const std::string& dir, const LoadOptions& opts = {});
 
