@@ -16,7 +16,7 @@ int run_scene_info(int argc, char** argv) {
   stylerf::scene::LoadOptions opt;
   bool cameras_only = false;
   po::options_description desc("stylerf scene-info --scene DIR [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
+  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender, LLFF, COLMAP or nerfstudio format)")(
       "downsample", po::value(&opt.downsample)->default_value(1), "image downsample factor")(
       "ndc", po::value(&ndc)->default_value("auto"), "NDC rays: auto (from the data), on, off")(
       "view-dependence", po::bool_switch(&opt.view_dependence), "switch view-dependent colour on")(

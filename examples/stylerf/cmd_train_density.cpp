@@ -63,7 +63,7 @@ int run_train_density(int argc, char** argv) {
   double minutes = 0;
   bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
+  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender, LLFF, COLMAP or nerfstudio format)")(
       "output,o", po::value(&out), "checkpoint file to write (safetensors)")(
       "downsample", po::value(&downsample)->default_value(1), "image downsample factor")(
       "iters", po::value(&iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
