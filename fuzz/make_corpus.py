@@ -67,4 +67,21 @@ for f in ["rgb16.png", "grey1x1.png", "cmyk.jpg"]:
 frames = [{"file_path": "./train/r_%d" % i,
            "transform_matrix": [[1, 0, 0, 0.1 * i], [0, 1, 0, 0], [0, 0, 1, 4], [0, 0, 0, 1]]} for i in range(2)]
 put("scene_json", "transforms.json", json.dumps({"camera_angle_x": 0.7, "frames": frames}).encode())
+# COLMAP binary model (fuzz_colmap_bin: first byte 0 cameras.bin, 1 images.bin, 2 points3D.bin).
+cams = struct.pack("<Q", 2) + struct.pack("<IiQQ4d", 1, 1, 4, 3, 3.0, 3.0, 2.0, 1.5) + \
+    struct.pack("<IiQQ3d", 2, 0, 4, 3, 3.0, 2.0, 1.5)
+imgs = struct.pack("<Q", 2)
+for i in range(2):
+    imgs += struct.pack("<I7dI", i + 1, 1, 0, 0, 0, 0.1 * i, 0, 4, 1 + i) + b"frame_%d.png\0" % i
+    imgs += struct.pack("<Q", 2) + struct.pack("<ddq", 1.0, 1.0, 1) + struct.pack("<ddq", 2.0, 1.0, -1)
+pts = struct.pack("<Q", 1) + struct.pack("<Q3d3BdQ", 1, 0.0, 0.0, 0.0, 10, 20, 30, 0.5, 2) + struct.pack("<4I", 1, 0, 2, 0)
+put("colmap_bin", "cameras.bin", b"\x00" + cams)
+put("colmap_bin", "images.bin", b"\x01" + imgs)
+put("colmap_bin", "points3D.bin", b"\x02" + pts)
+ns = {"camera_model": "OPENCV", "fl_x": 3.0, "fl_y": 3.0, "cx": 1.0, "cy": 1.0, "w": 2, "h": 2,
+      "k1": 0, "k2": 0, "p1": 0, "p2": 0,
+      "applied_transform": [[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0]],
+      "frames": [{"file_path": "images/frame_%d.png" % i,
+                  "transform_matrix": [[1, 0, 0, 0.1 * i], [0, 1, 0, 0], [0, 0, 1, 4], [0, 0, 0, 1]]} for i in range(2)]}
+put("nerfstudio_json", "transforms.json", json.dumps(ns).encode())
 print("corpus written to", corpus)

@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 runs=${1:-1000000}
 shift || true
-harnesses=${*:-npy safetensors checkpoint image scene_json}
+harnesses=${*:-npy safetensors checkpoint image scene_json colmap_bin nerfstudio_json}
 CXX=clang++ cmake -S fuzz -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
 cmake --build build-fuzz -j"$(nproc)" > /dev/null
 for h in $harnesses; do

@@ -15,6 +15,7 @@
 #include "lib/io/image.hpp"
 #include "lib/io/npy.hpp"
 #include "lib/io/safetensors.hpp"
+#include "lib/scene/colmap_model.hpp"
 #include "lib/scene/scene.hpp"
 #include "tests/small_scene.hpp"
 
@@ -42,6 +43,36 @@ std::string scene_with_train_json(const std::string& bytes) {
   return d.string();
 }
 
+// fuzz_nerfstudio_json's scene: images/frame_0.png and frame_1.png (2x2), transforms.json the input.
+std::string scene_with_transforms_json(const std::string& bytes) {
+  const fs::path d = testing::small_work_dir() / "fuzz_nerfstudio";
+  static bool made = [&] {
+    fs::create_directories(d / "images");
+    io::Image img;
+    img.width = img.height = 2;
+    img.data.assign(12, 0.5f);
+    for (const char* n : {"frame_0.png", "frame_1.png"}) io::save_png((d / "images" / n).string(), img);
+    return true;
+  }();
+  (void)made;
+  host::write_file_atomic((d / "transforms.json").string(), bytes);
+  return d.string();
+}
+
+// fuzz_colmap_bin's input: the first byte picks cameras.bin, images.bin or points3D.bin, the rest is the file.
+void read_colmap_bin(const std::string& p) {
+  const std::string bytes = host::read_file(p);
+  if (bytes.empty()) return;
+  static const char* names[3] = {"cameras.bin", "images.bin", "points3D.bin"};
+  const int which = (unsigned char)bytes[0] % 3;
+  const fs::path file = testing::small_work_dir() / "fuzz_colmap" / names[which];
+  fs::create_directories(file.parent_path());
+  host::write_file_atomic(file.string(), bytes.substr(1));
+  if (which == 0) scene::read_colmap_cameras(file.string());
+  if (which == 1) scene::read_colmap_images(file.string());
+  if (which == 2) scene::read_colmap_points(file.string());
+}
+
 const std::map<std::string, std::function<void(const std::string&)>>& readers() {
   static const std::map<std::string, std::function<void(const std::string&)>> r = {
       {"npy", [](const std::string& p) { io::read_npy(p); }},
@@ -57,6 +88,13 @@ const std::map<std::string, std::function<void(const std::string&)>>& readers() 
          scene::LoadOptions lo;
          lo.load_images = false;
          scene::load_scene(scene_with_train_json(host::read_file(p)), lo);
+       }},
+      {"colmap_bin", read_colmap_bin},
+      {"nerfstudio_json",
+       [](const std::string& p) {
+         scene::LoadOptions lo;
+         lo.load_images = false;
+         scene::load_scene(scene_with_transforms_json(host::read_file(p)), lo);
        }},
   };
   return r;
@@ -104,5 +142,5 @@ TEST_CASE("fuzz seeds, damaged copies and past findings are read or refused clea
     }
   }
   MESSAGE(files << " files replayed");
-  CHECK(files >= 8);  // the seeds are there
+  CHECK(files >= 12);  // the seeds are there
 }

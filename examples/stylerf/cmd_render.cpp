@@ -217,7 +217,7 @@ int run_render(int argc, char** argv) {
               << " over " << m << " views; " << jpath << "\n";
   } else {
     const auto path = stylerf::scene::default_path(scene, frames);
-    std::cout << (scene.effects.ndc || scene.format == "llff-forward" ? "spiral" : "orbit") << " path, "
+    std::cout << (scene.effects.ndc || scene.format.find("-forward") != std::string::npos ? "spiral" : "orbit") << " path, "
               << path.size() << " frames\n";
     for (size_t i = 0; i < path.size(); ++i) {
       const Frame r = renderer.render(scene, path[i], chunk);

@@ -105,7 +105,7 @@ std::vector<std::string> args(const RunOptions& o, T... a) {
 // The options; returns false (after printing the help) when there is nothing to run, with `rc` to exit with.
 bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   po::options_description desc("stylerf run --scene DIR --styles DIR -o OUT [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&o.scene), "the scene (Blender or LLFF folder)")(
+  desc.add_options()("help,h", "show this help")("scene", po::value(&o.scene), "the scene (Blender, LLFF, COLMAP or nerfstudio folder)")(
       "styles", po::value(&o.styles), "folder of training style images (some are held out)")(
       "output,o", po::value(&o.out), "output folder (a run there before is resumed)")(
       "minutes", po::value(&o.minutes)->default_value(90), "the whole run's time budget")(

@@ -16,7 +16,7 @@ int run_scene_info(int argc, char** argv) {
   stylerf::scene::LoadOptions opt;
   bool cameras_only = false;
   po::options_description desc("stylerf scene-info --scene DIR [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender or LLFF format)")(
+  desc.add_options()("help,h", "show this help")("scene", po::value(&dir), "scene directory (Blender, LLFF, COLMAP or nerfstudio format)")(
       "downsample", po::value(&opt.downsample)->default_value(1), "image downsample factor")(
       "ndc", po::value(&ndc)->default_value("auto"), "NDC rays: auto (from the data), on, off")(
       "view-dependence", po::bool_switch(&opt.view_dependence), "switch view-dependent colour on")(
@@ -35,7 +35,7 @@ int run_scene_info(int argc, char** argv) {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::cout << s.describe();
   const auto path = stylerf::scene::default_path(s, 8);
-  std::cout << "  render path: " << (s.format == "llff-forward" || s.effects.ndc ? "spiral" : "orbit") << ", first camera at ("
+  std::cout << "  render path: " << (s.format.find("-forward") != std::string::npos || s.effects.ndc ? "spiral" : "orbit") << ", first camera at ("
             << path[0].c2w[0][3] << ", " << path[0].c2w[1][3] << ", " << path[0].c2w[2][3] << ")\n";
   std::cout << "  loaded in " << secs << " s\n";
   return 0;

@@ -75,7 +75,7 @@ struct DensityArgs {
 // Parses argv into a. Returns -1 to go on, else the exit code (the help was shown).
 int parse_density_args(int argc, char** argv, DensityArgs& a) {
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
-  desc.add_options()("help,h", "show this help")("scene", po::value(&a.dir), "scene directory (Blender or LLFF format)")(
+  desc.add_options()("help,h", "show this help")("scene", po::value(&a.dir), "scene directory (Blender, LLFF, COLMAP or nerfstudio format)")(
       "output,o", po::value(&a.out), "checkpoint file to write (safetensors)")(
       "downsample", po::value(&a.downsample)->default_value(1), "image downsample factor")(
       "iters", po::value(&a.iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(

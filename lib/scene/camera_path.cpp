@@ -82,7 +82,9 @@ std::vector<Camera> orbit_path(const Scene& scene, int frames) {
 }
 
 std::vector<Camera> default_path(const Scene& scene, int frames) {
-  return scene.format == "llff-forward" || scene.effects.ndc ? spiral_path(scene, frames) : orbit_path(scene, frames);
+  const std::string& f = scene.format;
+  const bool forward = f.size() >= 8 && f.compare(f.size() - 8, 8, "-forward") == 0;
+  return forward || scene.effects.ndc ? spiral_path(scene, frames) : orbit_path(scene, frames);
 }
 
 }  // namespace stylerf::scene

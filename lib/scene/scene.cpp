@@ -9,6 +9,8 @@
 
 #include "host/error.hpp"
 #include "lib/scene/blender_loader.hpp"
+#include "lib/scene/colmap_loader.hpp"
+#include "lib/scene/colmap_model.hpp"
 #include "lib/scene/llff_loader.hpp"
 
 namespace stylerf::scene {
@@ -122,11 +124,16 @@ Scene load_scene(const std::string& dir, const LoadOptions& opts) {
     s = load_blender(dir, opts);
   } else if (fs::exists(fs::path(dir) / "poses_bounds.npy", ec)) {
     s = load_llff(dir, opts);
+  } else if (fs::exists(fs::path(dir) / "transforms.json", ec)) {
+    s = load_nerfstudio(dir, opts);
+  } else if (!find_colmap_model(dir).empty()) {
+    s = load_colmap(dir, opts);
   } else if (fs::exists(fs::path(dir) / "transforms_test.json", ec) || fs::exists(fs::path(dir) / "transforms_val.json", ec)) {
     throw Error("Blender scene: " + (fs::path(dir) / "transforms_train.json").string() + " is missing");
   } else {
     throw Error("scene directory " + dir +
-                " has neither transforms_train.json (Blender format) nor poses_bounds.npy (LLFF format)");
+                " has none of transforms_train.json (Blender format), poses_bounds.npy (LLFF format), transforms.json "
+                "(nerfstudio) or sparse/0/cameras.bin|txt (COLMAP, with images/)");
   }
   if (opts.log) *opts.log << s.describe() << std::flush;
   return s;
