@@ -96,20 +96,26 @@ double max_view_angle_degrees(const std::vector<Vec3>& dirs) {
   return worst;
 }
 
-Scene load_llff(const std::string& dir, const LoadOptions& opts) {
-  Scene s;
-  s.root = dir;
-  s.name = fs::path(dir).lexically_normal().filename().string();
-  if (s.name.empty() || s.name == ".") s.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
-  s.effects.view_dependence = opts.view_dependence;
+namespace {
 
-  // --- poses and bounds -------------------------------------------------------------------------
-  const std::string npy = (fs::path(dir) / "poses_bounds.npy").string();
+// poses_bounds.npy: camera-to-world poses (NeRF/OpenGL axes), per-image depth bounds, and the full-size
+// images' height, width and focal.
+struct LlffPoses {
+  std::vector<Pose> poses;
+  std::vector<double> near_b, far_b;
+  double hwf_h = 0, hwf_w = 0, focal = 0;
+};
+
+LlffPoses read_poses_bounds(const std::string& npy) {
   const io::NpyArray a = io::read_npy_checked(npy, {-1, 17}, "poses_bounds");
   const int n = int(a.shape[0]);
   if (n < 2) throw Error(npy + ": needs at least 2 poses, has " + std::to_string(n));
-  std::vector<Pose> poses(n);
-  std::vector<double> near_b(n), far_b(n);
+  LlffPoses lp;
+  lp.poses.resize(n);
+  lp.near_b.resize(n);
+  lp.far_b.resize(n);
+  std::vector<Pose>& poses = lp.poses;
+  std::vector<double>&near_b = lp.near_b, &far_b = lp.far_b;
   for (int i = 0; i < n; ++i) {
     const double* row = a.data.data() + size_t(i) * 17;
     for (int k = 0; k < 17; ++k)
@@ -131,8 +137,28 @@ Scene load_llff(const std::string& dir, const LoadOptions& opts) {
       throw Error(npy + ": pose " + std::to_string(i) + " has bounds near " + fmt(near_b[i]) + ", far " +
                   fmt(far_b[i]) + " (need 0 < near < far)");
   }
-  const double hwf_h = a.data[4], hwf_w = a.data[9], focal = a.data[14];
-  if (!(hwf_h > 0 && hwf_w > 0 && focal > 0)) throw Error(npy + ": pose 0 has a non-positive height, width or focal");
+  lp.hwf_h = a.data[4], lp.hwf_w = a.data[9], lp.focal = a.data[14];
+  if (!(lp.hwf_h > 0 && lp.hwf_w > 0 && lp.focal > 0))
+    throw Error(npy + ": pose 0 has a non-positive height, width or focal");
+  return lp;
+}
+
+}  // namespace
+
+Scene load_llff(const std::string& dir, const LoadOptions& opts) {
+  Scene s;
+  s.root = dir;
+  s.name = fs::path(dir).lexically_normal().filename().string();
+  if (s.name.empty() || s.name == ".") s.name = fs::absolute(dir).lexically_normal().parent_path().filename().string();
+  s.effects.view_dependence = opts.view_dependence;
+
+  // --- poses and bounds -------------------------------------------------------------------------
+  const std::string npy = (fs::path(dir) / "poses_bounds.npy").string();
+  LlffPoses lp = read_poses_bounds(npy);
+  const int n = int(lp.poses.size());
+  std::vector<Pose>& poses = lp.poses;
+  const std::vector<double>&near_b = lp.near_b, &far_b = lp.far_b;
+  const double hwf_h = lp.hwf_h, hwf_w = lp.hwf_w;
 
   // --- images -----------------------------------------------------------------------------------
   const ImageFolder folder = choose_folder(dir, opts.downsample);
@@ -156,7 +182,7 @@ Scene load_llff(const std::string& dir, const LoadOptions& opts) {
     throw Error("LLFF scene " + dir + ": images in " + folder.path + " are " + std::to_string(src_w) + "x" +
                 std::to_string(src_h) + " but " + npy + " says " + fmt(hwf_w) + "x" + fmt(hwf_h) +
                 " (different aspect ratio: rotated or cropped images?)");
-  const float fx = float(focal * sx), fy = float(focal * sy);
+  const float fx = float(lp.focal * sx), fy = float(lp.focal * sy);
 
   std::vector<Camera> cams(n);
   std::vector<std::vector<float>> rgb(n);
