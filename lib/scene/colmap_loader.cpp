@@ -219,8 +219,103 @@ Scene load_colmap(const std::string& dir, const LoadOptions& opts) {
 }
 
 // ------------------------------------------------------------------------------------------------
+namespace {
+
+using nlohmann::json;
+
+// A nerfstudio key from the frame, else from the top level; `required` throws when neither has it.
+double ns_number(const json& top, const json& f, const char* key, const std::string& where, bool required,
+                 double fallback) {
+  const json* v = f.contains(key) ? &f[key] : top.contains(key) ? &top[key] : nullptr;
+  if (!v) {
+    if (required) throw Error(where + ": '" + key + "' is missing (neither in the frame nor at the top level)");
+    return fallback;
+  }
+  if (!v->is_number()) throw Error(where + ": '" + key + "' is not a number: " + v->dump());
+  const double d = v->get<double>();
+  if (!std::isfinite(d)) throw Error(where + ": '" + key + "' is not finite");
+  return d;
+}
+
+std::string ns_text(const json& top, const json& f, const char* key) {
+  const json* v = f.contains(key) ? &f[key] : top.contains(key) ? &top[key] : nullptr;
+  return v && v->is_string() ? v->get<std::string>() : "";
+}
+
+// 'applied_transform' (when present) must be a 3x4 or 4x4 array of numbers; it is noted, not applied.
+void check_applied_transform(const json& j, const std::string& path, Scene& s) {
+  if (!j.contains("applied_transform")) return;
+  const json& a = j["applied_transform"];
+  bool ok = a.is_array() && (a.size() == 3 || a.size() == 4);
+  for (size_t r = 0; ok && r < a.size(); ++r) {
+    ok = a[r].is_array() && a[r].size() == 4;
+    for (size_t c = 0; ok && c < 4; ++c) ok = a[r][c].is_number();
+  }
+  if (!ok) throw Error(path + ": 'applied_transform' must be a 3x4 or 4x4 array of numbers");
+  s.notes.push_back("applied_transform in " + path + " noted (the frames' transform_matrix already include it)");
+}
+
+// The frame's intrinsics (pinhole only: any distortion is refused) and image size.
+void read_nerfstudio_intrinsics(const json& top, const json& f, const std::string& where, RawView& r) {
+  const std::string model = ns_text(top, f, "camera_model");
+  if (!model.empty() && model != "OPENCV" && model != "PINHOLE" && model != "SIMPLE_PINHOLE")
+    throw Error(where + ": camera_model " + model + " is not a pinhole model (stylerf reads PINHOLE, or OPENCV with zero "
+                "distortion); undistort the images first (e.g. colmap image_undistorter)");
+  std::string dist;
+  for (const char* k : {"k1", "k2", "k3", "k4", "p1", "p2"}) {
+    const double d = ns_number(top, f, k, where, false, 0.0);
+    if (d != 0) dist += std::string(dist.empty() ? "" : ", ") + k + " = " + fmt(d);
+  }
+  if (!dist.empty())
+    throw Error(where + ": the camera has lens distortion (" + dist + "); stylerf's cameras are pinholes. Undistort the images "
+                "first (colmap image_undistorter, or ns-process-data with an undistorting option) and write the "
+                "distortion as 0");
+  r.fx = ns_number(top, f, "fl_x", where, true, 0);
+  r.fy = ns_number(top, f, "fl_y", where, false, r.fx);
+  if (!f.contains("w") && !top.contains("w")) {
+    int iw = 0, ih = 0;
+    std::error_code ec;
+    if (!fs::is_regular_file(r.image, ec)) throw Error(where + ": the image file " + r.image + " is missing");
+    image_size(r.image, iw, ih);
+    r.width = iw, r.height = ih;
+  } else {
+    const double w = ns_number(top, f, "w", where, true, 0), h = ns_number(top, f, "h", where, true, 0);
+    if (!(w >= 1 && h >= 1 && w <= 1e6 && h <= 1e6 && w == std::floor(w) && h == std::floor(h)))
+      throw Error(where + ": image size w " + fmt(w) + ", h " + fmt(h) + " is not a positive whole number of pixels");
+    r.width = int(w), r.height = int(h);
+  }
+  r.cx = ns_number(top, f, "cx", where, false, 0.5 * r.width);
+  r.cy = ns_number(top, f, "cy", where, false, 0.5 * r.height);
+  if (!(r.fx > 0 && r.fy > 0))
+    throw Error(where + ": focal lengths fl_x " + fmt(r.fx) + ", fl_y " + fmt(r.fy) + " must be positive");
+}
+
+// One frame: its image, intrinsics and camera-to-world matrix (OpenGL convention, as ours).
+RawView read_nerfstudio_frame(const json& top, const json& f, const std::string& dir, const std::string& where) {
+  if (!f.is_object()) throw Error(where + ": expected an object");
+  if (!f.contains("file_path") || !f["file_path"].is_string()) throw Error(where + ": 'file_path' is missing");
+  RawView r;
+  r.image = (fs::path(dir) / f["file_path"].get<std::string>()).lexically_normal().string();
+  r.size_of = where + " ('w', 'h')";
+  read_nerfstudio_intrinsics(top, f, where, r);
+  const json& m = f.contains("transform_matrix") ? f["transform_matrix"] : json();
+  if (!m.is_array() || (m.size() != 3 && m.size() != 4)) throw Error(where + ": 'transform_matrix' is missing or not 4x4");
+  for (int a = 0; a < 3; ++a) {
+    if (!m[a].is_array() || m[a].size() != 4) throw Error(where + ": 'transform_matrix' is not 4x4");
+    for (int b = 0; b < 4; ++b) {
+      if (!m[a][b].is_number())
+        throw Error(where + ": camera pose entry (row " + std::to_string(a) + ", column " + std::to_string(b) +
+                    ") is not a number: " + m[a][b].dump());
+      r.pose.m[a][b] = m[a][b].get<double>();
+    }
+  }
+  check_pose(r.pose.m, where);
+  return r;
+}
+
+}  // namespace
+
 Scene load_nerfstudio(const std::string& dir, const LoadOptions& opts) {
-  using nlohmann::json;
   Scene s;
   s.root = dir;
   s.name = scene_name(dir);
@@ -235,91 +330,11 @@ Scene load_nerfstudio(const std::string& dir, const LoadOptions& opts) {
   if (!j.is_object()) throw Error(path + ": expected a JSON object at the top");
   if (!j.contains("frames") || !j["frames"].is_array() || j["frames"].empty())
     throw Error(path + ": 'frames' is missing or empty");
-
-  // A key from the frame, else from the top level; `required` throws when neither has it.
-  auto number = [&](const json& f, const char* key, const std::string& where, bool required, double fallback) -> double {
-    const json* v = nullptr;
-    if (f.contains(key)) v = &f[key];
-    else if (j.contains(key)) v = &j[key];
-    if (!v) {
-      if (required) throw Error(where + ": '" + key + "' is missing (neither in the frame nor at the top level)");
-      return fallback;
-    }
-    if (!v->is_number()) throw Error(where + ": '" + key + "' is not a number: " + v->dump());
-    const double d = v->get<double>();
-    if (!std::isfinite(d)) throw Error(where + ": '" + key + "' is not finite");
-    return d;
-  };
-  auto text = [&](const json& f, const char* key) -> std::string {
-    const json* v = f.contains(key) ? &f[key] : j.contains(key) ? &j[key] : nullptr;
-    return v && v->is_string() ? v->get<std::string>() : "";
-  };
-
-  if (j.contains("applied_transform")) {
-    const json& a = j["applied_transform"];
-    bool ok = a.is_array() && (a.size() == 3 || a.size() == 4);
-    for (size_t r = 0; ok && r < a.size(); ++r) {
-      ok = a[r].is_array() && a[r].size() == 4;
-      for (size_t c = 0; ok && c < 4; ++c) ok = a[r][c].is_number();
-    }
-    if (!ok) throw Error(path + ": 'applied_transform' must be a 3x4 or 4x4 array of numbers");
-    s.notes.push_back("applied_transform in " + path + " noted (the frames' transform_matrix already include it)");
-  }
-
+  check_applied_transform(j, path, s);
   std::vector<RawView> raw;
   const json& frames = j["frames"];
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const json& f = frames[i];
-    const std::string where = path + " frame " + std::to_string(i);
-    if (!f.is_object()) throw Error(where + ": expected an object");
-    const std::string model = text(f, "camera_model");
-    if (!model.empty() && model != "OPENCV" && model != "PINHOLE" && model != "SIMPLE_PINHOLE")
-      throw Error(where + ": camera_model " + model + " is not a pinhole model (stylerf reads PINHOLE, or OPENCV with zero "
-                  "distortion); undistort the images first (e.g. colmap image_undistorter)");
-    if (!f.contains("file_path") || !f["file_path"].is_string()) throw Error(where + ": 'file_path' is missing");
-    RawView r;
-    r.image = (fs::path(dir) / f["file_path"].get<std::string>()).lexically_normal().string();
-    r.size_of = where + " ('w', 'h')";
-    std::string dist;
-    for (const char* k : {"k1", "k2", "k3", "k4", "p1", "p2"}) {
-      const double d = number(f, k, where, false, 0.0);
-      if (d != 0) dist += std::string(dist.empty() ? "" : ", ") + k + " = " + fmt(d);
-    }
-    if (!dist.empty())
-      throw Error(where + ": the camera has lens distortion (" + dist + "); stylerf's cameras are pinholes. Undistort the images "
-                  "first (colmap image_undistorter, or ns-process-data with an undistorting option) and write the "
-                  "distortion as 0");
-    r.fx = number(f, "fl_x", where, true, 0);
-    r.fy = number(f, "fl_y", where, false, r.fx);
-    if (!f.contains("w") && !j.contains("w")) {
-      int iw = 0, ih = 0;
-      std::error_code ec;
-      if (!fs::is_regular_file(r.image, ec)) throw Error(where + ": the image file " + r.image + " is missing");
-      image_size(r.image, iw, ih);
-      r.width = iw, r.height = ih;
-    } else {
-      const double w = number(f, "w", where, true, 0), h = number(f, "h", where, true, 0);
-      if (!(w >= 1 && h >= 1 && w <= 1e6 && h <= 1e6 && w == std::floor(w) && h == std::floor(h)))
-        throw Error(where + ": image size w " + fmt(w) + ", h " + fmt(h) + " is not a positive whole number of pixels");
-      r.width = int(w), r.height = int(h);
-    }
-    r.cx = number(f, "cx", where, false, 0.5 * r.width);
-    r.cy = number(f, "cy", where, false, 0.5 * r.height);
-    if (!(r.fx > 0 && r.fy > 0)) throw Error(where + ": focal lengths fl_x " + fmt(r.fx) + ", fl_y " + fmt(r.fy) + " must be positive");
-    const json& m = f.contains("transform_matrix") ? f["transform_matrix"] : json();
-    if (!m.is_array() || (m.size() != 3 && m.size() != 4)) throw Error(where + ": 'transform_matrix' is missing or not 4x4");
-    for (int a = 0; a < 3; ++a) {
-      if (!m[a].is_array() || m[a].size() != 4) throw Error(where + ": 'transform_matrix' is not 4x4");
-      for (int b = 0; b < 4; ++b) {
-        if (!m[a][b].is_number())
-          throw Error(where + ": camera pose entry (row " + std::to_string(a) + ", column " + std::to_string(b) +
-                      ") is not a number: " + m[a][b].dump());
-        r.pose.m[a][b] = m[a][b].get<double>();
-      }
-    }
-    check_pose(r.pose.m, where);
-    raw.push_back(std::move(r));
-  }
+  for (size_t i = 0; i < frames.size(); ++i)
+    raw.push_back(read_nerfstudio_frame(j, frames[i], dir, path + " frame " + std::to_string(i)));
   std::stable_sort(raw.begin(), raw.end(), [](const RawView& a, const RawView& b) { return a.image < b.image; });
   for (size_t i = 1; i < raw.size(); ++i)
     if (raw[i].image == raw[i - 1].image) throw Error(path + ": the image " + raw[i].image + " appears in two frames");
