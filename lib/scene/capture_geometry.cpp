@@ -17,14 +17,14 @@ constexpr double kForwardFacingMaxAngle = 30.0;  // fern 9.5, horns 14.1; the ob
 constexpr double kBoundFactor = 0.75;            // LLFF's bd_factor: nearest bound -> 1 / 0.75
 constexpr double kAssumedNear = 3.0, kAssumedFar = 20.0;  // x RMS camera spread, when there are no bounds
 
-std::string fmt(double v) {
+}  // namespace
+
+std::string fmt_number(double v, int precision) {
   std::ostringstream s;
-  s.precision(4);
+  s.precision(precision);
   s << v;
   return s.str();
 }
-
-}  // namespace
 
 void normalise_capture(std::vector<CaptureView>& views, const std::string& kind, const LoadOptions& opts, Scene& s,
                        const std::string& what) {
@@ -35,7 +35,7 @@ void normalise_capture(std::vector<CaptureView>& views, const std::string& kind,
     const CaptureView& v = views[i];
     if (v.near == 0 && v.far == 0) continue;
     if (!(v.near > 0 && v.far > v.near && std::isfinite(v.far)))
-      throw Error(what + ": camera " + std::to_string(i) + " has bounds near " + fmt(v.near) + ", far " + fmt(v.far) +
+      throw Error(what + ": camera " + std::to_string(i) + " has bounds near " + fmt_number(v.near) + ", far " + fmt_number(v.far) +
                   " (need 0 < near < far)");
     ++with_bounds;
   }
@@ -51,7 +51,7 @@ void normalise_capture(std::vector<CaptureView>& views, const std::string& kind,
   const bool forward = spread < kForwardFacingMaxAngle;
   s.format = kind + (forward ? "-forward" : "-object");
   s.notes.push_back(std::string(forward ? "forward-facing" : "object-centric") + " capture: viewing directions lie within " +
-                    fmt(spread) + " degrees of their mean (forward-facing below " + fmt(kForwardFacingMaxAngle) + ")");
+                    fmt_number(spread) + " degrees of their mean (forward-facing below " + fmt_number(kForwardFacingMaxAngle) + ")");
   s.effects.ndc = opts.ndc == Switch::automatic ? forward : opts.ndc == Switch::on;
   if (opts.ndc != Switch::automatic) s.notes.push_back(std::string("NDC forced ") + (s.effects.ndc ? "on" : "off") + " by --ndc");
 
@@ -69,8 +69,8 @@ void normalise_capture(std::vector<CaptureView>& views, const std::string& kind,
       const double rms = std::sqrt(ms);
       if (!(rms > 0)) throw Error(what + ": every camera is at the same position, and there are no depth bounds to scale by");
       min_near = kAssumedNear * rms, max_far = kAssumedFar * rms;
-      s.notes.push_back("no depth bounds in the files: nearest content assumed at " + fmt(kAssumedNear) + "x and farthest at " +
-                        fmt(kAssumedFar) + "x the RMS camera spread (" + fmt(rms) + ")");
+      s.notes.push_back("no depth bounds in the files: nearest content assumed at " + fmt_number(kAssumedNear) + "x and farthest at " +
+                        fmt_number(kAssumedFar) + "x the RMS camera spread (" + fmt_number(rms) + ")");
     }
     // Rescale so the nearest content sits at 1/0.75: the NDC near plane z = -1 is then in front of it.
     const double sc = 1.0 / (min_near * kBoundFactor);
@@ -132,7 +132,7 @@ void normalise_capture(std::vector<CaptureView>& views, const std::string& kind,
     mean_dist += norm(sub(origins[i], focus)) / n;
   }
   if (!(mean_dist > 0) || !std::isfinite(mean_dist))
-    throw Error(what + ": the cameras do not surround a point (mean distance to the focus point " + fmt(mean_dist) + ")");
+    throw Error(what + ": the cameras do not surround a point (mean distance to the focus point " + fmt_number(mean_dist) + ")");
   const Vec3 z = normalize(up);
   Vec3 x = sub(front, scale(z, dot(front, z)));
   if (norm(x) < 1e-9 * (1 + norm(front))) x = std::fabs(z[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
@@ -164,14 +164,14 @@ void normalise_capture(std::vector<CaptureView>& views, const std::string& kind,
     std::sort(sorted.begin(), sorted.end());
     const double median = sorted[n / 2];
     half = std::clamp(1.5 * median, 0.1, 0.9);
-    s.notes.push_back("object box: half-size " + fmt(half) + " (median reach of the near bounds " + fmt(median) +
+    s.notes.push_back("object box: half-size " + fmt_number(half) + " (median reach of the near bounds " + fmt_number(median) +
                       ", x1.5), cameras at mean distance 1 from the focus point");
     s.depth_near = float(min_near * sc);
     s.depth_far = float(max_far * sc);
   } else {
     half = std::clamp(0.5 * min_dist, 0.1, 0.9);
-    s.notes.push_back("object box: half-size " + fmt(half) + " (no depth bounds in the files: half the nearest camera's distance " +
-                      fmt(min_dist) + " from the focus point), cameras at mean distance 1 from it");
+    s.notes.push_back("object box: half-size " + fmt_number(half) + " (no depth bounds in the files: half the nearest camera's distance " +
+                      fmt_number(min_dist) + " from the focus point), cameras at mean distance 1 from it");
     s.depth_near = float(std::max(0.05, min_dist - half * std::sqrt(3.0)));
     s.depth_far = float(max_dist + half * std::sqrt(3.0));
   }

@@ -11,6 +11,12 @@
 
 namespace stylerf::scene {
 
+// Every 8th view (0, 8, 16, ...) is held out for testing, LLFF's convention, in every capture format.
+constexpr int kHoldOutEvery = 8;
+
+// A number for messages and notes, with `precision` significant digits.
+std::string fmt_number(double v, int precision = 4);
+
 struct CaptureView {
   Pose pose;                    // camera-to-world, OpenGL axes, in the file's world
   double near = 0, far = 0;     // depth bounds of the content this camera sees (world units); 0 = unknown

@@ -19,15 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int kHoldEvery = 8;
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
-
 std::string scene_name(const std::string& dir) {
   std::string n = fs::path(dir).lexically_normal().filename().string();
   if (n.empty() || n == ".") n = fs::absolute(dir).lexically_normal().parent_path().filename().string();
@@ -120,7 +111,7 @@ Scene finish(std::vector<RawView>& raw, const std::string& dir, const std::strin
     check_pose_finite(v.camera.c2w, what + ": camera of " + raw[i].image + " after normalisation");
     v.image_path = raw[i].image;
     v.rgb = std::move(rgb[i]);
-    (i % kHoldEvery == 0 ? s.test : s.train).push_back(std::move(v));
+    (i % kHoldOutEvery == 0 ? s.test : s.train).push_back(std::move(v));
   }
   if (s.train.empty()) throw Error(what + ": " + std::to_string(n) + " image(s) leave nothing to train on (every 8th is a test view)");
   (void)dir;
@@ -158,7 +149,7 @@ Scene load_colmap(const std::string& dir, const LoadOptions& opts) {
     if (c.is_pinhole()) continue;
     std::string d;
     const std::vector<double> dist = c.distortion();
-    for (size_t k = 0; k < dist.size(); ++k) d += (k ? ", " : "") + fmt(dist[k]);
+    for (size_t k = 0; k < dist.size(); ++k) d += (k ? ", " : "") + fmt_number(dist[k], 6);
     throw Error(cams_file + ": camera " + std::to_string(id) + " is " + c.model_name() + " with distortion (" + d +
                 "); stylerf's cameras are pinholes. Undistort the images first: colmap image_undistorter --image_path "
                 "<your images> --input_path " + model_dir + " --output_path <new scene folder>, then load that folder");
@@ -264,7 +255,7 @@ void read_nerfstudio_intrinsics(const json& top, const json& f, const std::strin
   std::string dist;
   for (const char* k : {"k1", "k2", "k3", "k4", "p1", "p2"}) {
     const double d = ns_number(top, f, k, where, false, 0.0);
-    if (d != 0) dist += std::string(dist.empty() ? "" : ", ") + k + " = " + fmt(d);
+    if (d != 0) dist += std::string(dist.empty() ? "" : ", ") + k + " = " + fmt_number(d, 6);
   }
   if (!dist.empty())
     throw Error(where + ": the camera has lens distortion (" + dist + "); stylerf's cameras are pinholes. Undistort the images "
@@ -281,13 +272,13 @@ void read_nerfstudio_intrinsics(const json& top, const json& f, const std::strin
   } else {
     const double w = ns_number(top, f, "w", where, true, 0), h = ns_number(top, f, "h", where, true, 0);
     if (!(w >= 1 && h >= 1 && w <= 1e6 && h <= 1e6 && w == std::floor(w) && h == std::floor(h)))
-      throw Error(where + ": image size w " + fmt(w) + ", h " + fmt(h) + " is not a positive whole number of pixels");
+      throw Error(where + ": image size w " + fmt_number(w, 6) + ", h " + fmt_number(h, 6) + " is not a positive whole number of pixels");
     r.width = int(w), r.height = int(h);
   }
   r.cx = ns_number(top, f, "cx", where, false, 0.5 * r.width);
   r.cy = ns_number(top, f, "cy", where, false, 0.5 * r.height);
   if (!(r.fx > 0 && r.fy > 0))
-    throw Error(where + ": focal lengths fl_x " + fmt(r.fx) + ", fl_y " + fmt(r.fy) + " must be positive");
+    throw Error(where + ": focal lengths fl_x " + fmt_number(r.fx, 6) + ", fl_y " + fmt_number(r.fy, 6) + " must be positive");
 }
 
 // One frame: its image, intrinsics and camera-to-world matrix (OpenGL convention, as ours).

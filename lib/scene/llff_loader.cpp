@@ -19,15 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr int kHoldEvery = 8;
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
-
 struct ImageFolder {
   std::string path;
   int factor = 1;  // the folder's own downsample factor (images_M -> M, images -> 1)
@@ -67,7 +58,7 @@ std::vector<int> test_indices(const std::string& dir, int n, std::vector<std::st
     notes.push_back("test views: the " + std::to_string(ids.size()) + " 0-based indices in " + list.string());
     return ids;
   }
-  for (int i = 0; i < n; i += kHoldEvery) ids.push_back(i);
+  for (int i = 0; i < n; i += kHoldOutEvery) ids.push_back(i);
   return ids;
 }
 
@@ -121,7 +112,7 @@ LlffPoses read_poses_bounds(const std::string& npy) {
     for (int k = 0; k < 17; ++k)
       if (!std::isfinite(row[k]))
         throw Error(npy + ": pose " + std::to_string(i) + " has a non-finite entry (element " + std::to_string(k) +
-                    " is " + fmt(row[k]) + ")");
+                    " is " + fmt_number(row[k]) + ")");
     // Stored columns are [down, right, back, position, hwf]; NeRF/OpenGL wants [right, up, back, position].
     for (int r = 0; r < 3; ++r) {
       const double* pr = row + 5 * r;
@@ -134,8 +125,8 @@ LlffPoses read_poses_bounds(const std::string& npy) {
     near_b[i] = row[15];
     far_b[i] = row[16];
     if (!(near_b[i] > 0 && far_b[i] > near_b[i]))
-      throw Error(npy + ": pose " + std::to_string(i) + " has bounds near " + fmt(near_b[i]) + ", far " +
-                  fmt(far_b[i]) + " (need 0 < near < far)");
+      throw Error(npy + ": pose " + std::to_string(i) + " has bounds near " + fmt_number(near_b[i]) + ", far " +
+                  fmt_number(far_b[i]) + " (need 0 < near < far)");
   }
   lp.hwf_h = a.data[4], lp.hwf_w = a.data[9], lp.focal = a.data[14];
   if (!(lp.hwf_h > 0 && lp.hwf_w > 0 && lp.focal > 0))
@@ -180,7 +171,7 @@ Scene load_llff(const std::string& dir, const LoadOptions& opts) {
   const double sx = w / hwf_w, sy = h / hwf_h;
   if (std::fabs(sx / sy - 1.0) > 0.02)
     throw Error("LLFF scene " + dir + ": images in " + folder.path + " are " + std::to_string(src_w) + "x" +
-                std::to_string(src_h) + " but " + npy + " says " + fmt(hwf_w) + "x" + fmt(hwf_h) +
+                std::to_string(src_h) + " but " + npy + " says " + fmt_number(hwf_w) + "x" + fmt_number(hwf_h) +
                 " (different aspect ratio: rotated or cropped images?)");
   const float fx = float(lp.focal * sx), fy = float(lp.focal * sy);
 
