@@ -83,10 +83,6 @@ std::string rank_build_options(const std::array<int, 3>& rank) {
          " -DRANK2=" + std::to_string(rank[2]);
 }
 
-// Per-point kernels run in work-groups of 64: left to PoCL, a sample count such as 2735657 = 17*29*31*179
-// gets an awkward divisor as its group size. The global size is rounded up; the kernels guard their index.
-constexpr size_t kPointGroup = 64;
-
 template <class... Args>
 static void grid_launch(const std::array<int, 3>& rank, const char* kernel, size_t global, const Args&... args) {
   launch_with_local("grid", kernel, rank_build_options(rank), {global}, {kPointGroup}, args...);

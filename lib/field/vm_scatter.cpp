@@ -31,7 +31,7 @@ const char* scatter_mode_name(ScatterMode mode) {
 }
 
 // The fixed-point scatter needs 64-bit integer atomics and work-groups of 256 (its bound's reduction).
-static bool has_int64_atomics(const host::DeviceInfo& dev) {
+static bool can_run_fixed(const host::DeviceInfo& dev) {
   return dev.has_extension("cl_khr_int64_base_atomics") && dev.max_work_group >= 256;
 }
 
@@ -39,12 +39,12 @@ ScatterMode auto_scatter_mode(const host::DeviceInfo& dev) {
   // Measured (bench field, app features backward): on the 2-core PoCL CPU private 275 ms, fixed 7992 ms;
   // on an H100 private 180 ms, fixed 4.8 ms (docs/results.md).
   if (dev.type & CL_DEVICE_TYPE_CPU) return ScatterMode::Private;
-  return has_int64_atomics(dev) ? ScatterMode::Fixed : ScatterMode::Private;
+  return can_run_fixed(dev) ? ScatterMode::Fixed : ScatterMode::Private;
 }
 
 ScatterMode resolved_scatter_mode(ScatterMode mode) {
   const auto& dev = host::Runtime::instance().device();
-  if (mode == ScatterMode::Fixed && !has_int64_atomics(dev))
+  if (mode == ScatterMode::Fixed && !can_run_fixed(dev))
     throw Error("grid scatter 'fixed' needs cl_khr_int64_base_atomics and work-groups of 256; " + dev.name +
                 " does not offer both");
   if (mode != ScatterMode::Auto) return mode;
@@ -56,10 +56,6 @@ ScatterMode resolved_scatter_mode(ScatterMode mode) {
   if (from_env != ScatterMode::Auto) return resolved_scatter_mode(from_env);
   return auto_scatter_mode(dev);
 }
-
-// Per-point kernels run in work-groups of 64: left to PoCL, a sample count such as 2735657 = 17*29*31*179
-// gets an awkward divisor as its group size. The global size is rounded up; the kernels guard their index.
-constexpr size_t kPointGroup = 64;
 
 // Scratch kept between calls (the queue is in order, so reuse after the previous call's last kernel is
 // safe): the privatised scatter's extra gradient copies; the fixed-point accumulator (2 floats = one int64
