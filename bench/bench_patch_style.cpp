@@ -3,8 +3,8 @@
 // --repeats after a warm-up step):
 // --style-decoder vgg-adain times VGG's frozen relu3_1 -> relu4_1 and AdaIN's decoder as the decoder.
 //   forward:  render (march, density, weights, keep, compositing of the 32 SICT channels), field (grid
-//             components + basis per kept sample), SICT, DST (style code + apply), decoder, VGG (style
-//             image, true patch, stylised patch; to relu4_1);
+//             components per kept sample), SICT (on the components, the basis folded in), DST (style code
+//             + apply), decoder, VGG (style image, true patch, stylised patch; to relu4_1);
 //   backward: VGG (to the input), decoder, DST (apply + style branch), composite, SICT, optimiser.
 // GFLOP/s for the GEMM-bound parts (convs; SICT's q/k/v and attention; DST's products).
 #include <chrono>
@@ -47,15 +47,15 @@ class TimedSictHead : public model::SampleHead {
     auto& rt = host::Runtime::instance();
     rt.finish();
     const double t0 = now_ms();
-    const Tensor x = nn::linear_forward(field_.head.forward(pos, dirs, nullptr), field_.basis.value, Tensor());
+    const Tensor comps = field_.head.forward(pos, dirs, nullptr);
     rt.finish();
     const double t1 = now_ms();
     auto c = std::make_unique<model::SictHead::SictContext>();
-    Tensor y = sict_.forward(x, true, &c->sict);
+    Tensor y = sict_.forward_factored(comps, field_.basis.value, true, &c->sict);
     rt.finish();
     field_ms = t1 - t0;
     sict_ms = now_ms() - t1;
-    points = x.dim(0);
+    points = comps.dim(0);
     *ctx = std::move(c);
     return y;
   }
@@ -182,13 +182,15 @@ int bench_patch_style(const BenchOptions& opt) {
   const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) : stack_flops(m.features.decoder, h, w);
   const double dec = tail + stack, dec_bwd = tail + 2 * stack;
   const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
-  // SICT per point: q/k/v 2*256*96, attention ~ 4 * 32 * 32 (logits and weighted sum); backward ~2x.
-  const double sict = double(kept) * (2.0 * 256 * 96 + 4.0 * 32 * 32);
+  // SICT per point, on the F grid components (Sict::forward_factored): the covariance 2 F^2, q/k/v 2 F 96,
+  // attention ~ 4 * 32 * 32 (logits and weighted sum); backward: f^T dqkv 2 F 96 and the attention's ~3x.
+  const double F = fc.rank[0] + fc.rank[1] + fc.rank[2];
+  const double sict = double(kept) * (2.0 * F * F + 2.0 * F * 96 + 4.0 * 32 * 32);
+  const double sict_bwd = double(kept) * (2.0 * F * 96 + 12.0 * 32 * 32);
   const double L = 64.0 * 64.0;  // relu3_1 positions of the 256 x 256 style
   const double dst = L * 2.0 * (256 * 128 + 128 * 64 + 64 * 32) + L * 2.0 * 32 * 32 + 2.0 * 1024 * 1024 +
                      double(R) * 2.0 * (32 * 256 + 256);
-  const double flops[kParts] = {0, double(kept) * 2.0 * 256 * (fc.rank[0] + fc.rank[1] + fc.rank[2]), sict, dst, dec, vg, vgg_flops(S), dec_bwd,
-                                2 * dst, 0, 2 * sict, 0};
+  const double flops[kParts] = {0, 0, sict, dst, dec, vg, vgg_flops(S), dec_bwd, 2 * dst, 0, sict_bwd, 0};
   nlohmann::json rows = nlohmann::json::array();
   std::cout << std::left << std::setw(14) << "part" << std::right << std::setw(10) << "s" << std::setw(12) << "GFLOP"
             << std::setw(12) << "GFLOP/s" << "\n";

@@ -19,13 +19,12 @@ using nlohmann::json;
 
 // ---- SICT head ---------------------------------------------------------------------------------------------
 Tensor SictHead::forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const {
-  // Per kept sample: F grid components -> 256 features (the basis, no bias) -> SICT.
+  // Per kept sample: F grid components; SICT of their 256 features (the basis, no bias) without forming
+  // them (Sict::forward_factored).
   const Tensor comps = field_.head.forward(pos, dirs, nullptr);
-  const Tensor x = nn::linear_forward(comps, field_.basis.value, Tensor());
-  if (!ctx) return sict_.forward(x, training_, nullptr);
+  if (!ctx) return sict_.forward_factored(comps, field_.basis.value, training_, nullptr);
   auto c = std::make_unique<SictContext>();
-  Tensor y = sict_.forward(x, training_, &c->sict);
-  c->sict.x = Tensor();  // the field is frozen: no dx, so x need not be kept
+  Tensor y = sict_.forward_factored(comps, field_.basis.value, training_, &c->sict);
   *ctx = std::move(c);
   return y;
 }

@@ -72,8 +72,15 @@ Tensor linear_forward(const Tensor& x, const Tensor& w, const Tensor& b) {
   Tensor y({d.n, d.out}, "linear_forward output");
   host::gemm(Trans::No, Trans::No, d.n, d.out, d.in, 1.0f, x.mem(), 0, d.in, w.mem(), 0, d.out, 0.0f, y.mem(), 0,
              d.out);
-  if (b.defined()) host::launch("linear", "linear_bias_add", {size_t((d.out + 7) / 8), size_t(d.n)}, y, b, d.n, d.out);
+  if (b.defined()) linear_add_bias(y, b);
   return y;
+}
+
+void linear_add_bias(Tensor& y, const Tensor& b) {
+  if (!y.defined() || y.ndim() != 2) throw Error("linear_add_bias: y must be [N, out]");
+  const int n = int(y.dim(0)), out = int(y.dim(1));
+  host::expect_shape(b, {out}, "linear_add_bias", "bias");
+  host::launch("linear", "linear_bias_add", {size_t((out + 7) / 8), size_t(n)}, y, b, n, out);
 }
 
 LinearGrads linear_backward(const Tensor& x, const Tensor& w, const Tensor& dy, bool need_dx, bool need_dw,

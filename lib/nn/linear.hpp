@@ -14,6 +14,8 @@ namespace stylerf::nn {
 using host::Tensor;
 
 Tensor linear_forward(const Tensor& x, const Tensor& w, const Tensor& b);
+// y [N, out] += b [out] on every row, in place (linear_forward's bias step).
+void linear_add_bias(Tensor& y, const Tensor& b);
 
 // Ops convention (nn/ops.hpp): fresh gradient tensors, each undefined unless asked for.
 //   dx = dy W^T,  dW = x^T dy,  db = sum over rows of dy.

@@ -138,8 +138,16 @@ Tensor Sict::forward(const Tensor& x, bool training, Context* ctx) const {
   return out;
 }
 
+// sict_factored.cpp: the weight and bias gradients of a forward_factored context.
+void sict_factored_backward(const Sict::Context& ctx, const Tensor& dqkv, nn::Param& qkv_w, nn::Param& qkv_b);
+
 Tensor Sict::backward(const Context& ctx, const Tensor& dy, bool need_dx) {
   const Tensor dqkv = channel_attention_backward(ctx.qkv, dy);
+  if (ctx.factored()) {
+    if (need_dx) throw Error("sict backward: a forward_factored context gives no dx (the feature field is frozen)");
+    sict_factored_backward(ctx, dqkv, qkv_w, qkv_b);
+    return Tensor();
+  }
   Tensor dnormed = nn::linear_backward(ctx.normed, qkv_w, &qkv_b, dqkv, need_dx);
   if (!need_dx) return Tensor();
   if (mode == SictMode::None) return dnormed;

@@ -9,6 +9,11 @@
 // The authors' numerics (docs/design.md): eps 1e-5, no affine, running variance updated with the unbiased
 // batch variance. Checked against ../shared/reference/stylerf in tests/test_sict_dst.cpp.
 //
+// forward_factored: stage 3 feeds SICT x = comps B, the feature field's F grid components per point times
+// its basis [F, 256] (no bias, frozen). Normalisation and q/k/v are then linear in comps, so they fold into
+// the basis and the [K, 256] features are never formed (lib/style/sict_factored.cpp; design.md, "SICT on
+// the field's components"). Same maths; F = 72..144 columns instead of 256 and one GEMM fewer per pass.
+//
 // The paper's ablations (Fig. 7) are modes: VanillaIn normalises with the batch statistics in training and
 // inference alike (what makes blocks of rays disagree); None skips the normalisation.
 //
@@ -51,10 +56,20 @@ class Sict : public nn::Module {
     bool batch_stats = false;
     Tensor qkv;         // [K, 96]
     int64_t points = 0;
+    // forward_factored only, what the weight gradient needs instead of `normed`:
+    //   normed = rows * scaled_basis - shift (shift undefined: 0).
+    Tensor rows;          // [K, F] the components, centred by their batch mean when batch statistics are used
+    Tensor scaled_basis;  // [F, 256] the basis with column c times rsqrt(var_c + eps) (the basis in mode None)
+    Tensor shift;         // [256] running mean * rsqrt(running var + eps): running statistics only
+    bool factored() const { return scaled_basis.defined(); }
   };
   // x [K, 256] -> [K, 32]. training selects batch statistics in VolumeAdaptive mode. The running
   // statistics do not move here (forward is const): call update_running(ctx) once per training step.
   Tensor forward(const Tensor& x, bool training, Context* ctx) const;
+  // The same output for x = comps basis (comps [K, F], basis [F, 256]) without forming x. The batch
+  // statistics come from the components' centred covariance: mean = mean(comps) B, var_c = B_c^T Cov B_c.
+  // ctx->mean / var are x's statistics, as forward's, for update_running. Its backward gives no dx.
+  Tensor forward_factored(const Tensor& comps, const Tensor& basis, bool training, Context* ctx) const;
   // Accumulates into qkv_w / qkv_b; returns dx when need_dx (through the batch statistics when they were
   // used; requires the context of a forward that kept x).
   Tensor backward(const Context& ctx, const Tensor& dy, bool need_dx);
