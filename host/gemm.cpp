@@ -5,6 +5,7 @@
 #include <clblast.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <iostream>
 #include <limits>
@@ -25,6 +26,33 @@ std::optional<OwnGemmParams> g_own_override;
 std::optional<DeviceTuning> g_tuning_override;
 
 using ParamSet = std::unordered_map<std::string, size_t>;
+
+// Under profiling (STYLERF_PROFILE=1), the time of a whole CLBlast routine (its pad and transpose copies
+// too, which the event CLBlast hands back does not cover), with the queue drained before and after. Named
+// by shape, so the report shows which GEMMs of a step cost what.
+class ClblastTimer {
+ public:
+  ClblastTimer(const char* what, Trans ta, Trans tb, int M, int N, int K) : rt_(Runtime::instance()) {
+    if (!rt_.profiling()) return;
+    name_ = std::string(what) + " " + std::to_string(M) + "x" + std::to_string(N) + "x" + std::to_string(K) +
+            (ta == Trans::Yes ? " At" : "") + (tb == Trans::Yes ? " Bt" : "");
+    rt_.finish();
+    start_ = std::chrono::steady_clock::now();
+  }
+  ~ClblastTimer() {
+    if (name_.empty()) return;
+    try {
+      rt_.finish();
+      rt_.record_host(name_, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start_).count());
+    } catch (...) {  // a destructor must not throw; the GEMM's own error, if any, is already on its way
+    }
+  }
+
+ private:
+  Runtime& rt_;
+  std::string name_;
+  std::chrono::steady_clock::time_point start_;
+};
 
 // CLBlast's parameter sets for the runtime's device: its built-in defaults and our tuned values, both
 // complete (OverrideParameters rejects a partial set), and which of the two is applied right now.
@@ -129,6 +157,7 @@ void clblast_gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A
                   size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc, bool tuned) {
   apply_clblast_params(tuned);
   Runtime& rt = Runtime::instance();
+  const ClblastTimer timer("clblast gemm", ta, tb, M, N, K);
   auto st = clblast::Gemm<float>(clblast::Layout::kRowMajor,
                                  ta == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo,
                                  tb == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo, M, N, K, alpha,
@@ -136,6 +165,22 @@ void clblast_gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A
   if (st != clblast::StatusCode::kSuccess)
     throw Error("clblast::Gemm failed (" + std::to_string(static_cast<int>(st)) + ") for M=" + std::to_string(M) +
                 " N=" + std::to_string(N) + " K=" + std::to_string(K));
+}
+
+void clblast_gemm_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
+                          size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
+                          size_t c_offset, int ldc, size_t c_stride, int batch, bool tuned) {
+  apply_clblast_params(tuned);
+  Runtime& rt = Runtime::instance();
+  const ClblastTimer timer(("clblast batched x" + std::to_string(batch)).c_str(), ta, tb, M, N, K);
+  const auto tr = [](Trans t) { return t == Trans::Yes ? clblast::Transpose::kYes : clblast::Transpose::kNo; };
+  auto st = clblast::GemmStridedBatched<float>(clblast::Layout::kRowMajor, tr(ta), tr(tb), M, N, K, alpha, A, a_offset,
+                                               lda, a_stride, B, b_offset, ldb, b_stride, beta, C, c_offset, ldc,
+                                               c_stride, batch, rt.queue_ptr(), nullptr);
+  if (st != clblast::StatusCode::kSuccess)
+    throw Error("clblast::GemmStridedBatched failed (" + std::to_string(static_cast<int>(st)) + ") for M=" +
+                std::to_string(M) + " N=" + std::to_string(N) + " K=" + std::to_string(K) + " batch " +
+                std::to_string(batch));
 }
 
 // ---- split-K ----------------------------------------------------------------------------------------
@@ -169,6 +214,7 @@ void clblast_gemm_split(Trans ta, Trans tb, int M, int N, int K, float alpha, cl
   const size_t b_step = tb == Trans::No ? size_t(kc) * size_t(ldb) : size_t(kc);
   const size_t mn = size_t(M) * size_t(N);
   // Zeroed: CLBlast computes beta * C even for beta = 0, and pooled memory may hold NaN.
+  const ClblastTimer timer(("clblast split-K x" + std::to_string(slots)).c_str(), ta, tb, M, N, K);
   Tensor partial = Tensor::zeros({int64_t(slots) * int64_t(mn)}, "gemm split-K partial products");
   apply_clblast_params(tuned);
   Runtime& rt = Runtime::instance();
@@ -281,6 +327,14 @@ void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, 
   if (e == GemmEngine::HostBlas) {  // CBLAS gives K = 0 its BLAS meaning, C = beta * C
     host_blas_gemm_batched(ta, tb, M, N, K, alpha, A, a_offset, lda, a_stride, B, b_offset, ldb, b_stride, beta, C,
                            c_offset, ldc, c_stride, batch);
+    return;
+  }
+  const bool clblast = e == GemmEngine::ClblastDefault || e == GemmEngine::ClblastTuned;
+  if (clblast && batch > 1 && K > 0 && gemm_split_k_parts(M, N, K) < 2) {
+    // One CLBlast call for the whole batch: Winograd's 36 products per conv were 36 calls, each with
+    // its host overhead and its own pad copies.
+    clblast_gemm_batched(ta, tb, M, N, K, alpha, A, a_offset, lda, a_stride, B, b_offset, ldb, b_stride, beta, C,
+                         c_offset, ldc, c_stride, batch, e != GemmEngine::ClblastDefault);
     return;
   }
   for (int i = 0; i < batch; ++i) {

@@ -42,7 +42,8 @@ void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t
           GemmEngine engine = GemmEngine::Auto);
 
 // The same GEMM on `batch` operand sets, the i-th at X_offset + i * X_stride elements of each buffer. The
-// host-blas engine maps the buffers once for the whole batch; the OpenCL engines enqueue one GEMM each.
+// host-blas engine maps the buffers once for the whole batch; CLBlast runs it as one GemmStridedBatched (a batch
+// it would split along K: one GEMM each); the own kernel enqueues one GEMM each.
 void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda,
                           size_t a_stride, cl_mem B, size_t b_offset, int ldb, size_t b_stride, float beta, cl_mem C,
                           size_t c_offset, int ldc, size_t c_stride, int batch, GemmEngine engine = GemmEngine::Auto);

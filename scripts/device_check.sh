@@ -20,13 +20,19 @@
 #   --parts LIST   comma list of devices,patch,decoder,field,ops,gemm,tune,density,tests (default all but tune)
 #   --jobs N       ctest -j (default 4 on a GPU, 2 on a CPU)
 #   --total S      seconds for all the parts together (default 450: 8 minutes less the unpacking)
+#   --baseline F   a stylerf binary built from an earlier commit (same libraries; relative to the bundle when
+#                  not found as given): the patch and decoder parts run with it too, as NAME_baseline, right
+#                  after each, so that a change is measured against its baseline on the same warm machine
+#   --profile      the stage-3 and stage-2 paper patch steps again under STYLERF_PROFILE=1: the top kernels
+#                  and CLBlast calls by time go to the log
 # Each part runs under `timeout` with its own budget, capped by what is left of --total; a part that fails
 # or runs out of time is recorded as such and the rest still run.
 set -uo pipefail
 
 REPO=$(cd "$(dirname "$0")/.." && pwd -P)
 BUNDLE="" BUILD="" DEVICE=gpu OUT="" QUICK="" PARTS="devices,patch,decoder,field,ops,gemm,density,tests" JOBS="" TOTAL=450
-usage() { sed -n 2,27p "$0" | sed 's/^# \{0,1\}//'; }
+BASELINE="" PROFILE=""
+usage() { sed -n 2,32p "$0" | sed 's/^# \{0,1\}//'; }
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --bundle) BUNDLE=$2; shift 2 ;;
@@ -38,6 +44,8 @@ while [[ $# -gt 0 ]]; do
     --parts) PARTS=$2; shift 2 ;;
     --jobs) JOBS=$2; shift 2 ;;
     --total) TOTAL=$2; shift 2 ;;
+    --baseline) BASELINE=$2; shift 2 ;;
+    --profile) PROFILE=1; shift ;;
     -h|--help) usage; exit 0 ;;
     *) echo "device_check: unknown argument $1" >&2; usage >&2; exit 2 ;;
   esac
@@ -236,7 +244,19 @@ bench() {  # bench NAME BUDGET ARGS...: stylerf bench with --json, the weights t
   local name=$1 budget=$2; shift 2
   run_part "$name" "$budget" env STYLERF_WEIGHTS="$BENCH_W" "$STYLERF" bench "$@" --device "$DEVICE" \
     --json "$WORK/json/$name.json"
+  if [[ -n "$BASELINE_BIN" ]]; then
+    run_part "${name}_baseline" "$budget" env STYLERF_WEIGHTS="$BENCH_W" "$BASELINE_BIN" bench "$@" \
+      --device "$DEVICE" --json "$WORK/json/${name}_baseline.json"
+  fi
 }
+BASELINE_BIN=""
+if [[ -n "$BASELINE" ]]; then
+  for c in "$BASELINE" "${BUNDLE:+$BUNDLE/$BASELINE}"; do
+    [[ -n "$c" && -f "$c" ]] && { BASELINE_BIN=$WORK/stylerf_baseline; cp "$c" "$BASELINE_BIN"; chmod +x "$BASELINE_BIN"; break; }
+  done
+  [[ -n "$BASELINE_BIN" ]] && say "baseline: $BASELINE" || say "baseline: $BASELINE not found; no baseline runs"
+  note baseline "$BASELINE"
+fi
 
 # --- the parts, the most wanted first; the tests last, with what is left ----------------------------------------
 if want devices; then
@@ -252,6 +272,12 @@ if want patch; then
   bench patch_s2_paper 60 patch --stage 2 --profile paper --size "$SIZE" --repeats "$REPEATS"
   bench patch_s3_fast 30 patch --stage 3 --profile fast --size "$SIZE" --repeats "$REPEATS"
   bench patch_s3_paper 40 patch --stage 3 --profile paper --size "$SIZE" --repeats "$REPEATS"
+  if [[ -n "$PROFILE" ]]; then
+    run_part patch_s3_paper_profile 40 env STYLERF_PROFILE=1 STYLERF_WEIGHTS="$BENCH_W" "$STYLERF" bench patch \
+      --stage 3 --profile paper --size "$SIZE" --repeats 1 --device "$DEVICE"
+    run_part patch_s2_paper_profile 60 env STYLERF_PROFILE=1 STYLERF_WEIGHTS="$BENCH_W" "$STYLERF" bench patch \
+      --stage 2 --profile paper --size "$SIZE" --repeats 1 --device "$DEVICE"
+  fi
 fi
 if want decoder; then
   bench decoder_paper 25 decoder-step --decoder paper --size "$SIZE" --repeats "$REPEATS"
