@@ -14,6 +14,7 @@
 #include "lib/model/region.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/style/dst.hpp"
+#include "lib/nn/reduce_path.hpp"
 #include "lib/style/sict.hpp"
 
 namespace stylerf::bench {
@@ -44,9 +45,15 @@ void bench_ops_style(const BenchOptions& opt) {
       best_of(reps, [&] { style::point_norm_backward(x, var, dy256, 1e-5f, false); }), 0, 5 * kc);
   const Tensor qkv = Tensor::full({K, 3 * E}, 0.3f), dout = Tensor::full({K, E}, 0.2f);
   const double att = double(K) * (4.0 * E * E + E * E);
-  row("channel attention fwd", "[K,96]->[K,32]", best_of(reps, [&] { style::channel_attention_forward(qkv); }), att, 0);
-  row("channel attention bwd", "[K,32]->[K,96]",
-      best_of(reps, [&] { style::channel_attention_backward(qkv, dout); }), 3 * att, 0);
+  for (auto path : {nn::ReductionPath::PerItem, nn::ReductionPath::WorkGroup}) {  // kernels/sict.cl 3 and 3b
+    const auto old = nn::set_reduction_path(path);
+    const std::string tag = path == nn::ReductionPath::PerItem ? " (per-item)" : " (work-group)";
+    row(("channel attention fwd" + tag).c_str(), "[K,96]->[K,32]",
+        best_of(reps, [&] { style::channel_attention_forward(qkv); }), att, 0);
+    row(("channel attention bwd" + tag).c_str(), "[K,32]->[K,96]",
+        best_of(reps, [&] { style::channel_attention_backward(qkv, dout); }), 3 * att, 0);
+    nn::set_reduction_path(old);
+  }
   style::Dst d = style::Dst::create(true, 0, 1);
   const Tensor s = Tensor::full({L, C}, 0.7f);
   style::Dst::StyleContext sctx;

@@ -136,3 +136,99 @@ __kernel void channel_attention_backward(__global const float* qkv, __global con
   vstore16(dv0, 0, d + 2 * E);
   vstore16(dv1, 1, d + 2 * E);
 }
+
+// ---- 3b. channel attention on work-groups (GPUs) --------------------------------------------------------------
+// The same op for devices where one work-item per point is slow: its 32 keys, 32 values and their gradients
+// held in registers (200+ a work-item) leave a GPU few warps, and each work-item's 384-byte row makes
+// uncoalesced loads. Here a work-group of AG_ROWS points x E lanes loads its rows into __local memory with
+// neighbouring lanes reading neighbouring floats, and lane i of a point computes that point's output i,
+// reading the keys and values from __local memory (every lane of a point reads the same word: a broadcast).
+// The row maximum m_i is the same exact maximum as row_max's. lib/style/sict.cpp chooses the path with the
+// reductions' (nn::ReductionPath: STYLERF_REDUCTION, work-groups on GPUs).
+#define AG_ROWS (256 / E)
+#define AG_LANES (AG_ROWS * E)
+
+// Loads `count` floats from src into dst with the whole group (coalesced).
+inline void group_load(__local float* dst, __global const float* src, int count) {
+  for (int o = get_local_id(0); o < count; o += AG_LANES) dst[o] = src[o];
+}
+
+inline float row_max_local(float qi, __local const float* k) {
+  float kmax = k[0], kmin = k[0];
+  for (int j = 1; j < E; ++j) {
+    kmax = fmax(kmax, k[j]);
+    kmin = fmin(kmin, k[j]);
+  }
+  return row_max(qi, kmax, kmin);
+}
+
+// Global: ceil(rows / AG_ROWS) * AG_LANES, local AG_LANES.
+__kernel __attribute__((reqd_work_group_size(AG_LANES, 1, 1)))
+void channel_attention_forward_group(__global const float* qkv, __global float* out, int rows) {
+  __local float t[AG_ROWS * 3 * E];
+  const long base = (long)get_group_id(0) * AG_ROWS;
+  const int nrows = min((long)AG_ROWS, rows - base);
+  group_load(t, qkv + base * 3 * E, nrows * 3 * E);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int r = get_local_id(0) / E, i = get_local_id(0) % E;
+  if (r >= nrows) return;
+  __local const float* q = t + r * 3 * E;
+  __local const float *k = q + E, *v = q + 2 * E;
+  const float qi = q[i], m = row_max_local(qi, k);
+  float z = 0.0f, acc = 0.0f;
+  for (int j = 0; j < E; ++j) {
+    const float e = exp(fma(qi, k[j], -m));
+    z += e;
+    acc = fma(e, v[j], acc);
+  }
+  out[(base + r) * E + i] = acc / z;
+}
+
+// Two phases: lane i of a point computes Z_i, o_i and dq_i = sum_j ds_ij k_j, and leaves m_i, a_i = g_i / Z_i
+// and o_i in __local memory; then lane j sums over i: dv_j = sum_i p_ij g_i = sum_i e_ij a_i and
+// dk_j = sum_i ds_ij q_i with ds_ij = e_ij a_i (v_j - o_i). The exps are recomputed in each pass instead
+// of keeping a 32 x 32 matrix a point (exp is cheap on a GPU; registers are not).
+__kernel __attribute__((reqd_work_group_size(AG_LANES, 1, 1)))
+void channel_attention_backward_group(__global const float* qkv, __global const float* dout,
+                                      __global float* dqkv, int rows) {
+  __local float t[AG_ROWS * 3 * E], g[AG_ROWS * E], ml[AG_ROWS * E], al[AG_ROWS * E], ol[AG_ROWS * E];
+  const long base = (long)get_group_id(0) * AG_ROWS;
+  const int nrows = min((long)AG_ROWS, rows - base);
+  group_load(t, qkv + base * 3 * E, nrows * 3 * E);
+  group_load(g, dout + base * E, nrows * E);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const int lane = get_local_id(0), r = lane / E, i = lane % E;
+  const bool active = r < nrows;
+  __local const float* q = t + r * 3 * E;
+  __local const float *k = q + E, *v = q + 2 * E;
+  __global float* d = dqkv + (base + r) * 3 * E;
+  if (active) {
+    const float qi = q[i], m = row_max_local(qi, k);
+    float z = 0.0f, ev = 0.0f;
+    for (int j = 0; j < E; ++j) {
+      const float e = exp(fma(qi, k[j], -m));
+      z += e;
+      ev = fma(e, v[j], ev);
+    }
+    const float o = ev / z, a = g[lane] / z;
+    float dq = 0.0f;
+    for (int j = 0; j < E; ++j) dq = fma(exp(fma(qi, k[j], -m)) * a * (v[j] - o), k[j], dq);
+    d[i] = dq;
+    ml[lane] = m;
+    al[lane] = a;
+    ol[lane] = o;
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (!active) return;
+  const int j = i;
+  const float kj = k[j], vj = v[j];
+  float dk = 0.0f, dv = 0.0f;
+  for (int ii = 0; ii < E; ++ii) {
+    const int s = r * E + ii;
+    const float pa = exp(fma(q[ii], kj, -ml[s])) * al[s];
+    dv += pa;
+    dk = fma(pa * (vj - ol[s]), q[ii], dk);
+  }
+  d[E + j] = dk;
+  d[2 * E + j] = dv;
+}

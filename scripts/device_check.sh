@@ -285,9 +285,9 @@ if want decoder; then
 fi
 # shellcheck disable=SC2086
 if want field; then bench field 60 field $FIELD_ARGS; fi
-# The reductions on each path (per-item, work-group) and the device's default, [1,256,256,256].
+# The reductions and the channel attention on each path (per-item, work-group), and the device's default.
 # shellcheck disable=SC2086
-if want ops; then bench ops_norm 40 ops --parts norm $([[ "$QUICK" == 1 ]] && echo --quick) --repeats "$REPEATS"; fi
+if want ops; then bench ops_norm 40 ops --parts norm,style $([[ "$QUICK" == 1 ]] && echo --quick) --repeats "$REPEATS"; fi
 if want gemm; then bench gemm 40 gemm --quick --repeats "$REPEATS"; fi
 # Tuning (only when asked: --parts ...,tune): stylerf tune --quick into the user tuning file, copied to $OUT,
 # then the GEMMs and the patch steps again with it.

@@ -7,6 +7,7 @@
 #include "host/launch.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/nn/linear.hpp"
+#include "lib/nn/reduce_path.hpp"
 
 namespace stylerf::style {
 
@@ -17,6 +18,20 @@ std::string sict_build_options() { return "-DSICT_EMBED=" + std::to_string(Sict:
 template <class... Args>
 static void launch_sict(const char* kernel, const host::Range& global, const Args&... args) {
   host::launch_with_local("sict", kernel, sict_build_options(), global, host::Range(0), args...);
+}
+
+// The channel attention's kernel pair: one work-item per point (CPU devices), or a work-group of
+// kAttentionRows points x kEmbed lanes (kernels/sict.cl, "3b"), on the reductions' path choice.
+constexpr int kAttentionLanes = 256, kAttentionRows = kAttentionLanes / Sict::kEmbed;
+template <class... Args>
+static void launch_attention(const char* kernel, int rows, const Args&... args) {
+  if (!nn::detail::use_group_reductions()) {
+    launch_sict(kernel, {size_t(rows)}, args..., rows);
+    return;
+  }
+  const size_t groups = (size_t(rows) + kAttentionRows - 1) / kAttentionRows;
+  host::launch_with_local("sict", (std::string(kernel) + "_group").c_str(), sict_build_options(),
+                          {groups * kAttentionLanes}, host::Range(size_t(kAttentionLanes)), args..., rows);
 }
 
 SictMode parse_sict_mode(const std::string& s) {
@@ -76,7 +91,7 @@ Tensor channel_attention_forward(const Tensor& qkv) {
   check_rows("channel_attention_forward", qkv, 3 * Sict::kEmbed);
   const int rows = int(qkv.dim(0));
   Tensor out({rows, Sict::kEmbed}, "channel attention output");
-  launch_sict("channel_attention_forward", {size_t(rows)}, qkv, out, rows);
+  launch_attention("channel_attention_forward", rows, qkv, out);
   return out;
 }
 
@@ -85,7 +100,7 @@ Tensor channel_attention_backward(const Tensor& qkv, const Tensor& dout) {
   const int rows = int(qkv.dim(0));
   host::expect_shape(dout, {rows, Sict::kEmbed}, "channel_attention_backward", "dout");
   Tensor d(qkv.shape(), "channel attention dqkv");
-  launch_sict("channel_attention_backward", {size_t(rows)}, qkv, dout, d, rows);
+  launch_attention("channel_attention_backward", rows, qkv, dout, d);
   return d;
 }
 
