@@ -53,8 +53,8 @@ void gemm_strided_batched(Trans ta, Trans tb, int M, int N, int K, float alpha, 
 // then a kernel adds the chunks in order (kernels/gemm_split.cl). Auto splits on non-CPU devices only, into
 // about 2 * compute units / tiles chunks of at least 2048. set_gemm_split_k(P): 0 auto (the default; the
 // STYLERF_GEMM_SPLIT_K variable, auto or a count, sets it for a process), 1 never, P >= 2 always P chunks
-// (at most K). gemm_split_k_parts says what a CLBlast GEMM of that shape runs as here (1: unsplit); the
-// tiles of a batch's GEMMs count together (a Winograd batch of 36 fills a GPU without a split).
+// (at most K). gemm_split_k_parts says what a CLBlast GEMM of that shape runs as here (1: unsplit); Auto
+// never splits a batch (batch > 1), which runs as one GemmStridedBatched call.
 void set_gemm_split_k(int parts);
 int gemm_split_k_parts(int M, int N, int K, int batch = 1);
 

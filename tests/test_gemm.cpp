@@ -227,6 +227,7 @@ TEST_CASE("split-K (forced): CLBlast engines match the reference with uneven tai
   CHECK(gemm_split_k_parts(9, 13, 1 << 20) == 1);
   set_gemm_split_k(0);
   if (Runtime::instance().device().type & CL_DEVICE_TYPE_CPU) CHECK(gemm_split_k_parts(256, 96, 3 << 20) == 1);
+  CHECK(gemm_split_k_parts(64, 64, 1 << 20, 36) == 1);  // Auto runs a batch as one call, unsplit
   CHECK_THROWS_AS(set_gemm_split_k(-1), Error);
 }
 
