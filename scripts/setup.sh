@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(build-essential cmake pkg-config python3 python3-pip
           ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
           libclblast-dev clblast-utils libopenexr-dev libboost-program-options-dev doctest-dev
-          nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg)
+          nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg colmap)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

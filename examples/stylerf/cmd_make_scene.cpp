@@ -17,7 +17,8 @@ int run_make_scene(int argc, char** argv) {
       "size", po::value(&opt.size)->default_value(opt.size), "image width and height in pixels")(
       "views", po::value(&opt.views)->default_value(opt.views), "number of views (every 10th to val, every 10th+5 to test)")(
       "radius", po::value(&opt.radius)->default_value(opt.radius), "camera distance from the origin")(
-      "supersample", po::value(&opt.supersample)->default_value(opt.supersample), "samples per pixel per axis");
+      "supersample", po::value(&opt.supersample)->default_value(opt.supersample), "samples per pixel per axis")(
+      "textured", po::bool_switch(&opt.textured), "noise-textured shapes on a floor, seen from above (for structure from motion)");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);

@@ -1,8 +1,5 @@
 #include "examples/stylerf/pipeline_steps.hpp"
 
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -15,6 +12,7 @@
 
 #include "host/error.hpp"
 #include "host/files.hpp"
+#include "lib/io/process.hpp"
 #include "lib/io/sha256.hpp"
 
 namespace fs = std::filesystem;
@@ -44,46 +42,14 @@ namespace {
 
 const char* kRecord = "steps.json";
 
-// Runs self with args, its stdout and stderr copied line by line to ours and to `log_path`. Returns the
-// child's exit status (128 + signal when killed); peak_rss_mb: the child's peak resident memory.
+// Runs self with args, its output shown line by line and kept in `log_path`. Returns the child's exit status
+// (128 + signal when killed); peak_rss_mb: the child's peak resident memory.
 int run_child(const std::string& self, const std::vector<std::string>& args, const std::string& log_path,
               double& peak_rss_mb) {
-  int fds[2];
-  if (pipe(fds) != 0) throw Error("pipe() failed: " + std::string(std::strerror(errno)));
-  std::cout.flush();
-  const pid_t pid = fork();
-  if (pid < 0) throw Error("fork() failed: " + std::string(std::strerror(errno)));
-  if (pid == 0) {
-    dup2(fds[1], 1);
-    dup2(fds[1], 2);
-    close(fds[0]);
-    close(fds[1]);
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(self.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(self.c_str(), argv.data());
-    std::fprintf(stderr, "cannot run %s: %s\n", self.c_str(), std::strerror(errno));
-    _exit(127);
-  }
-  close(fds[1]);
-  std::ofstream log(log_path);
-  char buf[4096];
-  ssize_t n;
-  while ((n = read(fds[0], buf, sizeof buf)) > 0 || (n < 0 && errno == EINTR)) {
-    if (n <= 0) continue;
-    std::cout.write(buf, n);
-    std::cout.flush();
-    log.write(buf, n);
-  }
-  close(fds[0]);
-  int status = 0;
-  rusage usage{};
-  while (wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
-  }
-  peak_rss_mb = double(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  const io::ProcessResult r =
+      io::run_process(self, args, [](const std::string& line) { std::cout << line << "\n" << std::flush; }, log_path);
+  peak_rss_mb = r.peak_rss_mb;
+  return r.status;
 }
 
 }  // namespace

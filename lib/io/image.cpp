@@ -66,6 +66,49 @@ std::string image_unreadable_reason(const std::string& path) {
   return std::string("not a supported image (") + (why ? why : "unknown format") + ")";
 }
 
+std::array<int, 2> image_dimensions(const std::string& path) {
+  if (const std::string why = image_unreadable_reason(path); !why.empty()) throw Error(path + ": " + why);
+  const std::string b = host::read_file(path);
+  int w = 0, h = 0, comp = 0;
+  stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp);
+  return {w, h};
+}
+
+// JPEG markers up to the first APP1 "Exif" segment, then its TIFF header and IFD0's tag 0x0112.
+int exif_orientation(const std::string& path) {
+  std::string b;
+  try {
+    b = host::read_file(path);
+  } catch (const Error&) {
+    return 0;
+  }
+  auto u8 = [&](size_t i) { return i < b.size() ? unsigned(static_cast<unsigned char>(b[i])) : 0u; };
+  if (u8(0) != 0xFF || u8(1) != 0xD8) return 0;
+  size_t i = 2;
+  while (i + 4 <= b.size() && u8(i) == 0xFF) {
+    const unsigned marker = u8(i + 1), len = (u8(i + 2) << 8) | u8(i + 3);
+    if (marker == 0xDA || len < 2) return 0;  // image data: no EXIF before it
+    if (marker == 0xE1 && len >= 16 && b.compare(i + 4, 6, std::string("Exif\0\0", 6)) == 0) {
+      const size_t t = i + 10;  // the TIFF header
+      const bool le = u8(t) == 'I';
+      auto rd16 = [&](size_t o) { return le ? u8(o) | (u8(o + 1) << 8) : (u8(o) << 8) | u8(o + 1); };
+      auto rd32 = [&](size_t o) { return le ? rd16(o) | (rd16(o + 2) << 16) : (rd16(o) << 16) | rd16(o + 2); };
+      const size_t ifd = t + rd32(t + 4);
+      const unsigned entries = rd16(ifd);
+      for (unsigned e = 0; e < entries && ifd + 2 + 12 * (e + 1) <= b.size(); ++e) {
+        const size_t en = ifd + 2 + 12 * e;
+        if (rd16(en) == 0x0112) {
+          const unsigned v = rd16(en + 8);
+          return v >= 1 && v <= 8 ? int(v) : 0;
+        }
+      }
+      return 0;
+    }
+    i += 2 + len;
+  }
+  return 0;
+}
+
 Image load_image(const std::string& path, const std::array<float, 3>* background, std::vector<float>* alpha) {
   namespace fs = std::filesystem;
   std::error_code ec;

@@ -101,6 +101,36 @@ bool disc(const Shape& s, Float3 o, Float3 d, float& t, Float3& n) {
   return true;
 }
 
+// Value noise: trilinear interpolation of hashed lattice values in [0, 1), smoothstepped.
+float lattice(int x, int y, int z) {
+  uint32_t h = uint32_t(x) * 73856093u ^ uint32_t(y) * 19349663u ^ uint32_t(z) * 83492791u;
+  h ^= h >> 13;
+  h *= 0x5bd1e995u;
+  h ^= h >> 15;
+  return float(h & 0xffffu) / 65536.0f;
+}
+
+float value_noise(const Float3& p) {
+  const int x = int(std::floor(p[0])), y = int(std::floor(p[1])), z = int(std::floor(p[2]));
+  auto fade = [](float t) { return t * t * (3.0f - 2.0f * t); };
+  const float fx = fade(p[0] - x), fy = fade(p[1] - y), fz = fade(p[2] - z);
+  auto lerp = [](float a, float b, float t) { return a + (b - a) * t; };
+  const float x00 = lerp(lattice(x, y, z), lattice(x + 1, y, z), fx);
+  const float x10 = lerp(lattice(x, y + 1, z), lattice(x + 1, y + 1, z), fx);
+  const float x01 = lerp(lattice(x, y, z + 1), lattice(x + 1, y, z + 1), fx);
+  const float x11 = lerp(lattice(x, y + 1, z + 1), lattice(x + 1, y + 1, z + 1), fx);
+  return lerp(lerp(x00, x10, fy), lerp(x01, x11, fy), fz);
+}
+
+// Four octaves, each twice the frequency and half the weight of the last, with a sharpened contrast.
+Float3 noise_albedo(const Material& m, const Float3& l) {
+  float v = 0, w = 0.5f, f = 1.0f;
+  for (int o = 0; o < 4; ++o, w *= 0.5f, f *= 2.0f) v += w * value_noise(l * f);
+  v = std::min(1.0f, std::max(0.0f, (v / 0.9375f - 0.5f) * 2.2f + 0.5f));
+  const Float3 ab = m.b + (m.a - m.b) * v;
+  return v > 0.8f ? m.c : ab;
+}
+
 Float3 albedo_at(const Shape& s, Float3 p) {
   const Material& m = s.material;
   const Float3 l = (p - s.p) * m.frequency;
@@ -114,6 +144,8 @@ Float3 albedo_at(const Shape& s, Float3 p) {
       return (parity(l[0]) ^ parity(l[1]) ^ parity(l[2])) ? m.a : m.b;
     case Pattern::stripes:
       return parity(l[2]) ? m.a : m.b;
+    case Pattern::noise:
+      return noise_albedo(m, l);
   }
   return m.a;
 }
@@ -238,6 +270,23 @@ AnalyticView render_analytic(const AnalyticScene& scene, const Camera& cam, int 
       }
     }
   return v;
+}
+
+AnalyticScene AnalyticScene::textured() {
+  AnalyticScene s = objects();
+  const Float3 colours[4][3] = {{{0.9f, 0.3f, 0.1f}, {0.15f, 0.1f, 0.3f}, {1.0f, 0.9f, 0.4f}},
+                                {{0.2f, 0.4f, 0.9f}, {0.05f, 0.15f, 0.1f}, {0.9f, 0.95f, 1.0f}},
+                                {{0.9f, 0.8f, 0.2f}, {0.3f, 0.1f, 0.05f}, {0.4f, 1.0f, 0.5f}},
+                                {{0.3f, 0.9f, 0.5f}, {0.1f, 0.05f, 0.2f}, {1.0f, 0.5f, 0.8f}}};
+  for (size_t i = 0; i < s.shapes.size(); ++i)
+    s.shapes[i].material = {colours[i][0], colours[i][1], Pattern::noise, 6.0f, colours[i][2]};
+  Shape floor;
+  floor.kind = Shape::Kind::disc;
+  floor.p = {0.0f, 0.0f, -0.9f};
+  floor.radius = 2.4f;
+  floor.material = {{0.75f, 0.7f, 0.6f}, {0.15f, 0.2f, 0.25f}, Pattern::noise, 3.0f, {0.9f, 0.3f, 0.3f}};
+  s.shapes.push_back(floor);
+  return s;
 }
 
 }  // namespace stylerf::scene

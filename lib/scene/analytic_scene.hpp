@@ -14,12 +14,15 @@ namespace stylerf::scene {
 
 using Float3 = std::array<float, 3>;
 
-enum class Pattern { solid, checker, stripes };
+// noise: a solid value noise of four octaves between colours a and b, with a third colour c at the top of
+// its range: blobs at every scale, which feature matchers (COLMAP's SIFT) find in any view.
+enum class Pattern { solid, checker, stripes, noise };
 
 struct Material {
   Float3 a{0.8f, 0.8f, 0.8f}, b{0.2f, 0.2f, 0.2f};  // the two colours of the pattern (solid: a)
   Pattern pattern = Pattern::solid;
   float frequency = 4.0f;  // cells per unit length, in the shape's local frame (origin at `p`)
+  Float3 c{0.95f, 0.95f, 0.9f};  // noise only: its brightest blobs
 };
 
 struct Shape {
@@ -52,6 +55,9 @@ struct AnalyticScene {
   static AnalyticScene objects();
   // The demo content image: plain shapes standing on a checker disc floor (z = 0, radius 6).
   static AnalyticScene on_floor();
+  // make-scene --textured: noise-textured shapes on a noise-textured disc floor (z = -0.9, radius 2.4), so
+  // that structure from motion registers every view (the COLMAP import's end-to-end test).
+  static AnalyticScene textured();
 };
 
 struct AnalyticView {

@@ -67,7 +67,7 @@ MakeSceneSummary make_scene(const std::string& dir_arg, const MakeSceneOptions& 
   std::error_code ec;
   fs::remove_all(tmp, ec);
 
-  const AnalyticScene scene = AnalyticScene::objects();
+  const AnalyticScene scene = o.textured ? AnalyticScene::textured() : AnalyticScene::objects();
   const float focal = 0.5f * o.size / std::tan(0.5f * o.camera_angle_x);
   nlohmann::json splits[3];  // train, val, test
   const char* names[3] = {"train", "val", "test"};
@@ -84,7 +84,9 @@ MakeSceneSummary make_scene(const std::string& dir_arg, const MakeSceneOptions& 
                    {"frames", nlohmann::json::array()}};
     }
     const double golden = M_PI * (3.0 - std::sqrt(5.0));
-    const double z_top = std::sin(70.0 * M_PI / 180.0), z_bottom = std::sin(-35.0 * M_PI / 180.0);
+    // The textured content stands on a floor: cameras from 60 to 15 degrees above it see both.
+    const double top = o.textured ? 60.0 : 70.0, bottom = o.textured ? 15.0 : -35.0;
+    const double z_top = std::sin(top * M_PI / 180.0), z_bottom = std::sin(bottom * M_PI / 180.0);
     for (int i = 0; i < o.views; ++i) {
       const double z = z_top + (z_bottom - z_top) * (i + 0.5) / o.views;
       const double rho = std::sqrt(1.0 - z * z), az = golden * i;

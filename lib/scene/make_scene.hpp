@@ -22,6 +22,9 @@ struct MakeSceneOptions {
   float radius = 4.0f;          // camera distance from the origin
   float camera_angle_x = 0.9f;  // horizontal field of view, radians
   int supersample = 2;          // per axis, for colour and alpha
+  // AnalyticScene::textured() (noise-textured shapes on a floor of radius 2.4, partly outside the box) seen
+  // from 60 to 15 degrees above the horizon: images structure from motion registers (the import's tests).
+  bool textured = false;
 };
 
 struct MakeSceneSummary {
