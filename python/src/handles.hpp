@@ -51,5 +51,6 @@ void bind_scene(pyb::module_& m);
 void bind_model(pyb::module_& m);
 void bind_train(pyb::module_& m);
 void bind_eval(pyb::module_& m);
+void bind_image(pyb::module_& m);
 
 }  // namespace stylerf::py

@@ -68,4 +68,5 @@ PYBIND11_MODULE(_stylerf, m) {
   py::bind_model(m);
   py::bind_train(m);
   py::bind_eval(m);
+  py::bind_image(m);
 }

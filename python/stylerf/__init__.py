@@ -16,8 +16,10 @@ from ._stylerf import (  # noqa: F401  (the public API)
     consistency,
     device,
     devices,
+    load_image,
     lpips,
     mix,
+    save_image,
     train_density,
     train_features,
     train_style,
@@ -30,5 +32,5 @@ _atexit.register(_shutdown)
 
 __all__ = [
     "Camera", "Error", "Scene", "StyleCode", "StyleModel", "__version__", "consistency", "device", "devices",
-    "lpips", "mix", "train_density", "train_features", "train_style", "use_device",
+    "load_image", "lpips", "mix", "save_image", "train_density", "train_features", "train_style", "use_device",
 ]

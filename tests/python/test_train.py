@@ -1,0 +1,68 @@
+"""The trainers' progress callback, stopping, exceptions raised in it, and the GIL released meanwhile."""
+import os
+import threading
+import time
+
+import pytest
+
+import stylerf
+
+
+class Stop(Exception):
+    pass
+
+
+def test_progress_is_called_every_step(stages, tmp_path):
+    seen = []
+    out = stylerf.train_features(stages.density, str(tmp_path / "f.ckpt"), iters=6, progress=seen.append)
+    assert os.path.getsize(out) > 0
+    assert [d["iteration"] for d in seen] == [1, 2, 3, 4, 5, 6]
+    assert all(d["stage"] == "features" and d["total"] == 6 for d in seen)
+
+
+def test_false_stops_early_and_writes_the_checkpoint(stages, tmp_path):
+    seen = []
+    out = str(tmp_path / "d.ckpt")
+    stylerf.train_density(stylerf.Scene.open(stages.scene), out, iters=50, batch=256,
+                          progress=lambda d: seen.append(d["iteration"]) or d["iteration"] < 3)
+    assert seen == [1, 2, 3] and os.path.getsize(out) > 0
+
+
+@pytest.mark.parametrize("stage", ["density", "features", "style"])
+def test_an_exception_in_the_callback_stops_cleanly(stages, tmp_path, stage):
+    def progress(d):
+        if d["iteration"] == 2:
+            raise Stop("from the callback")
+
+    out = str(tmp_path / "x.ckpt")
+    with pytest.raises(Stop, match="from the callback"):
+        if stage == "density":
+            stylerf.train_density(stylerf.Scene.open(stages.scene), out, iters=20, batch=256, progress=progress)
+        elif stage == "features":
+            stylerf.train_features(stages.density, out, iters=20, progress=progress)
+        else:
+            stylerf.train_style(stages.features, stages.styles, out, iters=20, holdout=1, progress=progress)
+    assert os.listdir(tmp_path) == [], "no checkpoint and no temporary file may be left"
+
+
+def test_an_existing_checkpoint_is_kept_unless_overwrite(stages, tmp_path):
+    out = tmp_path / "f.ckpt"
+    out.write_bytes(b"keep")
+    with pytest.raises(FileExistsError):
+        stylerf.train_features(stages.density, str(out), iters=1)
+    assert out.read_bytes() == b"keep"
+
+
+def test_the_gil_is_released_while_training(stages, tmp_path):
+    # Without the release the main thread could not run at all until the call returned.
+    scene = stylerf.Scene.open(stages.scene)
+    worker = threading.Thread(target=stylerf.train_density,
+                              args=(scene, str(tmp_path / "d.ckpt")), kwargs={"iters": 40, "batch": 1024})
+    ticks, start = 0, time.perf_counter()
+    worker.start()
+    while worker.is_alive():
+        ticks += 1
+        time.sleep(0.002)
+    worker.join()
+    assert time.perf_counter() - start > 0.1
+    assert ticks > 20
