@@ -36,7 +36,7 @@ double lpips(const pyb::object& a, const pyb::object& b, const std::string& net)
     throw pyb::value_error("a, b: the images differ in size (" + std::to_string(ia.height) + " x " +
                            std::to_string(ia.width) + " and " + std::to_string(ib.height) + " x " +
                            std::to_string(ib.width) + ")");
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   return lpips_net(net).distance(ia, ib);
 }
 
@@ -64,7 +64,7 @@ pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, 
   if (n < 1 || n > model::kMaxSupersample) throw pyb::value_error("supersample: must be in [1, 8]");
   eval::ConsistencyScore score;
   {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     eval::PathOptions p;
     p.frames = frames;
     p.path_frames = path_frames;

@@ -13,7 +13,7 @@ namespace {
 pyb::array_t<float> load_image(const std::string& path) {
   io::Image img;
   {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     img = io::load_image(path);  // alpha dropped, grey replicated: RGB in [0, 1]
   }
   const size_t plane = size_t(img.width) * img.height;
@@ -25,7 +25,7 @@ pyb::array_t<float> load_image(const std::string& path) {
 
 void save_image(const std::string& path, const pyb::object& image) {
   const io::Image img = image_from_array(image, "image");
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   io::save_image(path, img);
 }
 

@@ -17,7 +17,7 @@ namespace {
 constexpr int kChunk = 8192;  // rays per content-render call: `stylerf stylize`'s default --chunk
 
 ModelHandle open_model(const std::string& path, const std::string& scene_dir) {
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   const io::Checkpoint ck = io::load_checkpoint(path, "");
   if (ck.kind != "style")
     throw host::Error("checkpoint " + path + " holds a '" + ck.kind +
@@ -46,16 +46,16 @@ CodeHandle encode(const ModelHandle& s, const pyb::object& image) {
   c.owner = s;
   if (pyb::isinstance<pyb::str>(image) || pyb::hasattr(image, "__fspath__")) {
     c.source = pyb::str(image);
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     c.code = s->encoder->encode(c.source).code;  // the file as `stylize --style` reads it
   } else {
     const io::Image img = image_from_array(image, "image");
     c.source = "<array>";
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     const io::Image square = io::resize(img, style::kStyleImageSize, style::kStyleImageSize);
     c.code = s->encoder->encode_image(io::to_tensor(square));
   }
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   s->stats->attach(c.code);
   return c;
 }
@@ -81,7 +81,7 @@ pyb::array_t<float> stylize(const ModelHandle& s, const ViewOrCamera& view, cons
   const scene::Camera cam = resolve_view(s->scene, view);
   std::vector<float> rgb;
   {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     rgb = stylize_frame(*s, cam, code.code, n);
   }
   return to_array(std::move(rgb), cam.height, cam.width, 3);
@@ -94,7 +94,7 @@ std::vector<double> cpp_stylize_seconds(const ModelHandle& s, const ViewOrCamera
   check_owner(*s, code, "code");
   const int n = check_supersample(*s, supersample);
   const scene::Camera cam = resolve_view(s->scene, view);
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   std::vector<double> out;
   for (int i = 0; i < repeats; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -110,7 +110,7 @@ pyb::dict render(const ModelHandle& s, const ViewOrCamera& view) {
   const scene::Camera cam = resolve_view(s->scene, view);
   model::FeatureModel::DecodedView r;
   {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     r = s->model.features.render_decoded(s->scene, cam, kChunk);
   }
   pyb::dict d;
@@ -134,7 +134,7 @@ CodeHandle mix(const std::vector<CodeHandle>& codes, const std::vector<float>& w
     throw pyb::value_error(e.what());
   }
   CodeHandle out{{}, codes.front().owner, "mix"};
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   out.code = style::mix_codes(raw, weights, "weights");
   out.owner->stats->attach(out.code);  // as `stylize --mix`: the mixed code gets its own statistics
   return out;

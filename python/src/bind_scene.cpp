@@ -78,7 +78,7 @@ void bind_scene(pyb::module_& m) {
             auto h = std::make_shared<SceneHandle>();
             h->dir = path;
             h->options.downsample = downsample;
-            pyb::gil_scoped_release release;
+            LibraryCall call;
             h->scene = scene::load_scene(path, h->options);
             return h;
           },

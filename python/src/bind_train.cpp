@@ -65,7 +65,7 @@ std::string train_density(const SceneHandle& sc, const std::string& out, std::op
   const Length len = check_length(iters, minutes);
   if (batch < 1 || batch > (1 << 22)) throw pyb::value_error("batch: must be in [1, 4194304]");
   check_output(out, overwrite, checkpoint_every);
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   auto cfg = train::default_density_config(sc.scene);
   if (len.iters > 0) cfg.schedule = cfg.schedule.fitted(len.iters);  // as `train-density --iters`
   cfg.batch = batch;
@@ -94,7 +94,7 @@ std::string train_features(const std::string& density, const std::string& out, s
   const Length len = check_length(iters, minutes);
   const model::DecoderProfile prof = model::parse_decoder_profile(profile);
   check_output(out, overwrite, checkpoint_every);
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   const io::Checkpoint dck = io::load_checkpoint(density, "density");
   const model::Geometry geo = model::load_model(dck).geo;
   const auto opened = scene::open_scene_for(dck.meta.value("scene", nlohmann::json::object()), density);
@@ -128,7 +128,7 @@ std::string train_style(const std::string& features, const std::string& styles, 
   const Length len = check_length(iters, minutes);
   if (holdout < 0) throw pyb::value_error("holdout: must be >= 0");
   check_output(out, overwrite, checkpoint_every);
-  pyb::gil_scoped_release release;
+  LibraryCall call;
   const io::Checkpoint ck = io::load_checkpoint(features, "features");
   const nlohmann::json scene_meta = ck.meta.value("scene", nlohmann::json::object());
   const scene::Scene sc = scene::open_scene_for(scene_meta, features).scene;

@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <mutex>
 #include <string>
 #include <variant>
 
@@ -18,6 +19,23 @@
 namespace stylerf::py {
 
 namespace pyb = pybind11;
+
+// Every call into the library holds one of these: the GIL is released first, so other Python threads run
+// meanwhile, then a process-wide lock is taken, since the library is not thread-safe (one OpenCL runtime,
+// one queue, one buffer pool). The lock is recursive: a progress callback (which takes the GIL back) may
+// call into the library again between training steps.
+class LibraryCall {
+ public:
+  LibraryCall() : lock_(mutex()) {}
+
+ private:
+  static std::recursive_mutex& mutex() {
+    static std::recursive_mutex m;
+    return m;
+  }
+  pyb::gil_scoped_release release_;  // declared first: released before the lock is taken, retaken after
+  std::unique_lock<std::recursive_mutex> lock_;
+};
 
 // A scene as loaded, with what scene_meta needs to record it in a checkpoint.
 struct SceneHandle {

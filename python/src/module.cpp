@@ -30,7 +30,7 @@ void bind_runtime(pyb::module_& m) {
     return out;
   }, "the OpenCL devices, in the order an index picks them");
   m.def("use_device", [](const std::string& spec) {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     host::Runtime::init(spec);
   }, pyb::arg("spec"),
         "choose the device before the first computation: an index, cpu|gpu|accelerator, or part of a name "
@@ -38,13 +38,13 @@ void bind_runtime(pyb::module_& m) {
   m.def("device", [] {
     host::DeviceInfo d;
     {
-      pyb::gil_scoped_release release;
+      LibraryCall call;
       d = host::Runtime::instance().device();
     }
     return device_dict(d);
   }, "the device in use (choosing the default one if none was chosen yet)");
   m.def("_shutdown", [] {
-    pyb::gil_scoped_release release;
+    LibraryCall call;
     if (host::Runtime::initialised()) host::Runtime::shutdown();
   }, "drain the queue and release the device (registered with atexit by stylerf/__init__.py)");
 }

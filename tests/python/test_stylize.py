@@ -90,3 +90,22 @@ def test_devices_and_version():
     names = [d["name"] for d in stylerf.devices()]
     assert stylerf.device()["name"] in names
     assert os.path.basename(stylerf.__file__) == "__init__.py"
+
+
+def test_threads_take_turns_in_the_library(stages, model):
+    # The GIL is released during compute, so threads reach the library together; it serialises them.
+    import threading
+
+    code = model.encode_style(stages.style_images[0])
+    alone = [model.stylize(v, code) for v in (0, 1)]
+    got = [None] * 4
+
+    def work(i):
+        got[i] = model.stylize(i % 2, code)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(np.array_equal(got[i], alone[i % 2]) for i in range(4))

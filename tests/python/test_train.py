@@ -66,3 +66,25 @@ def test_the_gil_is_released_while_training(stages, tmp_path):
     worker.join()
     assert time.perf_counter() - start > 0.1
     assert ticks > 20
+
+
+def test_checkpoints_equal_the_clis_byte_for_byte(stages, tmp_path):
+    from conftest import run_cli
+
+    def same(cli_args, train):
+        cli, ours = str(tmp_path / "cli.ckpt"), str(tmp_path / "py.ckpt")
+        code, log = run_cli(*cli_args, "-o", cli)
+        assert code == 0, log
+        train(ours)
+        with open(cli, "rb") as a, open(ours, "rb") as b:
+            assert a.read() == b.read()
+        os.remove(cli)
+        os.remove(ours)
+
+    same(["train-density", "--scene", stages.scene, "--iters", "12", "--batch", "256", "--eval-views", "1"],
+         lambda out: stylerf.train_density(stylerf.Scene.open(stages.scene), out, iters=12, batch=256))
+    same(["train-features", "--density", stages.density, "--iters", "3", "--eval-views", "1"],
+         lambda out: stylerf.train_features(stages.density, out, iters=3))
+    same(["train-style", "--features", stages.features, "--styles", stages.styles, "--holdout-styles", "1",
+          "--iters", "3"],
+         lambda out: stylerf.train_style(stages.features, stages.styles, out, iters=3, holdout=1))
