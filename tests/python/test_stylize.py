@@ -25,6 +25,7 @@ def test_stylize_equals_the_cli(stages, model, tmp_path):
     cli = stylerf.load_image(str(out / "test_000.png"))
     ours = model.stylize(0, model.encode_style(style))
     assert ours.shape == cli.shape == (32, 32, 3) and ours.dtype == np.float32
+    assert not ours.flags.owndata  # the library's result handed to numpy, not copied into a new array
     # The object must cover part of the frame: over a plain background the comparison would prove little.
     assert (ours < 0.99).any(axis=-1).mean() > 0.1
     assert np.array_equal(quantise(ours), np.round(cli * 255).astype(np.uint8))

@@ -20,6 +20,15 @@ def test_progress_is_called_every_step(stages, tmp_path):
     assert all(d["stage"] == "features" and d["total"] == 6 for d in seen)
 
 
+def test_a_time_budget_ends_the_run(stages, tmp_path):
+    seen = []
+    start = time.perf_counter()
+    out = stylerf.train_density(stylerf.Scene.open(stages.scene), str(tmp_path / "d.ckpt"), minutes=0.01,
+                                batch=256, progress=seen.append)
+    assert os.path.getsize(out) > 0 and len(seen) > 0
+    assert sum(d["seconds"] for d in seen) >= 0.6 and time.perf_counter() - start < 30
+
+
 def test_false_stops_early_and_writes_the_checkpoint(stages, tmp_path):
     seen = []
     out = str(tmp_path / "d.ckpt")
