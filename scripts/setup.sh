@@ -9,7 +9,8 @@ cd "$(dirname "$0")/.."
 PACKAGES=(build-essential cmake pkg-config python3 python3-pip
           ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
           libclblast-dev clblast-utils libopenexr-dev libboost-program-options-dev doctest-dev
-          nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg colmap)
+          nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg colmap
+          pybind11-dev python3-dev python3-numpy python3-pytest)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -31,5 +32,9 @@ BUILD_DIR=${BUILD_DIR:-build}
 JOBS=${JOBS:-$(nproc)}
 echo "== building in $BUILD_DIR with $JOBS jobs"
 mkdir -p "$BUILD_DIR"
-cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release > "$BUILD_DIR/cmake-configure.log" 2>&1 || { cat "$BUILD_DIR/cmake-configure.log"; exit 1; }
+# The Python module and its pytest suite use Debian's interpreter, the one apt's numpy and pytest serve
+# (python3 on PATH may be another, e.g. pyenv's).
+PY_ARGS=()
+[ -x /usr/bin/python3 ] && PY_ARGS=(-DPython_EXECUTABLE=/usr/bin/python3)
+cmake -S . -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release "${PY_ARGS[@]}" > "$BUILD_DIR/cmake-configure.log" 2>&1 || { cat "$BUILD_DIR/cmake-configure.log"; exit 1; }
 cmake --build "$BUILD_DIR" -j "$JOBS"

@@ -4,7 +4,6 @@
 // ETA), and the decoded held-out PSNR at the end; checkpoints are atomic, with resume.
 #include <boost/program_options.hpp>
 #include <cmath>
-#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <chrono>
@@ -23,7 +22,6 @@
 #include "lib/train/recipes.hpp"
 
 namespace po = boost::program_options;
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -122,8 +120,7 @@ FeatureSource open_feature_source(const FeatureArgs& a) {
     const auto dck = stylerf::io::load_checkpoint(a.density_path, "density");
     src.geometry = model::load_model(dck).geo;
     src.scene_meta = dck.meta.value("scene", nlohmann::json::object());
-    src.density_meta = {{"path", fs::absolute(a.density_path).string()},
-                        {"iteration", dck.meta.value("trainer", nlohmann::json::object()).value("iteration", 0)}};
+    src.density_meta = train::density_source_meta(a.density_path, dck);
   }
   return src;
 }

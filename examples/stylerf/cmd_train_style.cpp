@@ -143,11 +143,7 @@ void check_style_args(const StyleArgs& a) {
 std::unique_ptr<train::StyleTrainer> new_style_trainer(const StyleArgs& a, const stylerf::scene::Scene& scene,
                                                       const stylerf::io::Checkpoint& ck) {
   model::FeatureModel fm = model::FeatureModel::load(ck);
-  const std::string profile = model::decoder_profile_name(fm.profile);
-  const auto recipe = train::parse_recipe(a.recipe_name.empty() ? profile : a.recipe_name);
-  if (recipe == train::Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
-    throw Error("--recipe fast needs a fast-profile feature checkpoint; " + a.features_path + " has the " + profile +
-                " profile (use --recipe paper)");
+  const auto recipe = train::style_recipe_for(fm, a.recipe_name, a.features_path);
   train::StyleTrainConfig cfg = train::style_recipe(recipe);
   cfg.sict = stylerf::style::parse_sict_mode(a.sict_name);
   cfg.dst_bias = a.dst_name == "bias";

@@ -39,26 +39,6 @@ void check_path_options(const PathOptions& p) {
   check_int_range("--supersample", p.supersample, 0, model::kMaxSupersample);
 }
 
-PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p) {
-  const auto t0 = std::chrono::steady_clock::now();
-  PathSetup out;
-  out.cams = eval::path_cameras(scene, p.frames, p.path_frames, p.size);
-  eval::ConsistencyOptions opt;
-  opt.warp.depth_tolerance = p.depth_tolerance;
-  // The geometry records whether the scene has a background: the scene here is loaded without its images,
-  // so its own effects cannot tell (they come from the images' alpha).
-  opt.warp.mask_background = g.has_background;
-  out.warps = eval::path_warps(eval::render_path_geometry(g, scene, out.cams, p.chunk), eval::RaySpace::of(scene), opt);
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return out;
-}
-
-std::unique_ptr<eval::MaskedDistance> lpips_distance(const eval::Lpips* lpips) {
-  if (!lpips) return nullptr;
-  return std::make_unique<eval::MaskedDistance>(
-      [lpips](const io::Image& a, const io::Image& b, const std::vector<float>& mask) { return lpips->distance(a, b, mask); });
-}
-
 std::string score_line(const eval::ConsistencyScore& s) {
   std::ostringstream o;
   o << std::fixed << std::setprecision(4);

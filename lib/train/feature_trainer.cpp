@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <iomanip>
 #include <ostream>
 #include <sstream>
@@ -327,6 +328,7 @@ FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRun
       win_r = win_p = win_n = 0;
     }
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
+    if (opt.after_step && !opt.after_step(st)) break;
     if (budget.spent()) break;
     // The run's length is its lr decay horizon: refitted to the budget as the step rate becomes known.
     if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);
@@ -336,6 +338,11 @@ FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRun
   if (win_r) sum.last_feature_mse = win_fmse / win_r;
   save();
   return sum;
+}
+
+nlohmann::json density_source_meta(const std::string& density_path, const io::Checkpoint& density) {
+  return {{"path", std::filesystem::absolute(density_path).string()},
+          {"iteration", density.meta.value("trainer", nlohmann::json::object()).value("iteration", 0)}};
 }
 
 }  // namespace stylerf::train

@@ -118,6 +118,9 @@ struct FeatureRunOptions {
   nlohmann::json scene_meta, density_meta;
   double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
   Clock clock;               // read before and after each step; empty: the steady clock
+  // Called after every step (and its periodic checkpoint); return false to stop early. An exception
+  // thrown here leaves the loop without the final checkpoint (the periodic ones are atomic).
+  std::function<bool(const FeatureStepStats&)> after_step;
 };
 struct FeatureRunSummary {
   int iterations = 0;
@@ -125,5 +128,9 @@ struct FeatureRunSummary {
   double last_patch_psnr = 0, last_feature_mse = 0;
 };
 FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt);
+
+// What a feature checkpoint records of the density checkpoint it was trained over (FeatureRunOptions::
+// density_meta): its absolute path and the iteration it had reached.
+nlohmann::json density_source_meta(const std::string& density_path, const io::Checkpoint& density);
 
 }  // namespace stylerf::train

@@ -12,6 +12,15 @@ Recipe parse_recipe(const std::string& name) {
 
 const char* recipe_name(Recipe r) { return r == Recipe::Fast ? "fast" : "paper"; }
 
+Recipe style_recipe_for(const model::FeatureModel& fm, const std::string& recipe, const std::string& features_path) {
+  const std::string profile = model::decoder_profile_name(fm.profile);
+  const Recipe r = parse_recipe(recipe.empty() ? profile : recipe);
+  if (r == Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
+    throw host::Error("--recipe fast needs a fast-profile feature checkpoint; " + features_path + " has the " +
+                      profile + " profile (use --recipe paper)");
+  return r;
+}
+
 StyleTrainConfig style_recipe(Recipe r) {
   StyleTrainConfig c;
   if (r == Recipe::Paper) return c;

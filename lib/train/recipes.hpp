@@ -22,5 +22,9 @@ const char* recipe_name(Recipe r);
 // scale inference reads them), and inference at 3 x 3 rays per feature block. Paper: StyleTrainConfig's
 // defaults, which are the paper's.
 StyleTrainConfig style_recipe(Recipe r);
+// The recipe a style stage over feature model `fm` (read from `features_path`, named in errors) runs:
+// `recipe` ("fast" | "paper"), or when empty the one named like the model's profile. The fast recipe
+// needs a fast-profile model (its decoder reads relu3_1-sized maps).
+Recipe style_recipe_for(const model::FeatureModel& fm, const std::string& recipe, const std::string& features_path);
 
 }  // namespace stylerf::train

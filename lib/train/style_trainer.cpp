@@ -487,6 +487,7 @@ StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions&
     }
     if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
     if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
+    if (opt.after_step && !opt.after_step(st)) break;
     if (budget.spent()) break;
     // The lr decay follows the budget's fraction; the refitted length only says when the run is done.
     if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);

@@ -160,6 +160,9 @@ struct StyleRunOptions {
   nlohmann::json scene_meta;
   double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
   Clock clock;               // read before and after each step; empty: the steady clock
+  // Called after every step (and its periodic checkpoint); return false to stop early. An exception
+  // thrown here leaves the loop without the final checkpoint (the periodic ones are atomic).
+  std::function<bool(const StyleStepStats&)> after_step;
 };
 struct StyleRunSummary {
   int iterations = 0;

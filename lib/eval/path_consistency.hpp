@@ -1,0 +1,31 @@
+// The consistency measurement's set-up, shared by `stylerf eval consistency` / `eval table` and the Python
+// module: the first frames of the scene's path, their warps found from a geometry (rendered depth and
+// both cameras), and LPIPS as the masked distance.
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "lib/eval/consistency.hpp"
+#include "lib/eval/lpips.hpp"
+#include "lib/model/geometry.hpp"
+#include "lib/scene/scene.hpp"
+
+namespace stylerf::eval {
+
+struct PathOptions {
+  int frames = 16, path_frames = 120, size = 0, chunk = 8192;
+  int supersample = 0;  // StyleRF content rays per block and axis (render_camera_content); 0: each checkpoint's
+  float depth_tolerance = 0.03f;
+};
+
+struct PathSetup {
+  std::vector<scene::Camera> cams;
+  PathWarps warps;
+  double seconds = 0;  // rendering the geometry and finding the correspondences
+};
+PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p);
+
+// Masked LPIPS as the consistency metric's distance; null when lpips is null.
+std::unique_ptr<MaskedDistance> lpips_distance(const Lpips* lpips);
+
+}  // namespace stylerf::eval
