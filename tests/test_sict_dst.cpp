@@ -20,23 +20,20 @@
 #include "lib/io/safetensors.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/style/sict.hpp"
+#include "tests/sict_testing.hpp"
 #include "tests/style_reference.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
 using host::Tensor;
 using testing::check_close;
+using testing::ref_mode;
 using testing::to_double;
 namespace ref = testing::style_ref;
 
 namespace {
 
 constexpr int C = 256, E = 32;
-
-ref::Mode ref_mode(style::SictMode m) {
-  return m == style::SictMode::VolumeAdaptive ? ref::Mode::VolumeAdaptive
-                                               : (m == style::SictMode::VanillaIn ? ref::Mode::VanillaIn : ref::Mode::None);
-}
 
 ref::DstParams ref_params(const style::Dst& d) {
   return {to_double(d.w0.value.to_host()),   to_double(d.b0.value.to_host()),   to_double(d.w2.value.to_host()),

@@ -15,23 +15,20 @@
 
 #include "host/tensor.hpp"
 #include "lib/style/sict.hpp"
+#include "tests/sict_testing.hpp"
 #include "tests/style_reference.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
 using host::Tensor;
 using testing::check_close;
+using testing::ref_mode;
 using testing::to_double;
 namespace ref = testing::style_ref;
 
 namespace {
 
 constexpr int C = 256, E = 32;
-
-ref::Mode ref_mode(style::SictMode m) {
-  return m == style::SictMode::VolumeAdaptive ? ref::Mode::VolumeAdaptive
-                                               : (m == style::SictMode::VanillaIn ? ref::Mode::VanillaIn : ref::Mode::None);
-}
 
 // x = comps B in double.
 std::vector<double> features(const std::vector<float>& comps, const std::vector<float>& basis, int K, int F) {

@@ -141,4 +141,16 @@ std::string image_file_or_procedural(const std::string& rel, const std::string& 
   return path;
 }
 
+TempDir::TempDir(const std::string& suite, const std::string& tag) {
+  path = std::filesystem::temp_directory_path() /
+         ("stylerf_test_" + suite + "_" + tag + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(path);
+  std::filesystem::create_directories(path);
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path, ec);
+}
+
 }  // namespace stylerf::testing

@@ -2,6 +2,7 @@
 // tolerances, and central finite differences of those references.
 #pragma once
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
@@ -30,6 +31,16 @@ std::vector<double> finite_difference_at(const std::function<double(const std::v
 double dot(const std::vector<double>& a, const std::vector<double>& b);
 
 bool all_finite(const std::vector<float>& v);
+
+// A fresh folder <temp>/stylerf_test_<suite>_<tag>_<pid>, removed at scope exit.
+struct TempDir {
+  std::filesystem::path path;
+  TempDir(const std::string& suite, const std::string& tag);
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  std::string str(const std::string& sub = "") const { return (sub.empty() ? path : path / sub).string(); }
+};
 
 // The message of the host::Error that f() throws, or "" when it throws none. Bad-input tests then check
 // that the message names the file / op and what is wrong.
