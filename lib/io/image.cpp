@@ -47,7 +47,7 @@ const stbi_uc* bytes_of(const std::string& b) { return reinterpret_cast<const st
 int size_of(const std::string& b) { return int(std::min<size_t>(b.size(), size_t(INT32_MAX))); }
 }  // namespace
 
-std::string image_unreadable_reason(const std::string& path) {
+std::string image_unreadable_reason(const std::string& path, std::array<int, 2>* size) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return "file does not exist";
   if (std::filesystem::is_directory(path, ec)) return "a folder, not an image file";
@@ -59,19 +59,14 @@ std::string image_unreadable_reason(const std::string& path) {
   }
   if (const std::string why = jpeg_huffman_problem(b); !why.empty()) return "corrupt JPEG (" + why + ")";
   int w = 0, h = 0, comp = 0;
-  if (stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp)) return (w > 0 && h > 0) ? "" : "zero size";
+  if (stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp)) {
+    if (size) *size = {w, h};
+    return (w > 0 && h > 0) ? "" : "zero size";
+  }
   if (b.size() >= 12 && b.compare(0, 4, "RIFF") == 0 && b.compare(8, 4, "WEBP") == 0)
     return "a WebP image (whatever its extension); PNG, JPEG, BMP and TGA are supported";
   const char* why = stbi_failure_reason();
   return std::string("not a supported image (") + (why ? why : "unknown format") + ")";
-}
-
-std::array<int, 2> image_dimensions(const std::string& path) {
-  if (const std::string why = image_unreadable_reason(path); !why.empty()) throw Error(path + ": " + why);
-  const std::string b = host::read_file(path);
-  int w = 0, h = 0, comp = 0;
-  stbi_info_from_memory(bytes_of(b), size_of(b), &w, &h, &comp);
-  return {w, h};
 }
 
 // JPEG markers up to the first APP1 "Exif" segment, then its TIFF header and IFD0's tag 0x0112.

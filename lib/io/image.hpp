@@ -31,9 +31,8 @@ Image load_image(const std::string& path, const std::array<float, 3>* background
 
 // "" when `path` holds an image load_image can decode (header check only), else the reason (missing,
 // an unsupported format such as WebP, corrupt): folders of images use it to skip what cannot be read.
-std::string image_unreadable_reason(const std::string& path);
-// Width and height from the header (no decoding); throws an Error naming the file and the reason otherwise.
-std::array<int, 2> image_dimensions(const std::string& path);
+// size, when given, gets the width and height from the same read of the header.
+std::string image_unreadable_reason(const std::string& path, std::array<int, 2>* size = nullptr);
 // A JPEG's EXIF orientation tag (1..8; 1 = as stored), or 0 when the file has none (or is not a JPEG).
 int exif_orientation(const std::string& path);
 

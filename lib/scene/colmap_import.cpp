@@ -38,10 +38,11 @@ std::vector<std::string> check_images(const std::string& dir, ImportReport& repo
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error("import: --images " + dir + " is not a folder");
   std::vector<std::string> names, bad;
+  std::map<std::string, std::array<int, 2>> sizes;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
     if (name.empty() || name[0] == '.' || !e.is_regular_file()) continue;
-    const std::string why = io::image_unreadable_reason(e.path().string());
+    const std::string why = io::image_unreadable_reason(e.path().string(), &sizes[name]);
     if (why.empty()) names.push_back(name);
     else bad.push_back(name + " (" + why + ")");
   }
@@ -56,7 +57,7 @@ std::vector<std::string> check_images(const std::string& dir, ImportReport& repo
   std::map<std::string, std::vector<std::string>> by_size;
   std::map<int, int> orientations;
   for (const auto& n : names) {
-    const auto wh = io::image_dimensions((fs::path(dir) / n).string());
+    const auto& wh = sizes.at(n);  // from the header read above
     by_size[std::to_string(wh[0]) + "x" + std::to_string(wh[1])].push_back(n);
     if (const int o = io::exif_orientation((fs::path(dir) / n).string()); o > 1) ++orientations[o];
   }
