@@ -597,3 +597,17 @@ TEST_CASE("make-scene refuses to overwrite other data and replaces its own outpu
   CHECK(fs::exists(t.path / "gen" / "transforms_val.json"));
   for (const auto& e : fs::directory_iterator(t.path)) CHECK(e.path().filename().string().find(".partial") == std::string::npos);
 }
+
+TEST_CASE("downsample by default: the paper's resolution, Blender 1 and LLFF 4; a given factor is kept") {
+  testing::TempDir tmp("test_scene", "downsample");
+  const fs::path blender = tmp.path / "blender", llff = tmp.path / "llff", colmap = tmp.path / "colmap";
+  for (const fs::path& d : {blender, llff, colmap}) fs::create_directories(d);
+  std::ofstream(blender / "transforms_train.json") << "{}";
+  std::ofstream(llff / "poses_bounds.npy") << "";
+  CHECK(scene::resolve_downsample(blender.string(), 0) == 1);
+  CHECK(scene::resolve_downsample(llff.string(), 0) == 4);  // 1008x756 from 4032x3024
+  CHECK(scene::resolve_downsample(colmap.string(), 0) == 1);
+  CHECK(scene::resolve_downsample(llff.string(), 8) == 8);
+  CHECK(scene::resolve_downsample(blender.string(), 2) == 2);
+  testing::expect_error([&] { scene::resolve_downsample(blender.string(), -1); }, "at least 1, or 0 for the scene's default");
+}

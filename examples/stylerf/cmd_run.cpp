@@ -114,7 +114,7 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
       "D,F,S: each training stage's iterations instead of minutes (the same result on any machine)")(
       "recipe", po::value(&o.recipe)->default_value("fast"),
       "fast: the best measured recipe (fast feature profile; docs/results.md) | paper: the paper's settings")(
-      "downsample", po::value(&o.downsample)->default_value(0), "image downsample (0: the scene's default)")(
+      "downsample", po::value(&o.downsample)->default_value(0), "image downsample (0: the scene's default, the paper's resolution: Blender 1, LLFF 4)")(
       "holdout-styles", po::value(&o.holdout)->default_value(12), "styles held out of training (evaluated)")(
       "stylize", po::value(&o.stylize)->multitoken(),
       "style images for the zero-shot videos and the consistency table (default: held-out styles)")(

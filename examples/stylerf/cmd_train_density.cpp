@@ -62,7 +62,7 @@ namespace cli = stylerf::cli;
 struct DensityArgs {
   std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
                     app_rank, shading, recipe;
-  int downsample = 1, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
+  int downsample = 0, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1, ert = 1e-4f;
   double minutes = 0;
@@ -77,7 +77,9 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
   po::options_description desc("stylerf train-density --scene DIR -o CKPT [options]");
   desc.add_options()("help,h", "show this help")("scene", po::value(&a.dir), "scene directory (Blender, LLFF, COLMAP or nerfstudio format)")(
       "output,o", po::value(&a.out), "checkpoint file to write (safetensors)")(
-      "downsample", po::value(&a.downsample)->default_value(1), "image downsample factor")(
+      "downsample", po::value(&a.downsample),
+      "image downsample factor (default: the paper's resolution, Blender 1 = 800x800, LLFF 4 = 1008x756; "
+      "COLMAP and nerfstudio 1)")(
       "iters", po::value(&a.iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
       "minutes", po::value(&a.minutes), "train for this much time: the schedule (events, lr decay) is fitted to it "
                                         "from the measured step rate (replaces --iters)")(
@@ -126,7 +128,8 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
 // Every number is checked before anything loads: 0 or NaN never silently mean "the default".
 void check_density_args(DensityArgs& a) {
   if (a.dir.empty()) throw Error("--scene DIR is required");
-  cli::check_int_range("--downsample", a.downsample, 1, 64);
+  if (a.has("downsample")) cli::check_int_range("--downsample", a.downsample, 1, 64);
+  a.downsample = stylerf::scene::resolve_downsample(a.dir, a.downsample);
   if (a.has("iters")) cli::check_int_range("--iters", a.iters, 1, 10000000);
   if (a.has("minutes")) cli::check_range("--minutes", a.minutes, 0.01, 100000);
   if (a.minutes > 0 && (a.has("iters") || a.resume)) throw Error("--minutes goes without --iters and --resume");

@@ -114,6 +114,14 @@ std::string Scene::describe() const {
   return s.str();
 }
 
+int resolve_downsample(const std::string& dir, int requested) {
+  if (requested > 0) return requested;
+  if (requested < 0) throw Error("--downsample must be at least 1, or 0 for the scene's default (got " +
+                                 std::to_string(requested) + ")");
+  std::error_code ec;
+  return std::filesystem::exists(std::filesystem::path(dir) / "poses_bounds.npy", ec) ? 4 : 1;
+}
+
 Scene load_scene(const std::string& dir, const LoadOptions& opts) {
   namespace fs = std::filesystem;
   std::error_code ec;

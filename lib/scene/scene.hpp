@@ -82,6 +82,11 @@ struct LoadOptions {
 // loads, validates (counts, finite poses, readable images of one size) and prints describe() to opts.log.
 Scene load_scene(const std::string& dir, const LoadOptions& opts = {});
 
+// The downsample factor a scene trains at when none is given: the resolutions the paper reports, Blender
+// at its own 800x800 (1) and LLFF at 1/4 (1008x756 from 4032x3024 captures: 4); COLMAP and nerfstudio
+// folders at 1 (`stylerf import` already bounds their image size). `requested` > 0 is returned as is.
+int resolve_downsample(const std::string& dir, int requested);
+
 // Throws host::Error naming `what` if any entry of the 3x4 pose is NaN or infinite.
 // Throws naming `what` unless the camera-to-world matrix is finite and rigid (orthonormal rotation, det +1).
 void check_pose(const double c2w[3][4], const std::string& what);

@@ -74,15 +74,17 @@ void bind_scene(pyb::module_& m) {
       .def_static(
           "open",
           [](const std::string& path, int downsample) {
-            if (downsample < 1 || downsample > 64) throw pyb::value_error("downsample: must be in [1, 64]");
+            if (downsample < 0 || downsample > 64)
+              throw pyb::value_error("downsample: must be in [1, 64], or 0 for the scene's default");
             auto h = std::make_shared<SceneHandle>();
             h->dir = path;
-            h->options.downsample = downsample;
+            h->options.downsample = scene::resolve_downsample(path, downsample);
             LibraryCall call;
             h->scene = scene::load_scene(path, h->options);
             return h;
           },
-          pyb::arg("path"), pyb::arg("downsample") = 1)
+          pyb::arg("path"), pyb::arg("downsample") = 0,
+          "Loads the scene; downsample 0 is the paper's resolution (Blender 1, LLFF 4, COLMAP and nerfstudio 1).")
       .def_property_readonly("name", [](const SceneHandle& h) { return h.scene.name; })
       .def_property_readonly("format", [](const SceneHandle& h) { return h.scene.format; })
       .def_property_readonly("path", [](const SceneHandle& h) { return h.dir; })

@@ -36,7 +36,8 @@ class Camera:
 
 class Scene:
     @staticmethod
-    def open(path: str, downsample: int = 1) -> Scene: ...
+    def open(path: str, downsample: int = 0) -> Scene:
+        """downsample 0: the paper's resolution (Blender 1, LLFF 4, COLMAP and nerfstudio 1)."""
     @property
     def name(self) -> str: ...
     @property
