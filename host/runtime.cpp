@@ -287,7 +287,9 @@ void Runtime::release(cl_mem mem, size_t bytes) {
   size_t cls = std::min(pool_size_class(bytes), device_.max_alloc_bytes);
   size_t actual = 0;
   if (clGetMemObjectInfo(mem, CL_MEM_SIZE, sizeof actual, &actual, nullptr) == CL_SUCCESS && actual >= cls) cls = actual;
-  if (pooled_bytes_ + cls > pool_cap_bytes_) {
+  // A buffer over a quarter of the cap is a one-off (the stage-2 target maps, 2 GB at 800x800), not a step's
+  // temporary: pooling it would hold its memory for the rest of the run.
+  if (pooled_bytes_ + cls > pool_cap_bytes_ || cls > pool_cap_bytes_ / 4) {
     clReleaseMemObject(mem);
     return;
   }

@@ -77,7 +77,9 @@ class Runtime {
   // the same rounded size or up to a quarter smaller: a fresh buffer costs first-touch page faults on a
   // CPU device and an allocation on a GPU, and training loops allocate about the same shapes every step.
   // The in-order queue makes reuse safe: commands using the old owner finish before those of the new one.
+  // A buffer over a quarter of the cap is released, not pooled: a one-off such as the stage-2 target maps.
   void release(cl_mem mem, size_t bytes);
+  size_t pool_cap_bytes() const { return pool_cap_bytes_; }
   void trim_buffer_pool();  // frees every cached buffer
   size_t pooled_bytes() const { return pooled_bytes_; }
   // Bytes held by live tensors (allocate() minus release(), as requested, pool rounding aside) and their

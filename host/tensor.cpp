@@ -135,6 +135,28 @@ void Tensor::write(const void* data, size_t count, DType type) {
         "clEnqueueWriteBuffer", "tensor " + describe(*this));
 }
 
+namespace {
+void expect_span(const Tensor& t, size_t offset, size_t n, const char* op) {
+  if (offset > t.bytes() || n > t.bytes() - offset)
+    throw Error(std::string(op) + ": bytes [" + std::to_string(offset) + ", " + std::to_string(offset + n) +
+                ") lie outside tensor " + describe(t) + " (" + std::to_string(t.bytes()) + " bytes)");
+}
+}  // namespace
+
+void Tensor::write_bytes(size_t offset, const void* data, size_t n) {
+  expect_span(*this, offset, n, "write_bytes");
+  if (n == 0) return;
+  check(clEnqueueWriteBuffer(Runtime::instance().queue(), mem(), CL_TRUE, offset, n, data, 0, nullptr, nullptr),
+        "clEnqueueWriteBuffer", "tensor " + describe(*this));
+}
+
+void Tensor::read_bytes(size_t offset, void* data, size_t n) const {
+  expect_span(*this, offset, n, "read_bytes");
+  if (n == 0) return;
+  check(clEnqueueReadBuffer(Runtime::instance().queue(), mem(), CL_TRUE, offset, n, data, 0, nullptr, nullptr),
+        "clEnqueueReadBuffer", "tensor " + describe(*this));
+}
+
 void Tensor::upload(const std::vector<float>& data) { write(data.data(), data.size(), DType::F32); }
 
 void Tensor::fill(float value) {

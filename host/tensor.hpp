@@ -70,6 +70,10 @@ class Tensor {
   void upload(const std::vector<T>& data) {
     write(data.data(), data.size(), dtype_of<T>());
   }
+  // Raw bytes [offset, offset + n) of the buffer, any dtype: for filling or reading a large tensor piece by
+  // piece (one view of the F16 target maps) without a host copy of the whole. Out-of-range spans throw.
+  void write_bytes(size_t offset, const void* data, size_t n);
+  void read_bytes(size_t offset, void* data, size_t n) const;
   void fill(float value);  // F32 only
   void zero();             // any dtype: all-zero bits are 0 in each
   void copy_from(const Tensor& other);  // same dtype and numel; device-side copy

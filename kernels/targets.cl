@@ -4,6 +4,16 @@
 // maps: [V][Hf][Wf][C], channels innermost, C a multiple of 8: one work-item walks the C channels of its
 // four taps in float8 runs (vectorised inside the work-item, which suits PoCL's CPU device).
 // view indices: an I32 tensor on the host (int here).
+// TARGETS_F16 (a -D of the host): the maps are stored as IEEE half (host/half.hpp) and read with
+// vload_half8, which core OpenCL has without cl_khr_fp16; arithmetic stays in float.
+
+#ifdef TARGETS_F16
+typedef half target_t;
+#define load_target8(p) vload_half8(0, (p))
+#else
+typedef float target_t;
+#define load_target8(p) vload8(0, (p))
+#endif
 
 // The four taps of full-resolution position (px, py) on an hf x wf map: feature coordinate p / 4 - 0.5,
 // clamped to [0, n-1] (callers reject non-finite positions first). At the last row/column the second tap repeats the first
@@ -28,11 +38,11 @@ inline Taps target_taps(float px, float py, int hf, int wf) {
 
 // The four tap rows (C floats each) of view map m at taps t, and their bilinear weights.
 typedef struct {
-  const global float* p[4];  // (i0, j0), (i0, j1), (i1, j0), (i1, j1)
+  const global target_t* p[4];  // (i0, j0), (i0, j1), (i1, j0), (i1, j1)
   float w[4];
 } TapRows;
 
-inline void tap_rows(const global float* m, Taps t, int wf, int C, TapRows* r) {
+inline void tap_rows(const global target_t* m, Taps t, int wf, int C, TapRows* r) {
   r->p[0] = m + ((size_t)t.i0 * wf + t.j0) * C;
   r->p[1] = m + ((size_t)t.i0 * wf + t.j1) * C;
   r->p[2] = m + ((size_t)t.i1 * wf + t.j0) * C;
@@ -45,15 +55,15 @@ inline void tap_rows(const global float* m, Taps t, int wf, int C, TapRows* r) {
 
 // Channels [c, c + 8) interpolated.
 inline float8 tap_chunk(const TapRows* r, int c) {
-  float8 a = r->w[0] * vload8(0, r->p[0] + c);
-  a = fma((float8)(r->w[1]), vload8(0, r->p[1] + c), a);
-  a = fma((float8)(r->w[2]), vload8(0, r->p[2] + c), a);
-  return fma((float8)(r->w[3]), vload8(0, r->p[3] + c), a);
+  float8 a = r->w[0] * load_target8(r->p[0] + c);
+  a = fma((float8)(r->w[1]), load_target8(r->p[1] + c), a);
+  a = fma((float8)(r->w[2]), load_target8(r->p[2] + c), a);
+  return fma((float8)(r->w[3]), load_target8(r->p[3] + c), a);
 }
 
 // out[r][c] = bilinear of maps[view[r]] at pixel_xy[r]. A view index outside [0, V) or a non-finite position
 // gives a row of NaN, so a bad input shows up in the loss instead of reading some other pixel.
-kernel void targets_gather(global const float* maps, global const int* view, global const float* pixel_xy, int R,
+kernel void targets_gather(global const target_t* maps, global const int* view, global const float* pixel_xy, int R,
                            int V, int hf, int wf, int C, global float* out) {
   const int r = get_global_id(0);
   if (r >= R) return;
@@ -111,7 +121,7 @@ kernel void targets_gather_backward(global const int* view, global const float* 
 // out [1][C][ho][wo] (planar, what the decoder and losses take): output pixel (i, j) is the map of view v at
 // full-resolution position (x0 + scale * (j + 0.5), y0 + scale * (i + 0.5)), the centre of its scale x scale
 // block. With scale 4 and x0, y0 multiples of 4 every weight is 0 or 1: an exact crop of the map.
-kernel void targets_patch(global const float* maps, int v, int hf, int wf, int C, int x0, int y0, int scale, int ho,
+kernel void targets_patch(global const target_t* maps, int v, int hf, int wf, int C, int x0, int y0, int scale, int ho,
                           int wo, global float* out) {
   const int p = get_global_id(0);
   if (p >= ho * wo) return;

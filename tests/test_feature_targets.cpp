@@ -15,13 +15,15 @@
 #include <unistd.h>
 
 #include "host/error.hpp"
+#include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "lib/features/content_hash.hpp"
 #include "lib/features/feature_sampler.hpp"
 #include "lib/features/feature_targets.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
-#include "lib/io/checkpoint.hpp"
+#include "host/half.hpp"
+#include "lib/features/target_file.hpp"
 #include "lib/scene/make_scene.hpp"
 #include "tests/testing.hpp"
 
@@ -165,7 +167,21 @@ GatherCase make_case(int V, int hf, int wf, int C, int R, uint64_t seed) {
   return g;
 }
 
-Tensor device_maps(const GatherCase& g) { return Tensor::from_host(g.maps, {g.V, g.hf, g.wf, g.C}); }
+// The maps on the device as `dtype`. F16 needs g's values rounded to half first (half_rounded), so the
+// reference reads exactly what the kernel does.
+Tensor device_maps(const GatherCase& g, host::DType dtype = host::DType::F32) {
+  if (dtype == host::DType::F32) return Tensor::from_host(g.maps, {g.V, g.hf, g.wf, g.C});
+  Tensor t({g.V, g.hf, g.wf, g.C}, dtype, "f16 maps");
+  std::vector<uint16_t> bits(g.maps.size());
+  host::floats_to_halves(g.maps.data(), g.maps.size(), bits.data());
+  t.write_bytes(0, bits.data(), t.bytes());
+  return t;
+}
+
+GatherCase half_rounded(GatherCase g) {
+  for (float& x : g.maps) x = host::half_to_float(host::float_to_half(x));
+  return g;
+}
 Tensor view_tensor(const std::vector<int32_t>& v) { return Tensor::from_host(v, {int64_t(v.size())}, "view index"); }
 
 }  // namespace
@@ -282,16 +298,18 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
   REQUIRE(fs::exists(path));
   // Nothing else in the folder: the write went through a temporary file that was renamed.
   CHECK(std::distance(fs::directory_iterator(opts.dir), fs::directory_iterator()) == 1);
-  const std::vector<float> want = first.maps.to_host();
-  // Spot-check that the stored maps are the targets of the views, in order.
-  const std::vector<float> vl = features::compute_view_targets(vgg(), sc.train[size_t(last)].rgb, S, S);
+  CHECK(first.maps.dtype() == host::DType::F16);  // training's storage
+  const std::vector<float> want = features::maps_to_host(first);
+  // Spot-check that the stored maps are the targets of the views, in order, rounded to half.
+  std::vector<float> vl = features::compute_view_targets(vgg(), sc.train[size_t(last)].rgb, S, S);
+  for (float& x : vl) x = host::half_to_float(host::float_to_half(x));
   CHECK(std::equal(vl.begin(), vl.end(), want.begin() + std::ptrdiff_t(last * vl.size())));
 
   log.str("");
   const FeatureTargets again = features::load_or_compute_targets(sc, vgg(), opts);
   CHECK(again.from_cache);
   CHECK(again.key == first.key);
-  CHECK(again.maps.to_host() == want);
+  CHECK(features::maps_to_host(again) == want);
   CHECK(log.str().find("read from") != std::string::npos);
 
   SUBCASE("a truncated file is recomputed and replaced") {
@@ -300,31 +318,42 @@ TEST_CASE("targets cache: computed once, reused, and recomputed when truncated, 
     const FeatureTargets t = features::load_or_compute_targets(sc, vgg(), opts);
     CHECK_FALSE(t.from_cache);
     CHECK(log.str().find("recomputing") != std::string::npos);
-    CHECK(t.maps.to_host() == want);
+    CHECK(features::maps_to_host(t) == want);
     CHECK(features::load_or_compute_targets(sc, vgg(), opts).from_cache);
   }
   SUBCASE("a file holding another key, another shape, or malformed metadata is recomputed") {
     const std::vector<int64_t> other_shape{V / 2, 2 * (S / 4), S / 4, 256};  // [4, 20, 10, 256] at 40 px
     const std::string other_text = "have shape [" + std::to_string(V / 2) + ", " + std::to_string(2 * (S / 4)) + ", " +
                                    std::to_string(S / 4) + ", 256]";
-    for (int variant = 0; variant < 3; ++variant) {
+    for (int variant = 0; variant < 4; ++variant) {
       CAPTURE(variant);
-      io::Checkpoint ck = io::load_checkpoint(path, "feature-targets");
-      if (variant == 0) {
-        ck.meta["key"] = "0123456789abcdef";
-      } else if (variant == 2) {
-        ck.meta["key"] = 42;  // not a string: a json type error, still just "recompute"
-      } else {
-        ck.tensors["targets"].shape = other_shape;  // as many values, another shape
-        ck.meta["shape"] = other_shape;
+      // Rewrite the file with the same data bytes under another key, shape, dtype or a malformed key.
+      std::vector<uint8_t> data;
+      {
+        std::ifstream in(path, std::ios::binary);
+        uint64_t hlen = 0;
+        in.read(reinterpret_cast<char*>(&hlen), 8);
+        in.seekg(std::streamoff(8 + hlen));
+        data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
       }
-      io::save_checkpoint(path, ck);
+      nlohmann::json meta = {{"key", first.key}};
+      host::Shape shape = first.maps.shape();
+      host::DType dtype = host::DType::F16;
+      if (variant == 0) meta["key"] = "0123456789abcdef";
+      if (variant == 1) shape = other_shape;  // as many values, another shape
+      if (variant == 2) meta["key"] = 42;     // not a string: a json type error, still just "recompute"
+      if (variant == 3) dtype = host::DType::F32, shape[0] /= 2;  // as many bytes, stored as f32
+      host::write_atomic_with(path, [&](const std::string& tmp) {
+        features::TargetFileWriter w(tmp, dtype, shape, meta);
+        w.append(data);
+        w.finish();
+      });
       log.str("");
       const FeatureTargets t = features::load_or_compute_targets(sc, vgg(), opts);
       CHECK_FALSE(t.from_cache);
-      const std::string why[] = {"holds key '0123456789abcdef'", other_text, "recomputing"};
+      const std::string why[] = {"holds key '0123456789abcdef'", other_text, "recomputing", "targets are F32, expected F16"};
       CHECK(log.str().find(why[variant]) != std::string::npos);
-      CHECK(t.maps.to_host() == want);
+      CHECK(features::maps_to_host(t) == want);
     }
   }
   SUBCASE("flipped bytes fail the checksum and are recomputed") {
@@ -388,7 +417,7 @@ TEST_CASE("targets of views smaller than 8 pixels") {
   opts.dir = (work_dir() / "cache-tiny").string();
   const FeatureTargets t = features::load_or_compute_targets(s, vgg(), opts);
   CHECK(t.maps.shape() == host::Shape{2, 1, 2, 256});
-  const std::vector<float> v = t.maps.to_host();
+  const std::vector<float> v = features::maps_to_host(t);
   CHECK(testing::all_finite(v));
   CHECK(*std::max_element(v.begin(), v.end()) > 0.0f);
   CHECK(features::load_or_compute_targets(s, vgg(), opts).from_cache);
@@ -397,14 +426,18 @@ TEST_CASE("targets of views smaller than 8 pixels") {
 TEST_CASE("gather_targets forward against a double reference (F.interpolate, align_corners=False)") {
   for (auto [V, hf, wf, C, R] : {std::array<int, 5>{3, 5, 7, 16, 301}, std::array<int, 5>{2, 4, 6, 256, 200},
                                  std::array<int, 5>{2, 1, 1, 8, 40}}) {
-    CAPTURE(C);
-    CAPTURE(hf);
-    const GatherCase g = make_case(V, hf, wf, C, R, 11 + uint64_t(C));
-    const Tensor out = features::gather_targets(device_maps(g), view_tensor(g.view),
-                                                Tensor::from_host(g.xy, {R, 2}));
-    CHECK(out.shape() == host::Shape{R, C});
-    testing::check_close(out.to_host(), ref_gather(testing::to_double(g.maps), hf, wf, C, g.view, g.xy), 1e-5, 1e-5,
-                         "gather_targets");
+    for (host::DType dtype : {host::DType::F32, host::DType::F16}) {
+      CAPTURE(C);
+      CAPTURE(hf);
+      CAPTURE(host::dtype_name(dtype));
+      GatherCase g = make_case(V, hf, wf, C, R, 11 + uint64_t(C));
+      if (dtype == host::DType::F16) g = half_rounded(g);
+      const Tensor out = features::gather_targets(device_maps(g, dtype), view_tensor(g.view),
+                                                  Tensor::from_host(g.xy, {R, 2}));
+      CHECK(out.shape() == host::Shape{R, C});
+      testing::check_close(out.to_host(), ref_gather(testing::to_double(g.maps), hf, wf, C, g.view, g.xy), 1e-5,
+                           1e-5, "gather_targets");
+    }
   }
   // All pixel centres of a whole 4-aligned image: exactly F.interpolate(size=(4 hf, 4 wf)).
   const int hf = 3, wf = 4, C = 8;
@@ -477,41 +510,45 @@ TEST_CASE("gather_targets backward against central finite differences of the ref
 
 TEST_CASE("target_patch: exact crop at scale 4, reference bilinear at scales 1 and 2, bounds checked") {
   const int V = 2, hf = 6, wf = 9, C = 16;
-  const GatherCase g = make_case(V, hf, wf, C, 1, 51);
-  FeatureTargets t;
-  t.maps = device_maps(g);
-  t.image_width = 4 * wf - 2;  // 34 x 22: not multiples of 4
-  t.image_height = 4 * hf - 2;
-  // Scale 4 at an aligned corner: the stored map, bit for bit.
-  const std::vector<float> crop = features::target_patch(t, 1, 8, 4, 24, 16, 4).to_host();
-  REQUIRE(crop.size() == size_t(C) * 4 * 6);
-  bool exact = true;
-  for (int c = 0; c < C; ++c)
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 6; ++j)
-        exact &= crop[(size_t(c) * 4 + i) * 6 + j] == g.maps[((size_t(1) * hf + 1 + i) * wf + 2 + j) * C + c];
-  CHECK(exact);
-  for (auto [scale, x0, y0, w, h] : {std::array<int, 5>{1, 3, 5, 31, 17}, std::array<int, 5>{2, 0, 2, 34, 20},
-                                     std::array<int, 5>{4, 2, 2, 32, 20}}) {
-    CAPTURE(scale);
-    const int ho = h / scale, wo = w / scale;
-    std::vector<int32_t> view;
-    std::vector<float> xy;
-    for (int i = 0; i < ho; ++i)
-      for (int j = 0; j < wo; ++j)
-        view.push_back(0), xy.push_back(x0 + scale * (j + 0.5f)), xy.push_back(y0 + scale * (i + 0.5f));
-    const std::vector<double> rows = ref_gather(testing::to_double(g.maps), hf, wf, C, view, xy);
-    std::vector<double> want(rows.size());
-    for (int p = 0; p < ho * wo; ++p)
-      for (int c = 0; c < C; ++c) want[size_t(c) * ho * wo + p] = rows[size_t(p) * C + c];
-    const Tensor out = features::target_patch(t, 0, x0, y0, w, h, scale);
-    CHECK(out.shape() == host::Shape{1, C, ho, wo});
-    testing::check_close(out.to_host(), want, 1e-5, 1e-5, "target_patch");
+  for (host::DType dtype : {host::DType::F32, host::DType::F16}) {
+    CAPTURE(host::dtype_name(dtype));
+    GatherCase g = make_case(V, hf, wf, C, 1, 51);
+    if (dtype == host::DType::F16) g = half_rounded(g);
+    FeatureTargets t;
+    t.maps = device_maps(g, dtype);
+    t.image_width = 4 * wf - 2;  // 34 x 22: not multiples of 4
+    t.image_height = 4 * hf - 2;
+    // Scale 4 at an aligned corner: the stored map, bit for bit.
+    const std::vector<float> crop = features::target_patch(t, 1, 8, 4, 24, 16, 4).to_host();
+    REQUIRE(crop.size() == size_t(C) * 4 * 6);
+    bool exact = true;
+    for (int c = 0; c < C; ++c)
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 6; ++j)
+          exact &= crop[(size_t(c) * 4 + i) * 6 + j] == g.maps[((size_t(1) * hf + 1 + i) * wf + 2 + j) * C + c];
+    CHECK(exact);
+    for (auto [scale, x0, y0, w, h] : {std::array<int, 5>{1, 3, 5, 31, 17}, std::array<int, 5>{2, 0, 2, 34, 20},
+                                       std::array<int, 5>{4, 2, 2, 32, 20}}) {
+      CAPTURE(scale);
+      const int ho = h / scale, wo = w / scale;
+      std::vector<int32_t> view;
+      std::vector<float> xy;
+      for (int i = 0; i < ho; ++i)
+        for (int j = 0; j < wo; ++j)
+          view.push_back(0), xy.push_back(x0 + scale * (j + 0.5f)), xy.push_back(y0 + scale * (i + 0.5f));
+      const std::vector<double> rows = ref_gather(testing::to_double(g.maps), hf, wf, C, view, xy);
+      std::vector<double> want(rows.size());
+      for (int p = 0; p < ho * wo; ++p)
+        for (int c = 0; c < C; ++c) want[size_t(c) * ho * wo + p] = rows[size_t(p) * C + c];
+      const Tensor out = features::target_patch(t, 0, x0, y0, w, h, scale);
+      CHECK(out.shape() == host::Shape{1, C, ho, wo});
+      testing::check_close(out.to_host(), want, 1e-5, 1e-5, "target_patch");
+    }
+    testing::expect_error([&] { features::target_patch(t, 0, 4, 0, 32, 8, 4); }, "inside the 34x22 image");
+    testing::expect_error([&] { features::target_patch(t, 0, 0, 0, 30, 8, 4); }, "must divide");
+    testing::expect_error([&] { features::target_patch(t, 0, 0, 0, 8, 8, 3); }, "scale must be 1, 2 or 4");
+    testing::expect_error([&] { features::target_patch(t, 2, 0, 0, 8, 8, 4); }, "there are 2 training views");
   }
-  testing::expect_error([&] { features::target_patch(t, 0, 4, 0, 32, 8, 4); }, "inside the 34x22 image");
-  testing::expect_error([&] { features::target_patch(t, 0, 0, 0, 30, 8, 4); }, "must divide");
-  testing::expect_error([&] { features::target_patch(t, 0, 0, 0, 8, 8, 3); }, "scale must be 1, 2 or 4");
-  testing::expect_error([&] { features::target_patch(t, 2, 0, 0, 8, 8, 4); }, "there are 2 training views");
 }
 
 TEST_CASE("FeatureRaySampler: the density stage's rays plus each ray's view and pixel centre") {
@@ -553,7 +590,7 @@ TEST_CASE("targets gathered at sampled rays, end to end on the generated scene")
   features::FeatureRaySampler s(sc, 5);
   const features::FeatureRays r = s.next(256);
   const std::vector<float> got = features::gather_targets(t.maps, r.view_tensor(), r.pixel_xy_tensor()).to_host();
-  testing::check_close(got, ref_gather(testing::to_double(t.maps.to_host()), t.map_height(), t.map_width(), 256,
+  testing::check_close(got, ref_gather(testing::to_double(features::maps_to_host(t)), t.map_height(), t.map_width(), 256,
                                        r.view, r.pixel_xy),
                        1e-5, 1e-4, "sampled targets");
 }

@@ -143,6 +143,17 @@ TEST_CASE("freed buffers are pooled and reused for the same size class") {
   CHECK(rt.pooled_bytes() == 0);
 }
 
+TEST_CASE("a buffer over a quarter of the pool's cap is released, not pooled") {
+  auto& rt = Runtime::instance();
+  rt.trim_buffer_pool();
+  const int64_t quarter_floats = int64_t(rt.pool_cap_bytes() / 4 / sizeof(float));
+  { Tensor big({quarter_floats + (int64_t(1) << 20)}, "one-off"); }  // untouched: no pages committed
+  CHECK(rt.pooled_bytes() == 0);
+  { Tensor small({1000}, "step temporary"); }
+  CHECK(rt.pooled_bytes() > 0);
+  rt.trim_buffer_pool();
+}
+
 TEST_CASE("the pool hands a slightly larger buffer to a smaller request, and files it back by its own size") {
   auto& rt = Runtime::instance();
   rt.trim_buffer_pool();

@@ -1,6 +1,8 @@
 // stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the subcommands.
 #include <sys/resource.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -33,6 +35,22 @@ void init_runtime(const std::string& device_spec, bool profile) {
 }  // namespace stylerf::cli
 
 namespace {
+// STYLERF_PROFILE=1: the whole command's device time per kernel, longest first, on stderr (what a frame or a
+// step spends where, without a bench).
+void print_profile_report() {
+  if (!stylerf::host::Runtime::initialised()) return;
+  auto& rt = stylerf::host::Runtime::instance();
+  if (!rt.profiling()) return;
+  auto t = rt.timings();
+  std::sort(t.begin(), t.end(), [](const auto& a, const auto& b) { return a.total_ms > b.total_ms; });
+  double total = 0;
+  for (const auto& k : t) total += k.total_ms;
+  std::fprintf(stderr, "device time per kernel (STYLERF_PROFILE=1): %.1f ms in all\n", total);
+  for (size_t i = 0; i < t.size() && i < 25; ++i)
+    std::fprintf(stderr, "  %-44s %7d launches %10.1f ms %5.1f%%\n", t[i].kernel.c_str(), t[i].launches, t[i].total_ms,
+                 100.0 * t[i].total_ms / std::max(total, 1e-9));
+}
+
 void usage() {
   std::cout << "usage: stylerf <command> [options]   (stylerf <command> --help for its options)\n\ncommands:\n";
   for (const auto& c : stylerf::cli::commands()) std::cout << "  " << c.name << std::string(16 - std::min<size_t>(15, c.name.size()), ' ') << c.summary << "\n";
@@ -49,6 +67,7 @@ int main(int argc, char** argv) {
       int rc = 1;
       try {
         rc = c.run(argc - 1, argv + 1);
+        print_profile_report();
         stylerf::host::Runtime::shutdown();
       } catch (const std::exception& e) {
         std::cerr << "stylerf " << c.name << ": error: " << e.what() << std::endl;

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <ostream>
 
 #include "host/error.hpp"
+#include "host/half.hpp"
 
 namespace stylerf::features {
 
@@ -61,11 +63,55 @@ std::vector<float> compute_view_targets(nn::VggEncoder& vgg, const std::vector<f
   return out;
 }
 
-std::vector<float> compute_scene_targets(const scene::Scene& scene, nn::VggEncoder& vgg, std::ostream* log) {
+FeatureTargets allocate_targets(int views, int image_width, int image_height, host::DType dtype) {
+  if (dtype != host::DType::F16 && dtype != host::DType::F32)
+    throw Error(std::string("feature targets: maps are stored as f16 or f32, not ") + host::dtype_name(dtype));
+  if (views < 1 || image_width < 1 || image_height < 1)
+    throw Error("feature targets: " + std::to_string(views) + " views of " + std::to_string(image_width) + "x" +
+                std::to_string(image_height) + " pixels: nothing to store");
+  FeatureTargets t;
+  t.image_width = image_width;
+  t.image_height = image_height;
+  t.maps = host::Tensor({views, target_map_size(image_height), target_map_size(image_width), kTargetChannels}, dtype,
+                        "feature targets");
+  return t;
+}
+
+size_t view_bytes(const FeatureTargets& t) { return t.views() ? t.maps.bytes() / size_t(t.views()) : 0; }
+
+std::vector<uint8_t> encode_view(const std::vector<float>& hwc, host::DType dtype) {
+  std::vector<uint8_t> out(hwc.size() * host::dtype_size(dtype));
+  if (dtype == host::DType::F16)
+    host::floats_to_halves(hwc.data(), hwc.size(), reinterpret_cast<uint16_t*>(out.data()));
+  else if (dtype == host::DType::F32)
+    std::memcpy(out.data(), hwc.data(), out.size());
+  else
+    throw Error(std::string("feature targets: maps are stored as f16 or f32, not ") + host::dtype_name(dtype));
+  return out;
+}
+
+std::vector<float> maps_to_host(const FeatureTargets& t) {
+  if (t.maps.dtype() == host::DType::F32) return t.maps.to_host();
+  std::vector<uint16_t> bits(size_t(t.maps.numel()));
+  t.maps.read_bytes(0, bits.data(), t.maps.bytes());
+  std::vector<float> out(bits.size());
+  host::halves_to_floats(bits.data(), bits.size(), out.data());
+  return out;
+}
+
+void put_view(FeatureTargets& t, int view, const std::vector<uint8_t>& bytes) {
+  const size_t n = view_bytes(t);
+  if (view < 0 || view >= t.views() || bytes.size() != n)
+    throw Error("feature targets: view " + std::to_string(view) + " of " + std::to_string(t.views()) + " given " +
+                std::to_string(bytes.size()) + " bytes, expected " + std::to_string(n));
+  t.maps.write_bytes(size_t(view) * n, bytes.data(), n);
+}
+
+FeatureTargets compute_scene_targets(const scene::Scene& scene, nn::VggEncoder& vgg, host::DType dtype,
+                                     std::ostream* log,
+                                     const std::function<void(const std::vector<uint8_t>&)>& each_view) {
   if (scene.train.empty()) throw Error("feature targets: scene " + scene.name + " has no training views");
   const int w = scene.width(), h = scene.height();
-  const int hf = target_map_size(h), wf = target_map_size(w);
-  const size_t per_view = size_t(hf) * wf * kTargetChannels;
   const size_t V = scene.train.size();
   for (const scene::View& v : scene.train) {
     if (v.camera.width != w || v.camera.height != h)
@@ -75,14 +121,15 @@ std::vector<float> compute_scene_targets(const scene::Scene& scene, nn::VggEncod
     if (v.rgb.size() != size_t(w) * h * 3)
       throw Error("feature targets: view " + v.image_path + " has no pixels loaded (load the scene with images)");
   }
-  std::vector<float> all(per_view * V);
+  FeatureTargets all = allocate_targets(int(V), w, h, dtype);
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   auto last = t0;
   auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
   for (size_t i = 0; i < V; ++i) {
-    const std::vector<float> one = compute_view_targets(vgg, scene.train[i].rgb, h, w);
-    std::copy(one.begin(), one.end(), all.begin() + std::ptrdiff_t(per_view * i));
+    const std::vector<uint8_t> bytes = encode_view(compute_view_targets(vgg, scene.train[i].rgb, h, w), dtype);
+    put_view(all, int(i), bytes);
+    if (each_view) each_view(bytes);
     const auto now = clock::now();
     if (log && (seconds(now - last) >= 2.0 || i + 1 == V)) {
       last = now;

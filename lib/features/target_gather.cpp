@@ -20,9 +20,12 @@ struct MapDims {
   int V, hf, wf, C;
 };
 
+// The program options that read maps of this dtype (kernels/targets.cl: TARGETS_F16).
+const char* map_options(const Tensor& maps) { return maps.dtype() == host::DType::F16 ? "-DTARGETS_F16" : ""; }
+
 MapDims map_dims(const Tensor& maps, const char* op) {
   if (!maps.defined()) throw Error(std::string(op) + ": the target maps are undefined");
-  host::expect_dtype(maps, host::DType::F32, op, "target maps");
+  if (maps.dtype() != host::DType::F16) host::expect_dtype(maps, host::DType::F32, op, "target maps (f32 or f16)");
   if (maps.ndim() != 4)
     throw Error(std::string(op) + ": target maps must be [V, Hf, Wf, C], got " + host::shape_str(maps.shape()));
   const MapDims d{int(maps.dim(0)), int(maps.dim(1)), int(maps.dim(2)), int(maps.dim(3))};
@@ -49,13 +52,14 @@ Tensor gather_targets(const Tensor& maps, const Tensor& view_index, const Tensor
   const int R = ray_count(view_index, pixel_xy, "gather_targets");
   Tensor out({R, d.C}, "gathered targets");
   if (R == 0) return out;
-  host::launch_with_local("targets", "targets_gather", "", {size_t(R)}, {kGroup}, maps, view_index, pixel_xy, R, d.V,
+  host::launch_with_local("targets", "targets_gather", map_options(maps), {size_t(R)}, {kGroup}, maps, view_index, pixel_xy, R, d.V,
                           d.hf, d.wf, d.C, out);
   return out;
 }
 
 void gather_targets_backward(const Tensor& view_index, const Tensor& pixel_xy, const Tensor& dout, Tensor& dmaps) {
   const MapDims d = map_dims(dmaps, "gather_targets_backward");
+  host::expect_dtype(dmaps, host::DType::F32, "gather_targets_backward", "dmaps");  // float atomics
   const int R = ray_count(view_index, pixel_xy, "gather_targets_backward");
   host::expect_shape(dout, {R, d.C}, host::DType::F32, "gather_targets_backward", "dout");
   if (R == 0) return;
@@ -78,7 +82,7 @@ Tensor target_patch(const FeatureTargets& targets, int view, int x0, int y0, int
          " image");
   const int ho = height / scale, wo = width / scale;
   Tensor out({1, d.C, ho, wo}, "target patch");
-  host::launch_with_local("targets", "targets_patch", "", {size_t(ho) * wo}, {kGroup}, targets.maps, view, d.hf, d.wf,
+  host::launch_with_local("targets", "targets_patch", map_options(targets.maps), {size_t(ho) * wo}, {kGroup}, targets.maps, view, d.hf, d.wf,
                           d.C, x0, y0, scale, ho, wo, out);
   return out;
 }

@@ -7,7 +7,7 @@
 
 namespace stylerf::features {
 
-// maps [V, Hf, Wf, C] F32 (C a multiple of 8), view_index [R] I32, pixel_xy [R, 2] F32 full-resolution
+// maps [V, Hf, Wf, C] F32 or F16 (C a multiple of 8; F16 is read as float, the sums are float), view_index [R] I32, pixel_xy [R, 2] F32 full-resolution
 // positions -> [R, C], the target of each ray. A view index outside [0, V) or a
 // non-finite position gives a row of NaN (a bad input must not quietly read some other pixel).
 host::Tensor gather_targets(const host::Tensor& maps, const host::Tensor& view_index, const host::Tensor& pixel_xy);
@@ -15,6 +15,7 @@ host::Tensor gather_targets(const host::Tensor& maps, const host::Tensor& view_i
 // dmaps [V, Hf, Wf, C] += the adjoint of gather_targets for the output gradient dout [R, C]. Training does
 // not need it (targets are constants); it exists so the interpolation has a finite-difference test, and for
 // splatting per-ray values onto a map. Atomic adds: the last bits depend on the order rays land.
+// dmaps is F32.
 void gather_targets_backward(const host::Tensor& view_index, const host::Tensor& pixel_xy, const host::Tensor& dout,
                              host::Tensor& dmaps);
 

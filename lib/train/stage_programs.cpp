@@ -5,6 +5,7 @@
 #include <ostream>
 
 #include "host/gemm.hpp"
+#include "lib/features/feature_targets.hpp"
 #include "lib/field/vm_grid.hpp"
 #include "lib/nn/conv_algo.hpp"
 #include "lib/nn/reduce_path.hpp"
@@ -52,7 +53,8 @@ std::vector<ProgramBuild> density_stage_programs(const model::DensityModel& m) {
 std::vector<ProgramBuild> feature_stage_programs(const model::FeatureModel& m) {
   // Beyond the field: VGG and the decoder (convolutions, norms, layouts) and the stage-2 targets.
   std::vector<ProgramBuild> out = field_programs(m.geo, m.field.head.grid());
-  for (const char* p : {"nn", "layout", "linear", "targets"}) out.push_back({p, ""});
+  for (const char* p : {"nn", "layout", "linear"}) out.push_back({p, ""});
+  out.push_back({"targets", features::kTargetDType == host::DType::F16 ? "-DTARGETS_F16" : ""});
   for (const std::string& o : nn::winograd_build_variants()) out.push_back({"winograd", o});
   return out;
 }

@@ -365,7 +365,12 @@ StyleStepStats StyleTrainer::step() {
   } else {
     style::Dst::StyleContext sctx;
     const style::StyleCode code = model_.style_code(taps, &sctx);
-    st = k <= cfg_.decoder_warm + cfg_.warm_start ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
+    const bool warm = k <= cfg_.decoder_warm + cfg_.warm_start;
+    if (!warm && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
+      rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
+      targets_ = features::FeatureTargets{};
+    }
+    st = warm ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
   }
   st.style_name = stem(path);
   if (!st.skipped) {

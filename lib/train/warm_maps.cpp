@@ -42,7 +42,7 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
   if (features.field.background.value.defined()) bg = features.field.background.value.to_host();
   const auto t0 = std::chrono::steady_clock::now();
   RenderedWarmMaps out;
-  std::vector<float> all;
+  std::vector<float> view_map;  // one view [Hf][Wf][C]: the maps are filled a view at a time (native sizes)
   int Hf = 0, Wf = 0;
   for (int v = 0; v < V; ++v) {
     const scene::Camera& cam = scene.train[size_t(v)].camera;
@@ -50,8 +50,13 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     if (v == 0) {
       Hf = fm.height;
       Wf = fm.width;
-      all.resize(size_t(V) * Hf * Wf * C);
+      view_map.resize(size_t(Hf) * Wf * C);
       out.acc.resize(size_t(V) * Hf * Wf);
+      out.maps = features::allocate_targets(V, scene.width(), scene.height());
+      if (out.maps.map_height() != Hf || out.maps.map_width() != Wf)
+        throw Error("warm-start maps: rendered maps are " + std::to_string(Wf) + "x" + std::to_string(Hf) +
+                    ", the targets' layout " + std::to_string(out.maps.map_width()) + "x" +
+                    std::to_string(out.maps.map_height()));
     } else if (fm.height != Hf || fm.width != Wf) {
       throw Error("warm-start maps: training view " + scene.train[size_t(v)].image_path + " is " +
                   std::to_string(cam.width) + "x" + std::to_string(cam.height) + ", unlike the first view");
@@ -61,7 +66,7 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     for (int64_t p = 0; p < n; ++p) {
       const float a = fm.acc[size_t(p)];
       out.acc[size_t(v * n + p)] = a;
-      float* dst = &all[size_t((v * n + p) * C)];
+      float* dst = &view_map[size_t(p * C)];
       if (!(a > kWarmMapMinOpacity)) {
         std::fill(dst, dst + C, 0.0f);
         continue;
@@ -69,6 +74,7 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
       // value = sum w f + (1 - acc) bg  ->  mean feature = (value - (1 - acc) bg) / acc
       for (int64_t c = 0; c < C; ++c) dst[c] = (f[size_t(c * n + p)] - (1.0f - a) * bg[size_t(c)]) / a;
     }
+    features::put_view(out.maps, v, features::encode_view(view_map, out.maps.maps.dtype()));
     if (log) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       std::ostringstream line;  // formatted apart: the caller's stream keeps its own precision
@@ -78,9 +84,6 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     }
   }
   if (log) *log << std::endl;
-  out.maps.maps = Tensor::from_host(all, {V, Hf, Wf, C}, "rendered warm-start maps");
-  out.maps.image_width = scene.width();
-  out.maps.image_height = scene.height();
   return out;
 }
 
