@@ -97,6 +97,49 @@ double max_abs(const std::vector<float>& v) {
 
 }  // namespace
 
+TEST_CASE("a ray's content does not depend on the other rays of its call: row-major, column-major, chunked") {
+  // Streaks along the image rows were suspected of rays leaking into their neighbours in memory (the rows
+  // of a map are neighbours there): every ray must render the same content in any order and any chunk.
+  model::StyleModel sm = model::StyleModel::create(small_features(model::DecoderProfile::Fast),
+                                                   style::SictMode::VolumeAdaptive, true, 5);
+  int w = 0, h = 0;
+  const auto rays = model::block_rays(testing::small_scene(), testing::small_scene().test[0].camera, 4, w, h);
+  const int64_t R = int64_t(w) * h;
+  auto render = [&](const std::vector<int64_t>& order, int64_t chunk) {
+    std::vector<float> c(size_t(R) * 32), k(static_cast<size_t>(R)), a(static_cast<size_t>(R));
+    for (int64_t b = 0; b < R; b += chunk) {
+      const int64_t n = std::min(chunk, R - b);
+      std::vector<float> o(size_t(3 * n)), d(size_t(3 * n));
+      for (int64_t i = 0; i < n; ++i)
+        for (int j = 0; j < 3; ++j) {
+          o[size_t(3 * i + j)] = rays.origins[size_t(3 * order[size_t(b + i)] + j)];
+          d[size_t(3 * i + j)] = rays.directions[size_t(3 * order[size_t(b + i)] + j)];
+        }
+      const auto part = sm.render_content(Tensor::from_host(o, {n, 3}), Tensor::from_host(d, {n, 3}), false, 0, nullptr);
+      const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+      for (int64_t i = 0; i < n; ++i) {
+        const int64_t r = order[size_t(b + i)];
+        std::copy(pc.begin() + 32 * i, pc.begin() + 32 * (i + 1), c.begin() + 32 * r);
+        k[size_t(r)] = pk[size_t(i)];
+        a[size_t(r)] = pa[size_t(i)];
+      }
+    }
+    c.insert(c.end(), k.begin(), k.end());
+    c.insert(c.end(), a.begin(), a.end());
+    return c;
+  };
+  std::vector<int64_t> rows(static_cast<size_t>(R)), cols;
+  for (int64_t r = 0; r < R; ++r) rows[size_t(r)] = r;
+  for (int x = 0; x < w; ++x)
+    for (int y = 0; y < h; ++y) cols.push_back(int64_t(y) * w + x);
+  const std::vector<float> want = render(rows, R);
+  REQUIRE(*std::max_element(want.end() - R, want.end()) > 0.5f);  // some rays hit the object
+  CHECK(render(cols, R) == want);  // the same work in another order: bit for bit
+  // Other chunk sizes may take other GEMM paths (another summation order): rounding only.
+  testing::check_close(render(cols, 7), testing::to_double(want), 1e-5, 1e-5, "column-major, 7 rays a call");
+  testing::check_close(render(rows, 1), testing::to_double(want), 1e-5, 1e-5, "one ray a call");
+}
+
 TEST_CASE("deferred style transformation equals per-point transformation then compositing") {
   model::StyleModel sm = model::StyleModel::create(small_features(model::DecoderProfile::Paper),
                                                    style::SictMode::VolumeAdaptive, true, 5);

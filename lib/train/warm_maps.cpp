@@ -44,6 +44,7 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
   RenderedWarmMaps out;
   std::vector<float> view_map;  // one view [Hf][Wf][C]: the maps are filled a view at a time (native sizes)
   int Hf = 0, Wf = 0;
+  double last_line_s = 0;
   for (int v = 0; v < V; ++v) {
     const scene::Camera& cam = scene.train[size_t(v)].camera;
     const model::FeatureModel::FeatureMap fm = features.render_feature_map(scene, cam);
@@ -76,14 +77,18 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     }
     features::put_view(out.maps, v, features::encode_view(view_map, out.maps.maps.dtype()));
     if (log) {
+      // A line about every two seconds and at the end, as the other progress lines (a log file gets lines,
+      // not carriage returns).
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::ostringstream line;  // formatted apart: the caller's stream keeps its own precision
-      line << "\r  warm-start maps: rendered " << v + 1 << "/" << V << " training views (" << std::fixed
-           << std::setprecision(1) << s << " s)";
-      *log << line.str() << std::flush;
+      if (s - last_line_s >= 2.0 || v + 1 == V) {
+        last_line_s = s;
+        std::ostringstream line;  // formatted apart: the caller's stream keeps its own precision
+        line << "  warm-start maps: rendered " << v + 1 << "/" << V << " training views (" << std::fixed
+             << std::setprecision(1) << s << " s)";
+        *log << line.str() << std::endl;
+      }
     }
   }
-  if (log) *log << std::endl;
   return out;
 }
 
