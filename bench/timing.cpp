@@ -41,17 +41,17 @@ Timing best_of(int repeats, const std::function<void()>& f) {
   return best;
 }
 
-std::string print_top_kernels(int top) {
+std::string print_top_kernels(int top, const char* title, std::FILE* out) {
   auto& rt = host::Runtime::instance();
   if (!rt.profiling()) return "";
   std::vector<host::KernelTiming> t = rt.timings();
   std::sort(t.begin(), t.end(), [](const auto& a, const auto& b) { return a.total_ms > b.total_ms; });
   double total = 0;
   for (const auto& k : t) total += k.total_ms;
-  std::printf("kernels of the last step (STYLERF_PROFILE=1): %.3f ms in all, top %d\n", total, top);
+  std::fprintf(out, "%s (STYLERF_PROFILE=1): %.3f ms in all, top %d\n", title, total, top);
   std::string json = "[";
   for (int i = 0; i < int(t.size()) && i < top; ++i) {
-    std::printf("  %-40s %5d launches %9.3f ms\n", t[i].kernel.c_str(), t[i].launches, t[i].total_ms);
+    std::fprintf(out, "  %-40s %5d launches %9.3f ms\n", t[i].kernel.c_str(), t[i].launches, t[i].total_ms);
     json += std::string(i ? ", " : "") + "[\"" + t[i].kernel + "\", " + std::to_string(t[i].launches) + ", " +
             std::to_string(t[i].total_ms) + "]";
   }

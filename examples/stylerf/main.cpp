@@ -1,12 +1,11 @@
 // stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the subcommands.
 #include <sys/resource.h>
 
-#include <algorithm>
-#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <iostream>
 
+#include "bench/timing.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/runtime.hpp"
 
@@ -38,17 +37,8 @@ namespace {
 // STYLERF_PROFILE=1: the whole command's device time per kernel, longest first, on stderr (what a frame or a
 // step spends where, without a bench).
 void print_profile_report() {
-  if (!stylerf::host::Runtime::initialised()) return;
-  auto& rt = stylerf::host::Runtime::instance();
-  if (!rt.profiling()) return;
-  auto t = rt.timings();
-  std::sort(t.begin(), t.end(), [](const auto& a, const auto& b) { return a.total_ms > b.total_ms; });
-  double total = 0;
-  for (const auto& k : t) total += k.total_ms;
-  std::fprintf(stderr, "device time per kernel (STYLERF_PROFILE=1): %.1f ms in all\n", total);
-  for (size_t i = 0; i < t.size() && i < 25; ++i)
-    std::fprintf(stderr, "  %-44s %7d launches %10.1f ms %5.1f%%\n", t[i].kernel.c_str(), t[i].launches, t[i].total_ms,
-                 100.0 * t[i].total_ms / std::max(total, 1e-9));
+  if (!stylerf::host::Runtime::initialised() || !stylerf::host::Runtime::instance().profiling()) return;
+  stylerf::bench::print_top_kernels(25, "device time per kernel over the whole command", stderr);
 }
 
 void usage() {

@@ -63,6 +63,10 @@ std::vector<float> compute_view_targets(nn::VggEncoder& vgg, const std::vector<f
   return out;
 }
 
+host::Shape target_shape(int views, int image_width, int image_height) {
+  return {views, target_map_size(image_height), target_map_size(image_width), kTargetChannels};
+}
+
 FeatureTargets allocate_targets(int views, int image_width, int image_height, host::DType dtype) {
   if (dtype != host::DType::F16 && dtype != host::DType::F32)
     throw Error(std::string("feature targets: maps are stored as f16 or f32, not ") + host::dtype_name(dtype));
@@ -72,8 +76,7 @@ FeatureTargets allocate_targets(int views, int image_width, int image_height, ho
   FeatureTargets t;
   t.image_width = image_width;
   t.image_height = image_height;
-  t.maps = host::Tensor({views, target_map_size(image_height), target_map_size(image_width), kTargetChannels}, dtype,
-                        "feature targets");
+  t.maps = host::Tensor(target_shape(views, image_width, image_height), dtype, "feature targets");
   return t;
 }
 

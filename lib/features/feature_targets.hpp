@@ -60,6 +60,9 @@ struct FeatureTargets {
 // The storage the training stages use.
 constexpr host::DType kTargetDType = host::DType::F16;
 
+// [views, ceil(H/4), ceil(W/4), 256]: the maps' shape for views of image_width x image_height pixels.
+host::Shape target_shape(int views, int image_width, int image_height);
+
 // Uninitialised maps for `views` views of image_width x image_height images, stored as `dtype` (F16 or F32).
 FeatureTargets allocate_targets(int views, int image_width, int image_height, host::DType dtype = kTargetDType);
 

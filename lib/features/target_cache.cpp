@@ -86,8 +86,7 @@ FeatureTargets load_or_compute_targets(const scene::Scene& scene, nn::VggEncoder
                                {"convention", std::string(kConvention) + host::dtype_name(opts.dtype)},
                                {"weights", vgg.path()}};
   try {
-    const host::Shape shape{int64_t(scene.train.size()), target_map_size(scene.height()),
-                            target_map_size(scene.width()), kTargetChannels};
+    const host::Shape shape = target_shape(int(scene.train.size()), scene.width(), scene.height());
     host::write_atomic_with(path, [&](const std::string& tmp) {
       // A file that cannot be written (read-only or full cache) must not stop the computation: its error
       // is kept and thrown once the maps are complete.

@@ -3,7 +3,8 @@
 // (lego at 800x800: 2 GB of maps on the device, 41 MB of host buffers).
 //
 // Metadata: "stylerf.format" = "stylerf-feature-targets", "stylerf.meta" = a JSON document (the cache key,
-// the scene, the convention) and "stylerf.checksum" = FNV-1a 64 over the data bytes, as 16 hex digits. The
+// the scene, the convention) and "stylerf.checksum" = FNV-1a 64 over the data bytes, as 16 hex digits (byte by byte,
+// so it does not depend on how the data was cut into appends; ContentHash would). The
 // checksum is written last, over a placeholder of the same width, then the file is renamed into place
 // (host::write_atomic_with): a killed writer leaves no file under the real name.
 #pragma once
