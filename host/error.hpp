@@ -13,6 +13,20 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
+// A bad value of one named setting (a config field): `field` is its name as the library spells it
+// ("lr_decoder"), so that a front end can name it its own way (the CLI's flag --lr-decoder, Python's
+// keyword argument); what() is "<field> <problem>".
+class SettingError : public Error {
+ public:
+  SettingError(const std::string& field, const std::string& problem)
+      : Error(field + " " + problem), field_(field), problem_(problem) {}
+  const std::string& field() const { return field_; }
+  const std::string& problem() const { return problem_; }
+
+ private:
+  std::string field_, problem_;
+};
+
 // The symbolic name of an OpenCL error code ("CL_OUT_OF_RESOURCES"), or "CL_ERROR(<n>)".
 const char* cl_error_name(cl_int code);
 

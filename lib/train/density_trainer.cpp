@@ -9,9 +9,11 @@
 #include <sstream>
 
 #include "host/error.hpp"
+#include "lib/io/json_fields.hpp"
 #include "lib/eval/metrics.hpp"
-#include "lib/train/progress.hpp"
 #include "lib/train/stage_programs.hpp"
+#include "lib/train/trainer_state.hpp"
+#include "lib/train/training_loop.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
 
@@ -21,54 +23,24 @@ using host::Error;
 using nlohmann::json;
 
 // ---- config ------------------------------------------------------------------------------------------------
+#define DENSITY_SCHEDULE_FIELDS \
+  iters, upsample_at, voxels_init, voxels_final, mask_at, lr_decay_ratio, lr_reset_on_upsample
+#define DENSITY_TRAIN_FIELDS                                                                              \
+  batch, lr_grid, lr_net, beta1, beta2, l1_initial, l1_rest, tv_density, tv_app, alpha_mask, \
+      reset_optimizer_on_upsample, seed
+
 json DensityTrainConfig::to_json() const {
-  const Schedule& s = schedule;
-  return json{{"model", model.to_json()},
-              {"schedule",
-               {{"iters", s.iters},
-                {"upsample_at", s.upsample_at},
-                {"voxels_init", s.voxels_init},
-                {"voxels_final", s.voxels_final},
-                {"mask_at", s.mask_at},
-                {"lr_decay_ratio", s.lr_decay_ratio},
-                {"lr_reset_on_upsample", s.lr_reset_on_upsample}}},
-              {"batch", batch},
-              {"lr_grid", lr_grid},
-              {"lr_net", lr_net},
-              {"beta1", beta1},
-              {"beta2", beta2},
-              {"l1_initial", l1_initial},
-              {"l1_rest", l1_rest},
-              {"tv_density", tv_density},
-              {"tv_app", tv_app},
-              {"alpha_mask", alpha_mask},
-              {"reset_optimizer_on_upsample", reset_optimizer_on_upsample},
-              {"seed", seed}};
+  json j{{"model", model.to_json()}, {"schedule", json::object()}};
+  STYLERF_JSON_PUT_FIELDS(j["schedule"], schedule, DENSITY_SCHEDULE_FIELDS);
+  STYLERF_JSON_PUT_FIELDS(j, *this, DENSITY_TRAIN_FIELDS);
+  return j;
 }
 
 DensityTrainConfig DensityTrainConfig::from_json(const json& j) {
   DensityTrainConfig c;
   c.model = DensityModelConfig::from_json(j.at("model"));
-  const json& s = j.at("schedule");
-  c.schedule.iters = s.at("iters").get<int>();
-  c.schedule.upsample_at = s.at("upsample_at").get<std::vector<int>>();
-  c.schedule.voxels_init = s.at("voxels_init").get<int64_t>();
-  c.schedule.voxels_final = s.at("voxels_final").get<int64_t>();
-  c.schedule.mask_at = s.at("mask_at").get<std::vector<int>>();
-  c.schedule.lr_decay_ratio = s.at("lr_decay_ratio").get<float>();
-  c.schedule.lr_reset_on_upsample = s.at("lr_reset_on_upsample").get<bool>();
-  c.batch = j.at("batch").get<int>();
-  c.lr_grid = j.at("lr_grid").get<float>();
-  c.lr_net = j.at("lr_net").get<float>();
-  c.beta1 = j.at("beta1").get<float>();
-  c.beta2 = j.at("beta2").get<float>();
-  c.l1_initial = j.at("l1_initial").get<float>();
-  c.l1_rest = j.at("l1_rest").get<float>();
-  c.tv_density = j.at("tv_density").get<float>();
-  c.tv_app = j.at("tv_app").get<float>();
-  c.alpha_mask = j.at("alpha_mask").get<bool>();
-  c.reset_optimizer_on_upsample = j.at("reset_optimizer_on_upsample").get<bool>();
-  c.seed = j.at("seed").get<uint64_t>();
+  STYLERF_JSON_GET_FIELDS(j.at("schedule"), c.schedule, DENSITY_SCHEDULE_FIELDS);
+  STYLERF_JSON_GET_FIELDS(j, c, DENSITY_TRAIN_FIELDS);
   return c;
 }
 
@@ -139,14 +111,11 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConf
 }
 
 DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& ck) : scene_(&scene) {
-  try {
-    const json& t = ck.meta.at("trainer");
+  read_trainer_state(ck, "trainer", [&](const json& t) {
     cfg_ = DensityTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
     l1_weight_ = t.at("l1_weight").get<float>();
-  } catch (const json::exception& e) {
-    throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
-  }
+  });
   planned_ = cfg_.schedule;
   model_ = model::load_model(ck);
   init_optimizer();
@@ -361,68 +330,60 @@ double mean_psnr(const std::vector<ViewScore>& v) {
 
 namespace stylerf::train {
 
-RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
-  build_stage_programs(density_stage_programs(trainer.model()), opt.log);
-  RunSummary sum;
-  const int batch = trainer.config().batch;
-  TrainingBudget budget(opt.time_budget_s, opt.clock);
-  double window_s = 0, window_psnr = 0, window_mse = 0;
-  int64_t window_samples = 0, window_kept = 0;
-  int window_n = 0;
-  auto save = [&] {
-    if (opt.checkpoint.empty()) return;
-    trainer.save(opt.checkpoint, opt.scene_meta);
-  };
-  while (!trainer.done()) {
-    const int total = trainer.config().schedule.iters;
-    const bool report = opt.log && opt.log_every > 0 &&
-                        ((trainer.iteration() + 1) % opt.log_every == 0 || trainer.iteration() + 1 == total);
-    budget.start_step();
-    const StepStats st = trainer.step(report);
-    const double step_s = budget.end_step();
-    ++sum.iterations;
-    window_s += step_s;
-    window_psnr += st.psnr;
-    window_mse += st.mse;
-    window_samples += st.samples;
-    window_kept += st.kept;
-    ++window_n;
-    if (opt.log)
-      for (const auto& e : st.events) *opt.log << "  [" << st.iteration << "] " << e << std::endl;
-    if (report) {
-      const double per_it = window_s / window_n;
-      std::ostringstream l;
-      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << "  loss "
-        << window_mse / window_n + std::max(0.0, st.reg) << " (mse " << window_mse / window_n << ")"
-        << std::setprecision(2) << "  psnr " << window_psnr / window_n << "  samples/ray "
-        << std::setprecision(1) << double(window_samples) / (double(window_n) * batch) << " (kept "
-        << 100.0 * double(window_kept) / std::max<double>(1.0, double(window_samples)) << "%)  "
-        << std::setprecision(0) << batch / per_it << " rays/s  " << std::setprecision(2) << per_it
-        << " s/it  ETA " << hms(per_it * (total - st.iteration));
-      *opt.log << l.str() << std::endl;
-      sum.last_psnr = window_psnr / window_n;
-      window_s = window_psnr = window_mse = 0;
-      window_samples = window_kept = 0;
-      window_n = 0;
-    }
-    if (!opt.checkpoint.empty() && opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 &&
-        !trainer.done())
-      save();
-    if (opt.after_step && !opt.after_step(st)) break;
-    if (budget.spent()) break;
-    const std::optional<Refit> r = budget.refit(trainer.iteration());
-    if (opt.fit_schedule_to_budget && r && r->total_iters != trainer.config().schedule.iters) {
-      trainer.refit_schedule(r->total_iters);
-      if (opt.log)
-        *opt.log << "  [" << trainer.iteration() << "] " << std::fixed << std::setprecision(2) << r->seconds_per_step
-                 << " s/it -> " << r->total_iters << " iterations fit the budget: "
-                 << trainer.config().schedule.describe() << std::endl;
-    }
+namespace {
+
+// The density stage in the training loop: the window's loss, batch PSNR and samples a ray.
+class DensityLoopStage : public TrainerLoopStage<DensityTrainer, RunOptions, StepStats> {
+ public:
+  DensityLoopStage(DensityTrainer& t, const RunOptions& o) : TrainerLoopStage(t, o) {}
+  int total() const override { return t_.config().schedule.iters; }
+  void step(bool report) override {
+    last_ = t_.step(report);
+    psnr_ += last_.psnr, mse_ += last_.mse, samples_ += last_.samples, kept_ += last_.kept, ++n_;
+    if (o_.log)
+      for (const auto& e : last_.events) *o_.log << "  [" << last_.iteration << "] " << e << std::endl;
   }
-  sum.seconds = budget.elapsed();
-  if (window_n) sum.last_psnr = window_psnr / window_n;
-  save();
-  return sum;
+  std::string window_line(double per_it) override {
+    const int batch = t_.config().batch;
+    std::ostringstream l;
+    l << std::fixed << std::setprecision(4) << "  loss " << mse_ / n_ + std::max(0.0, last_.reg) << " (mse "
+      << mse_ / n_ << ")" << std::setprecision(2) << "  psnr " << psnr_ / n_ << "  samples/ray "
+      << std::setprecision(1) << double(samples_) / (double(n_) * batch) << " (kept "
+      << 100.0 * double(kept_) / std::max<double>(1.0, double(samples_)) << "%)  " << std::setprecision(0)
+      << batch / per_it << " rays/s";
+    last_psnr = psnr_ / n_;
+    psnr_ = mse_ = 0;
+    samples_ = kept_ = 0;
+    n_ = 0;
+    return l.str();
+  }
+  void refit(const Refit& r) override {
+    if (!o_.fit_schedule_to_budget || r.total_iters == total()) return;
+    t_.refit_schedule(r.total_iters);
+    if (o_.log)
+      *o_.log << "  [" << t_.iteration() << "] " << std::fixed << std::setprecision(2) << r.seconds_per_step << " s/it -> "
+              << r.total_iters << " iterations fit the budget: " << t_.config().schedule.describe() << std::endl;
+  }
+  void save() override {
+    if (!o_.checkpoint.empty()) t_.save(o_.checkpoint, o_.scene_meta);
+  }
+  void end_of_run() override {
+    if (n_) last_psnr = psnr_ / n_;
+  }
+  double last_psnr = 0;
+
+ private:
+  double psnr_ = 0, mse_ = 0;
+  int64_t samples_ = 0, kept_ = 0;
+  int n_ = 0;
+};
+
+}  // namespace
+
+RunSummary run_density_training(DensityTrainer& trainer, const RunOptions& opt) {
+  DensityLoopStage stage(trainer, opt);
+  const LoopResult r = run_training_loop(stage, loop_control(opt, density_stage_programs(trainer.model())));
+  return {r.iterations, r.seconds, stage.last_psnr};
 }
 
 }  // namespace stylerf::train

@@ -25,6 +25,7 @@
 #include "lib/nn/adam.hpp"
 #include "lib/train/budget.hpp"
 #include "lib/train/schedule.hpp"
+#include "lib/train/training_loop.hpp"
 
 namespace stylerf::train {
 
@@ -119,22 +120,13 @@ std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene&
 double mean_psnr(const std::vector<ViewScore>& v);  // mean of per-view PSNR (as the NeRF papers report)
 
 
-// The loop around step(): the stage's kernels built first (lib/train/stage_programs.hpp), then progress
-// lines (iteration, loss, batch PSNR, rays/s, ETA), events, periodic atomic checkpoints, and an optional
-// callback after every step (return false to stop early).
-struct RunOptions {
-  std::ostream* log = nullptr;
-  int log_every = 100;
-  std::string checkpoint;       // empty: none
-  int checkpoint_every = 1000;  // and always at the end
-  nlohmann::json scene_meta;
-  double time_budget_s = 0;     // > 0: stop after this much training time (lib/train/budget.hpp)
+// The training loop (lib/train/training_loop.hpp) around step(): progress lines (iteration, loss, batch
+// PSNR, rays/s, ETA) and the trainer's events, periodic atomic checkpoints, the time budget.
+struct RunOptions : LoopOptions<StepStats> {
   // With time_budget_s: refit the schedule (DensityTrainer::refit_schedule) when TrainingBudget::refit
   // says, so events and lr decay land inside the budget. Give the trainer the full-length plan
   // (TensoRF's): each refit fits that plan, never a fitted one.
   bool fit_schedule_to_budget = false;
-  Clock clock;                  // read before and after each step; empty: the steady clock
-  std::function<bool(const StepStats&)> after_step;
 };
 struct RunSummary {
   int iterations = 0;     // steps taken in this run

@@ -8,9 +8,11 @@
 #include <sstream>
 
 #include "host/error.hpp"
+#include "lib/io/json_fields.hpp"
 #include "lib/eval/metrics.hpp"
-#include "lib/train/progress.hpp"
 #include "lib/train/stage_programs.hpp"
+#include "lib/train/trainer_state.hpp"
+#include "lib/train/training_loop.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
@@ -25,43 +27,22 @@ using host::Tensor;
 using nlohmann::json;
 
 // ---- config ------------------------------------------------------------------------------------------------
+#define FEATURE_FIELD_FIELDS rank, channels, init_scale  // FeatureFieldConfig's, flat in the config's JSON
+#define FEATURE_TRAIN_FIELDS \
+  iters, batch, patch, lr_grid, lr_basis, lr_decoder, beta1, beta2, lr_decay_ratio, tv, content_weight, seed
+
 json FeatureTrainConfig::to_json() const {
-  return json{{"profile", model::decoder_profile_name(profile)},
-              {"rank", field.rank},
-              {"channels", field.channels},
-              {"init_scale", field.init_scale},
-              {"iters", iters},
-              {"batch", batch},
-              {"patch", patch},
-              {"lr_grid", lr_grid},
-              {"lr_basis", lr_basis},
-              {"lr_decoder", lr_decoder},
-              {"beta1", beta1},
-              {"beta2", beta2},
-              {"lr_decay_ratio", lr_decay_ratio},
-              {"tv", tv},
-              {"content_weight", content_weight},
-              {"seed", seed}};
+  json j{{"profile", model::decoder_profile_name(profile)}};
+  STYLERF_JSON_PUT_FIELDS(j, field, FEATURE_FIELD_FIELDS);
+  STYLERF_JSON_PUT_FIELDS(j, *this, FEATURE_TRAIN_FIELDS);
+  return j;
 }
 
 FeatureTrainConfig FeatureTrainConfig::from_json(const json& j) {
   FeatureTrainConfig c;
   c.profile = model::parse_decoder_profile(j.at("profile").get<std::string>());
-  c.field.rank = j.at("rank").get<std::array<int, 3>>();
-  c.field.channels = j.at("channels").get<int>();
-  c.field.init_scale = j.at("init_scale").get<float>();
-  c.iters = j.at("iters").get<int>();
-  c.batch = j.at("batch").get<int>();
-  c.patch = j.at("patch").get<int>();
-  c.lr_grid = j.at("lr_grid").get<float>();
-  c.lr_basis = j.at("lr_basis").get<float>();
-  c.lr_decoder = j.at("lr_decoder").get<float>();
-  c.beta1 = j.at("beta1").get<float>();
-  c.beta2 = j.at("beta2").get<float>();
-  c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
-  c.tv = j.at("tv").get<float>();
-  c.content_weight = j.at("content_weight").get<float>();
-  c.seed = j.at("seed").get<uint64_t>();
+  STYLERF_JSON_GET_FIELDS(j, c.field, FEATURE_FIELD_FIELDS);
+  STYLERF_JSON_GET_FIELDS(j, c, FEATURE_TRAIN_FIELDS);
   return c;
 }
 
@@ -77,20 +58,21 @@ FeatureTrainConfig default_feature_config(const scene::Scene& scene, model::Deco
   return c;
 }
 
-static void validate(const FeatureTrainConfig& c) {
-  if (c.iters < 1) throw Error("train-features: iterations must be >= 1 (got " + std::to_string(c.iters) + ")");
-  if (c.batch < 1) throw Error("train-features: batch must be >= 1");
-  if (c.patch < 8 || c.patch % 8) throw Error("train-features: patch must be a positive multiple of 8");
-  for (float lr : {c.lr_grid, c.lr_basis, c.lr_decoder})
-    if (!(lr > 0.0f) || !std::isfinite(lr)) throw Error("train-features: learning rates must be positive");
-  if (!(c.tv >= 0.0f) || !std::isfinite(c.tv)) throw Error("train-features: --tv must be >= 0");
+void FeatureTrainConfig::validate() const {
+  using host::SettingError;
+  if (iters < 1) throw SettingError("iters", "must be >= 1, got " + std::to_string(iters));
+  if (batch < 1) throw SettingError("batch", "must be >= 1, got " + std::to_string(batch));
+  if (patch < 8 || patch % 8) throw SettingError("patch", "must be a positive multiple of 8, got " + std::to_string(patch));
+  for (auto [field, lr] : {std::pair{"lr_grid", lr_grid}, std::pair{"lr_basis", lr_basis}, std::pair{"lr_decoder", lr_decoder}})
+    if (!(lr > 0.0f) || !std::isfinite(lr)) throw SettingError(field, "must be a positive number, got " + std::to_string(lr));
+  if (!(tv >= 0.0f) || !std::isfinite(tv)) throw SettingError("tv", "must be >= 0, got " + std::to_string(tv));
 }
 
 // ---- trainer -----------------------------------------------------------------------------------------------
 FeatureTrainer::FeatureTrainer(const scene::Scene& scene, const model::Geometry& density, const FeatureTrainConfig& cfg,
                                std::ostream* log)
     : scene_(&scene), cfg_(cfg) {
-  validate(cfg_);
+  cfg_.validate();
   model_ = model::FeatureModel::create(density, cfg_.field, cfg_.profile, cfg_.seed);
   init(log);
   init_background_feature();
@@ -120,13 +102,10 @@ void FeatureTrainer::init_background_feature() {
 
 FeatureTrainer::FeatureTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log)
     : scene_(&scene) {
-  try {
-    const json& t = ck.meta.at("trainer");
+  read_trainer_state(ck, "trainer", [&](const json& t) {
     cfg_ = FeatureTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
-  } catch (const json::exception& e) {
-    throw Error("checkpoint " + ck.path + ": no trainer state to resume from (" + e.what() + ")");
-  }
+  });
   model_ = model::FeatureModel::load(ck);
   init(log);
   adam_.load(ck, "", model_.params());
@@ -288,56 +267,60 @@ std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const s
 }
 
 // ---- run loop ----------------------------------------------------------------------------------------------
-FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt) {
-  build_stage_programs(feature_stage_programs(trainer.model()), opt.log);
-  FeatureRunSummary sum;
-  TrainingBudget budget(opt.time_budget_s, opt.clock);
-  double win_s = 0, win_fmse = 0, win_pmse = 0, win_content = 0, win_rays = 0;
-  int win_r = 0, win_p = 0, win_n = 0;
-  auto save = [&] {
-    if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta, opt.density_meta);
-  };
-  while (!trainer.done()) {
-    budget.start_step();
-    const FeatureStepStats st = trainer.step();
-    win_s += budget.end_step();
-    ++sum.iterations;
-    win_rays += double(st.rays);
-    ++win_n;
-    if (st.patch) {
-      win_pmse += st.pixel_mse, win_content += st.content, ++win_p;
-    } else {
-      win_fmse += st.feature_mse, ++win_r;
-    }
-    const int total = trainer.config().iters;
-    if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
-      const double per_it = win_s / win_n;
-      std::ostringstream l;
-      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total;
-      if (win_r) l << "  feature mse " << win_fmse / win_r;
-      if (win_p)
-        l << "  patch mse " << win_pmse / win_p << " (psnr " << std::setprecision(2)
-          << eval::psnr_from_mse(win_pmse / win_p) << ") content " << std::setprecision(4) << win_content / win_p;
-      l << std::setprecision(0) << "  " << win_rays / win_s << " rays/s  " << std::setprecision(2) << per_it
-        << " s/it  ETA "
-        << hms(budget.limited() ? budget.remaining() : per_it * (total - st.iteration));
-      *opt.log << l.str() << std::endl;
-      if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
-      if (win_r) sum.last_feature_mse = win_fmse / win_r;
-      win_s = win_fmse = win_pmse = win_content = win_rays = 0;
-      win_r = win_p = win_n = 0;
-    }
-    if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.after_step && !opt.after_step(st)) break;
-    if (budget.spent()) break;
-    // The run's length is its lr decay horizon: refitted to the budget as the step rate becomes known.
-    if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);
+namespace {
+
+// The feature stage in the training loop: the window's feature MSE (ray steps), patch PSNR and content
+// loss (patch steps), rays/s.
+class FeatureLoopStage : public TrainerLoopStage<FeatureTrainer, FeatureRunOptions, FeatureStepStats> {
+ public:
+  FeatureLoopStage(FeatureTrainer& t, const FeatureRunOptions& o) : TrainerLoopStage(t, o) {}
+  int total() const override { return t_.config().iters; }
+  void step(bool) override {
+    last_ = t_.step();
+    rays_ += double(last_.rays);
+    ++n_;
+    if (last_.patch)
+      pixel_mse_ += last_.pixel_mse, content_ += last_.content, ++patches_;
+    else
+      feature_mse_ += last_.feature_mse, ++ray_steps_;
   }
-  sum.seconds = budget.elapsed();
-  if (win_p) sum.last_patch_psnr = eval::psnr_from_mse(win_pmse / win_p);
-  if (win_r) sum.last_feature_mse = win_fmse / win_r;
-  save();
-  return sum;
+  std::string window_line(double per_it) override {
+    std::ostringstream l;
+    l << std::fixed << std::setprecision(4);
+    if (ray_steps_) l << "  feature mse " << feature_mse_ / ray_steps_;
+    if (patches_)
+      l << "  patch mse " << pixel_mse_ / patches_ << " (psnr " << std::setprecision(2)
+        << eval::psnr_from_mse(pixel_mse_ / patches_) << ") content " << std::setprecision(4) << content_ / patches_;
+    l << std::setprecision(0) << "  " << rays_ / n_ / per_it << " rays/s";
+    keep_window_figures();
+    rays_ = feature_mse_ = pixel_mse_ = content_ = 0;
+    n_ = ray_steps_ = patches_ = 0;
+    return l.str();
+  }
+  // The run's length is its lr decay horizon: refitted to the budget as the step rate becomes known.
+  void refit(const Refit& r) override { t_.set_total_iters(r.total_iters); }
+  void save() override {
+    if (!o_.checkpoint.empty()) t_.save(o_.checkpoint, o_.scene_meta, o_.density_meta);
+  }
+  void end_of_run() override { keep_window_figures(); }
+  double last_patch_psnr = 0, last_feature_mse = 0;
+
+ private:
+  void keep_window_figures() {
+    if (patches_) last_patch_psnr = eval::psnr_from_mse(pixel_mse_ / patches_);
+    if (ray_steps_) last_feature_mse = feature_mse_ / ray_steps_;
+  }
+
+  double rays_ = 0, feature_mse_ = 0, pixel_mse_ = 0, content_ = 0;
+  int n_ = 0, ray_steps_ = 0, patches_ = 0;
+};
+
+}  // namespace
+
+FeatureRunSummary run_feature_training(FeatureTrainer& trainer, const FeatureRunOptions& opt) {
+  FeatureLoopStage stage(trainer, opt);
+  const LoopResult r = run_training_loop(stage, loop_control(opt, feature_stage_programs(trainer.model())));
+  return {r.iterations, r.seconds, stage.last_patch_psnr, stage.last_feature_mse};
 }
 
 nlohmann::json density_source_meta(const std::string& density_path, const io::Checkpoint& density) {

@@ -26,6 +26,7 @@
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
+#include "lib/train/training_loop.hpp"
 
 namespace stylerf::train {
 
@@ -45,6 +46,8 @@ struct FeatureTrainConfig {
   uint64_t seed = 0;
   int finite_check_every = 50;
 
+  // Every field's rule, in one place: a host::SettingError naming the field.
+  void validate() const;
   nlohmann::json to_json() const;
   static FeatureTrainConfig from_json(const nlohmann::json& j);
 };
@@ -107,20 +110,15 @@ struct DecodedScore {
 std::vector<DecodedScore> evaluate_decoded(const model::FeatureModel& m, const scene::Scene& scene, int max_views,
                                            bool ssim);
 
-// The loop around step(): progress lines (losses, PSNR of the patches, rays/s, ETA), periodic atomic
-// checkpoints, a time budget that refits the run's length (and so its lr decay) from the measured rate;
-// the stage's kernels are built before the first step (lib/train/stage_programs.hpp).
-struct FeatureRunOptions {
-  std::ostream* log = nullptr;
-  int log_every = 50;
-  std::string checkpoint;
-  int checkpoint_every = 500;
-  nlohmann::json scene_meta, density_meta;
-  double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
-  Clock clock;               // read before and after each step; empty: the steady clock
-  // Called after every step (and its periodic checkpoint); return false to stop early. An exception
-  // thrown here leaves the loop without the final checkpoint (the periodic ones are atomic).
-  std::function<bool(const FeatureStepStats&)> after_step;
+// The training loop (lib/train/training_loop.hpp) around step(): progress lines (losses, PSNR of the
+// patches, rays/s, ETA), periodic atomic checkpoints, a time budget that refits the run's length (and so
+// its lr decay) from the measured rate.
+struct FeatureRunOptions : LoopOptions<FeatureStepStats> {
+  FeatureRunOptions() {
+    log_every = 50;
+    checkpoint_every = 500;
+  }
+  nlohmann::json density_meta;  // density_source_meta, recorded in the checkpoint
 };
 struct FeatureRunSummary {
   int iterations = 0;
