@@ -255,7 +255,7 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   }
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto& m = t.model();
-  REQUIRE(m.decoder_kind == model::StyleDecoderKind::VggAdain);
+  REQUIRE(m.decoder_kind() == model::StyleDecoderKind::VggAdain);
   // The decoder is AdaIN's, whole (its 512 -> 256 first conv included), behind the tail.
   CHECK(m.style_decoder.in_channels() == 512);
   CHECK(m.style_decoder.upsamplings() == 3);
@@ -293,11 +293,11 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   const auto ck = io::load_checkpoint(path, "style");
   CHECK(ck.meta.at("style_model").at("decoder") == "vgg-adain");
   const auto loaded = model::StyleModel::load(ck);
-  CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdain);
+  CHECK(loaded.decoder_kind() == model::StyleDecoderKind::VggAdain);
   CHECK(loaded.style_decoder.layers().front().w.value.to_host() == m.style_decoder.layers().front().w.value.to_host());
   check_same_stylized_view(m, loaded, styles.holdout[0]);
   train::StyleTrainer r(testing::small_scene(), ck, nullptr);  // resumes with the same decoder
-  CHECK(r.model().decoder_kind == model::StyleDecoderKind::VggAdain);
+  CHECK(r.model().decoder_kind() == model::StyleDecoderKind::VggAdain);
 
   {
     // The decoder warm-up goes through the same decoder (no d input needed: the tail is skipped)
@@ -324,7 +324,7 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   const auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdainRelu4);
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto& m = t.model();
-  REQUIRE(m.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
+  REQUIRE(m.decoder_kind() == model::StyleDecoderKind::VggAdainRelu4);
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   const nn::VggFeatures taps = vgg.forward(train::load_style_image(styles.holdout[0], 32, 32, nullptr), 4, false);
   const style::StyleCode code = m.style_code(taps, nullptr);
@@ -378,7 +378,7 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   const auto ck = io::load_checkpoint(path, "style");
   CHECK(ck.meta.at("style_model").at("decoder") == "vgg-adain-relu4");
   const auto loaded = model::StyleModel::load(ck);
-  CHECK(loaded.decoder_kind == model::StyleDecoderKind::VggAdainRelu4);
+  CHECK(loaded.decoder_kind() == model::StyleDecoderKind::VggAdainRelu4);
   check_same_stylized_view(m, loaded, styles.holdout[0]);
   // One map, one style's statistics: compositional regions blend the two stylised pictures by the mask.
   const auto& cam = testing::small_scene().test[0].camera;
@@ -528,7 +528,7 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
           cfg.*warm = 1;
           train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Paper), styles, cfg, nullptr);
         },
-        "need the fast profile");
+        "needs the fast profile");
   for (auto [mode, bias] : {std::pair{style::SictMode::VanillaIn, true}, std::pair{style::SictMode::None, true},
                             std::pair{style::SictMode::VolumeAdaptive, false}}) {
     auto cfg = small_config(2);
@@ -636,7 +636,7 @@ TEST_CASE("a checkpoint naming retired options resumes without them, unless its 
     cfg.lr_decoder = lr;
     testing::expect_error(
         [&] { train::StyleTrainer(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr); },
-        "the decoder's learning rate must be > 0");
+        "lr_decoder must be a positive number");
   }
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, small_config(1),
                         nullptr);

@@ -4,11 +4,12 @@
 #include <cmath>
 
 #include "host/error.hpp"
+#include "lib/model/map_decoder.hpp"
 
 namespace stylerf::model {
 
 SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views) : m_(&m) {
-  if (m.decoder_kind != StyleDecoderKind::VggAdainRelu4) return;
+  if (!m.map_decoder->renormalises_relu4()) return;
   if (scene.train.empty()) throw host::Error("scene style statistics: scene " + scene.root + " has no training views");
   const int n = int(scene.train.size()), k = std::max(1, std::min(views, n));
   for (int i = 0; i < k; ++i)
@@ -16,7 +17,7 @@ SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene,
 }
 
 void SceneStyleStats::attach(style::StyleCode& code) const {
-  if (m_->decoder_kind != StyleDecoderKind::VggAdainRelu4) return;
+  if (!m_->map_decoder->renormalises_relu4()) return;
   std::vector<double> sum, sq;
   double count = 0;
   for (const auto& v : views_) {

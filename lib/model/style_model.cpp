@@ -5,8 +5,8 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
+#include "lib/model/map_decoder.hpp"
 #include "lib/model/opacity_head.hpp"
-#include "lib/nn/decoder.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
 #include "lib/nn/ops.hpp"
@@ -39,7 +39,7 @@ StyleDecoderKind parse_style_decoder(const std::string& s) {
   if (s == "stage2") return StyleDecoderKind::Stage2;
   if (s == "vgg-adain") return StyleDecoderKind::VggAdain;
   if (s == "vgg-adain-relu4") return StyleDecoderKind::VggAdainRelu4;
-  throw Error("style decoder (--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got '" + s + "'");
+  throw host::SettingError("style_decoder", "must be stage2, vgg-adain or vgg-adain-relu4, got '" + s + "'");
 }
 
 const char* style_decoder_name(StyleDecoderKind k) {
@@ -53,15 +53,13 @@ const char* style_decoder_name(StyleDecoderKind k) {
 
 StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
                               StyleDecoderKind decoder) {
-  if (decoder != StyleDecoderKind::Stage2 && features.profile != DecoderProfile::Fast)
+  const MapDecoder& d = map_decoder_for(decoder);
+  if (d.needs_fast_profile() && features.profile != DecoderProfile::Fast)
     throw Error("style model: the " + std::string(style_decoder_name(decoder)) + " style decoder needs the fast profile (maps at relu3_1's 1/4 resolution); "
                 "this feature model is " + std::string(decoder_profile_name(features.profile)));
   StyleModel m;
-  m.decoder_kind = decoder;
-  if (decoder != StyleDecoderKind::Stage2) {
-    m.vgg_tail = nn::VggTail(nn::VggEncoder::load_default());
-    m.style_decoder = nn::load_adain_decoder("", "style.decoder.", kGroupStyleDecoder);
-  }
+  m.map_decoder = &d;
+  d.init(m);
   m.features = std::move(features);
   // Samples with weight below 1e-3 are dropped before SICT (the authors' style stage): fewer points, and
   // SICT's batch statistics describe the visible surface rather than the faint haze around it.
@@ -116,18 +114,6 @@ Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, const 
 }
 
 namespace {
-// [N, C, H, W] -> [N, C, H + H % 2, W + W % 2], the last row / column repeated. On the host: inference only,
-// once a frame.
-Tensor pad_to_even(const Tensor& x) {
-  const int64_t N = x.dim(0), C = x.dim(1), H = x.dim(2), W = x.dim(3), H2 = H + H % 2, W2 = W + W % 2;
-  const auto v = x.to_host();
-  std::vector<float> o(size_t(N * C * H2 * W2));
-  for (int64_t p = 0; p < N * C; ++p)
-    for (int64_t y = 0; y < H2; ++y)
-      for (int64_t xx = 0; xx < W2; ++xx)
-        o[size_t((p * H2 + y) * W2 + xx)] = v[size_t((p * H + std::min(y, H - 1)) * W + std::min(xx, W - 1))];
-  return Tensor::from_host(o, {N, C, H2, W2}, "map padded to even sides");
-}
 // A per-block map [h][w] at the image's pixels [cam_h][cam_w], bilinear between the block centres (block
 // j's ray passes through pixel coordinate s (j + 0.5)), clamped at the edges.
 std::vector<float> upsample_blocks(const std::vector<float>& v, int w, int h, int s, int cam_w, int cam_h) {
@@ -145,49 +131,23 @@ std::vector<float> upsample_blocks(const std::vector<float>& v, int w, int h, in
 }
 }  // namespace
 
+StyleDecoderKind StyleModel::decoder_kind() const { return map_decoder->kind(); }
+
 Tensor StyleModel::decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const {
-  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.forward(map, ctx ? &ctx->stack : nullptr);
-  const bool odd = map.dim(2) % 2 || map.dim(3) % 2;
-  if (odd && ctx)
-    throw Error("style model: the vgg-adain decoder trains on maps with even sides, got " + host::shape_str(map.shape()));
-  Tensor r41 = vgg_tail.forward(odd ? pad_to_even(map) : map, ctx ? &ctx->tail : nullptr);
-  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
-    if (!code || !code->deep_mean.defined() || !code->deep_std.defined())
-      throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 statistics (StyleCode "
-                  "deep_mean / deep_std; style::set_relu4_stats)");
-    const nn::ChannelStats target{code->deep_mean, code->deep_std};
-    const bool scene_stats = !ctx && code->scene_mean.defined() && code->scene_std.defined();
-    Tensor renormed = scene_stats ? nn::adain_between_stats_forward(r41, {code->scene_mean, code->scene_std}, target)
-                                  : nn::adain_to_stats_forward(r41, target);
-    if (ctx) {
-      ctx->relu4 = std::move(r41);
-      ctx->relu4_target = target;
-    }
-    r41 = std::move(renormed);
-  }
-  return style_decoder.forward(r41, ctx ? &ctx->stack : nullptr);
+  return map_decoder->forward(*this, map, code, ctx);
 }
 
 Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb, bool need_dx) {
-  if (decoder_kind == StyleDecoderKind::Stage2) return features.decoder.backward(ctx.stack, drgb, need_dx);
-  // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.
-  Tensor d41 = style_decoder.backward(ctx.stack, drgb, need_dx);
-  if (!need_dx) return Tensor();
-  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) d41 = nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
-  return vgg_tail.backward(ctx.tail, d41);
+  return map_decoder->backward(*this, ctx, drgb, need_dx);
 }
 
 Tensor StyleModel::relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const {
-  if (decoder_kind == StyleDecoderKind::Stage2) throw Error("style model: the stage2 decoder has no VGG tail");
   Tensor y = dst.apply(content.c, content.kept_acc, code, nullptr);
   if (features.field.background.value.defined()) render::background_forward(y, content.acc, features.field.background.value);
-  const Tensor map = nn::rows_to_image(y, h, w);
-  return vgg_tail.forward(map.dim(2) % 2 || map.dim(3) % 2 ? pad_to_even(map) : map, nullptr);
+  return map_decoder->relu4(*this, nn::rows_to_image(y, h, w));
 }
 
-std::vector<nn::Param*> StyleModel::decoder_params() {
-  return decoder_kind == StyleDecoderKind::Stage2 ? features.decoder.params() : style_decoder.params();
-}
+std::vector<nn::Param*> StyleModel::decoder_params() { return map_decoder->params_of(*this).params(); }
 
 style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
   const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
@@ -316,7 +276,7 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
                                                       const style::StyleCode& outside, int cam_w, int cam_h) const {
   const int64_t n = int64_t(cc.width) * cc.height;
   if (int64_t(cc.region_mask.size()) != n) throw Error("style model: this content was rendered without a region");
-  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
+  if (map_decoder->renormalises_relu4()) {
     // This decoder re-normalises a whole map to one style's relu4_1 statistics, so two styles cannot share
     // a map: each is drawn over the whole view and the pictures are blended by the region mask, upsampled
     // from the blocks (a blend of pictures, not the paper's of DST outputs; the edge is a block soft).
@@ -363,10 +323,7 @@ void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& c
 void StyleModel::collect_params(std::vector<nn::Param*>& out) {
   sict.collect_params(out);
   dst.collect_params(out);
-  if (decoder_kind == StyleDecoderKind::Stage2)
-    features.decoder.collect_params(out);
-  else
-    style_decoder.collect_params(out);
+  map_decoder->params_of(*this).collect_params(out);
 }
 
 void StyleModel::collect_buffers(std::vector<nn::StateBuffer*>& out) { sict.collect_buffers(out); }
@@ -375,11 +332,11 @@ void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
   sict.save(ck, "");
   dst.save(ck, "");
-  if (decoder_kind != StyleDecoderKind::Stage2) style_decoder.save(ck, "");
+  map_decoder->save(*this, ck);
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)},
       {"dst_bias", dst.bias},
-      {"decoder", style_decoder_name(decoder_kind)},
+      {"decoder", style_decoder_name(decoder_kind())},
       {"inference_supersample", inference_supersample}};
 }
 
@@ -405,7 +362,7 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   StyleModel m = create(FeatureModel::load(ck), mode, bias, 0, decoder);
   m.sict.load(ck, "");
   m.dst.load(ck, "");
-  if (decoder != StyleDecoderKind::Stage2) m.style_decoder.load(ck, "");
+  m.map_decoder->load(m, ck);
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
                 " is outside 1.." + std::to_string(kMaxSupersample));
@@ -420,7 +377,7 @@ Tensor style_rows(const nn::VggFeatures& taps) {
 
 style::StyleCode StyleModel::style_code(const nn::VggFeatures& taps, style::Dst::StyleContext* ctx) const {
   style::StyleCode code = dst.style_code(style_rows(taps), ctx);
-  if (decoder_kind == StyleDecoderKind::VggAdainRelu4) {
+  if (map_decoder->renormalises_relu4()) {
     if (!taps[3].defined())
       throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 tap (VGG to depth 4)");
     style::set_relu4_stats(code, taps[3]);

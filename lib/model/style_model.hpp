@@ -42,6 +42,8 @@ constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render
 enum class StyleDecoderKind { Stage2, VggAdain, VggAdainRelu4 };
 StyleDecoderKind parse_style_decoder(const std::string& s);  // an Error names the accepted values
 const char* style_decoder_name(StyleDecoderKind k);
+class MapDecoder;  // lib/model/map_decoder.hpp: what each kind does
+const MapDecoder& map_decoder_for(StyleDecoderKind kind);
 
 // The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
 class SictHead : public SampleHead {
@@ -69,7 +71,7 @@ class StyleModel : public nn::Module {
   FeatureModel features;  // geometry and field frozen; with the Stage2 decoder, its decoder is fine-tuned
   style::Sict sict;
   style::Dst dst;
-  StyleDecoderKind decoder_kind = StyleDecoderKind::Stage2;
+  const MapDecoder* map_decoder = &map_decoder_for(StyleDecoderKind::Stage2);  // chosen by create()
   // Content rays per feature-map block and axis that inference uses unless told otherwise (a recipe's
   // choice, saved in the checkpoint; 1: one ray per block centre, what training renders).
   int inference_supersample = 1;
@@ -99,6 +101,7 @@ class StyleModel : public nn::Module {
   style::StyleCode style_code(const nn::VggFeatures& taps, style::Dst::StyleContext* ctx) const;
   std::vector<nn::Param*> decoder_params();
   int stride() const { return features.stride(); }
+  StyleDecoderKind decoder_kind() const;
 
   // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
   struct Content {

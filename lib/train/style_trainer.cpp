@@ -9,13 +9,16 @@
 #include <sstream>
 
 #include "host/error.hpp"
+#include "lib/io/json_fields.hpp"
+#include "lib/model/map_decoder.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/io/image.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
-#include "lib/train/progress.hpp"
+#include "lib/train/training_loop.hpp"
 #include "lib/train/stage_programs.hpp"
+#include "lib/train/trainer_state.hpp"
 #include "lib/train/reconstruction_loss.hpp"
 #include "lib/style/style_encoder.hpp"
 
@@ -26,57 +29,62 @@ using host::Tensor;
 using nlohmann::json;
 
 // ---- config and style sets --------------------------------------------------------------------------------
+#define STYLE_TRAIN_FIELDS                                                                                   \
+  dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
+      warm_start, decoder_warm, running_init_patches, inference_supersample, seed
+
 json StyleTrainConfig::to_json() const {
-  return {{"sict", style::sict_mode_name(sict)},
-          {"dst_bias", dst_bias},
-          {"iters", iters},
-          {"patch", patch},
-          {"style_size", style_size},
-          {"style_crop", style_crop},
-          {"lr_stylizer", lr_stylizer},
-          {"lr_decoder", lr_decoder},
-          {"beta1", beta1},
-          {"beta2", beta2},
-          {"lr_decay_ratio", lr_decay_ratio},
-          {"content_weight", weights.content},
-          {"style_weight", weights.style},
-          {"warm_start", warm_start},
-          {"decoder_warm", decoder_warm},
-          {"warm_maps", warm_maps_name(warm_maps)},
-          {"style_decoder", model::style_decoder_name(style_decoder)},
-          {"running_init_patches", running_init_patches},
-          {"inference_supersample", inference_supersample},
-          {"seed", seed}};
+  json j{{"sict", style::sict_mode_name(sict)},
+         {"content_weight", weights.content},
+         {"style_weight", weights.style},
+         {"warm_maps", warm_maps_name(warm_maps)},
+         {"style_decoder", model::style_decoder_name(style_decoder)}};
+  STYLERF_JSON_PUT_FIELDS(j, *this, STYLE_TRAIN_FIELDS);
+  return j;
 }
 
 StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
+  // Absent from checkpoints written before these options existed: their value then.
+  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}};
+  defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
-  c.dst_bias = j.at("dst_bias").get<bool>();
-  c.iters = j.at("iters").get<int>();
-  c.patch = j.at("patch").get<int>();
-  c.style_size = j.at("style_size").get<int>();
-  c.style_crop = j.at("style_crop").get<int>();
-  c.lr_stylizer = j.at("lr_stylizer").get<float>();
-  c.lr_decoder = j.at("lr_decoder").get<float>();
-  c.beta1 = j.at("beta1").get<float>();
-  c.beta2 = j.at("beta2").get<float>();
-  c.lr_decay_ratio = j.at("lr_decay_ratio").get<float>();
   c.weights.content = j.at("content_weight").get<float>();
   c.weights.style = j.at("style_weight").get<float>();
-  c.warm_start = j.at("warm_start").get<int>();
-  c.decoder_warm = j.value("decoder_warm", 0);  // absent before the option existed
-  c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));  // absent before the option existed
-  c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));  // absent before the option existed
-  c.running_init_patches = j.at("running_init_patches").get<int>();
-  c.inference_supersample = j.value("inference_supersample", 1);  // absent before recipes set it
-  c.seed = j.at("seed").get<uint64_t>();
+  c.warm_maps = parse_warm_maps(j.value("warm_maps", std::string("vgg")));
+  c.style_decoder = model::parse_style_decoder(j.value("style_decoder", std::string("stage2")));
+  STYLERF_JSON_GET_FIELDS(defaults, c, STYLE_TRAIN_FIELDS);
   return c;
+}
+
+void StyleTrainConfig::validate() const {
+  using host::SettingError;
+  auto positive = [](const char* field, float v) {
+    if (!(v > 0) || !std::isfinite(v)) throw SettingError(field, "must be a positive number, got " + std::to_string(v));
+  };
+  if (iters < 1) throw SettingError("iters", "must be >= 1, got " + std::to_string(iters));
+  if (patch < 8 || patch % 8) throw SettingError("patch", "must be a positive multiple of 8, got " + std::to_string(patch));
+  if (style_crop < 8 || style_crop % 8)
+    throw SettingError("style_crop", "must be a positive multiple of 8, got " + std::to_string(style_crop));
+  if (style_size < style_crop || style_size > 4096)
+    throw SettingError("style_size", "must be in [" + std::to_string(style_crop) + ", 4096] (the crop is " +
+                                         std::to_string(style_crop) + "), got " + std::to_string(style_size));
+  positive("lr_stylizer", lr_stylizer);
+  positive("lr_decoder", lr_decoder);
+  if (!(lr_decay_ratio > 0 && lr_decay_ratio <= 1))
+    throw SettingError("lr_decay_ratio", "must be in (0, 1], got " + std::to_string(lr_decay_ratio));
+  if (warm_start < 0) throw SettingError("warm_start", "must be >= 0, got " + std::to_string(warm_start));
+  if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
+  if (running_init_patches < 0)
+    throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
+  if (inference_supersample < 1 || inference_supersample > model::kMaxSupersample)
+    throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) + ", got " +
+                                                    std::to_string(inference_supersample));
 }
 
 StyleSet StyleSet::from_dir(const std::string& dir, int holdout, std::ostream* log) {
   std::vector<std::string> all = style::style_images_in(dir, log);
-  if (holdout < 0) throw Error("--holdout-styles must be >= 0");
+  if (holdout < 0) throw host::SettingError("holdout_styles", "must be >= 0, got " + std::to_string(holdout));
   if (int(all.size()) < holdout + 1)
     throw Error("style folder " + dir + " has " + std::to_string(all.size()) + " images (.jpg/.png); " +
                 std::to_string(holdout) + " held out leaves none to train on");
@@ -127,14 +135,11 @@ void refuse_retired_state(const json& config, const std::string& path) {
 StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel features, StyleSet styles,
                            const StyleTrainConfig& cfg, std::ostream* log)
     : scene_(&scene), cfg_(cfg), styles_(std::move(styles)) {
+  cfg_.validate();
   if ((cfg_.warm_start > 0 || cfg_.decoder_warm > 0) && features.profile != model::DecoderProfile::Fast)
-    throw Error("train-style: --warm-start and --decoder-warm need the fast profile (the cached relu3_1 targets are at its map "
-                "resolution); this feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  if (!(cfg_.lr_decoder > 0))
-    throw Error("train-style: the decoder's learning rate must be > 0, got " + std::to_string(cfg_.lr_decoder));
-  if (cfg_.style_crop < 8 || cfg_.style_crop % 8 || cfg_.style_size < cfg_.style_crop)
-    throw Error("train-style: style crop " + std::to_string(cfg_.style_crop) + " must be a multiple of 8 no larger than "
-                "the style size " + std::to_string(cfg_.style_size));
+    throw host::SettingError(cfg_.warm_start > 0 ? "warm_start" : "decoder_warm",
+                             "needs the fast profile (the cached relu3_1 targets are at its map resolution); this "
+                             "feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   model_.inference_supersample = cfg_.inference_supersample;
   init(log);
@@ -142,15 +147,12 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
 }
 
 StyleTrainer::StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log) : scene_(&scene) {
-  try {
-    const json& t = ck.meta.at("trainer");
+  read_trainer_state(ck, "style-trainer", [&](const json& t) {
     refuse_retired_state(t.at("config"), ck.path);
     cfg_ = StyleTrainConfig::from_json(t.at("config"));
     iteration_ = t.at("iteration").get<int>();
     styles_ = StyleSet::from_json(ck.meta.at("styles"));
-  } catch (const json::exception& e) {
-    throw Error("checkpoint " + ck.path + ": no style-trainer state to resume from (" + e.what() + ")");
-  }
+  });
   model_ = model::StyleModel::load(ck);
   init(log);
   adam_.load(ck, "", model_.params());
@@ -311,7 +313,7 @@ StyleStepStats StyleTrainer::decoder_warm_step(const Tensor& style_image, const 
   constexpr float kFeatureWeight = 0.1f;  // stage 2's patch loss
   model::StyleModel::DecoderCtx dctx;
   style::StyleCode own;  // the crop's own relu4_1 statistics, for the vgg-adain-relu4 decoder
-  if (model_.decoder_kind == model::StyleDecoderKind::VggAdainRelu4) style::set_relu4_stats(own, style_taps[3]);
+  if (model_.map_decoder->renormalises_relu4()) style::set_relu4_stats(own, style_taps[3]);
   const Tensor rgb = model_.decode_map(style_taps[2], &own, &dctx);
   host::expect_shape(rgb, style_image.shape(), "train-style decoder warm-up", "decoded style crop");
   const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, style_image, style_taps, kFeatureWeight);
@@ -445,61 +447,69 @@ void StyleTrainer::save(const std::string& path, const json& scene_meta) {
 }
 
 // ---- run loop ----------------------------------------------------------------------------------------------
-StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
-  build_stage_programs(style_stage_programs(trainer.model()), opt.log);
-  StyleRunSummary sum;
-  TrainingBudget budget(opt.time_budget_s, opt.clock);
-  double win_s = 0, win_c = 0, win_st = 0;
-  int win_n = 0, win_l = 0, win_skip = 0;
-  auto save = [&] {
-    if (!opt.checkpoint.empty()) trainer.save(opt.checkpoint, opt.scene_meta);
-  };
-  auto holdout = [&](int it) {
-    if (!opt.log || trainer.styles().holdout.empty()) return;
-    const auto t0 = std::chrono::steady_clock::now();
-    sum.last_holdout = trainer.evaluate_holdout(opt.eval_styles);
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    *opt.log << std::fixed << std::setprecision(4) << "  held-out (" << sum.last_holdout.styles
-             << " styles never trained on) at it " << it << ": content " << sum.last_holdout.content << "  style "
-             << sum.last_holdout.style << std::setprecision(1) << "  (" << s << " s)" << std::endl;
-  };
-  if (trainer.iteration() == 0 && opt.eval_every > 0) holdout(0);
-  while (!trainer.done()) {
-    if (budget.limited()) trainer.set_schedule_progress(budget.fraction());
-    budget.start_step();
-    const StyleStepStats st = trainer.step();
-    win_s += budget.end_step();
-    ++sum.iterations;
-    ++win_n;
-    if (st.skipped) {
-      ++win_skip;
-    } else {
-      win_c += st.content, win_st += st.style, ++win_l;
-    }
-    const int total = trainer.config().iters;
-    if (opt.log && opt.log_every > 0 && (st.iteration % opt.log_every == 0 || st.iteration == total)) {
-      const double per_it = win_s / win_n;
-      std::ostringstream l;
-      l << std::fixed << std::setprecision(4) << "it " << st.iteration << "/" << total << (st.warm ? " (2D warm start)" : "")
-        << (st.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
-      if (win_l) l << "  content " << win_c / win_l << "  style " << win_st / win_l;
-      if (win_skip) l << "  (" << win_skip << " empty patches skipped)";
-      l << std::setprecision(2) << "  " << per_it << " s/it  ETA "
-        << hms(budget.limited() ? budget.remaining() : per_it * (total - st.iteration));
-      *opt.log << l.str() << std::endl;
-      win_s = win_c = win_st = 0;
-      win_n = win_l = win_skip = 0;
-    }
-    if (opt.eval_every > 0 && st.iteration % opt.eval_every == 0) holdout(st.iteration);
-    if (opt.checkpoint_every > 0 && st.iteration % opt.checkpoint_every == 0 && !trainer.done()) save();
-    if (opt.after_step && !opt.after_step(st)) break;
-    if (budget.spent()) break;
-    // The lr decay follows the budget's fraction; the refitted length only says when the run is done.
-    if (const std::optional<Refit> r = budget.refit(trainer.iteration())) trainer.set_total_iters(r->total_iters);
+namespace {
+
+// The style stage in the training loop: the window's content and style losses, the held-out losses every
+// eval_every steps (untimed), the lr decay following the budget's fraction.
+class StyleLoopStage : public TrainerLoopStage<StyleTrainer, StyleRunOptions, StyleStepStats> {
+ public:
+  StyleLoopStage(StyleTrainer& t, const StyleRunOptions& o, HoldoutLoss& holdout) : TrainerLoopStage(t, o), holdout_(holdout) {}
+  int total() const override { return t_.config().iters; }
+  void before_step(const TrainingBudget& budget) override {
+    if (budget.limited()) t_.set_schedule_progress(budget.fraction());
   }
-  sum.seconds = budget.elapsed();
-  if (opt.eval_every > 0 && trainer.iteration() % opt.eval_every != 0) holdout(trainer.iteration());
-  save();
+  void step(bool) override {
+    last_ = t_.step();
+    if (last_.skipped)
+      ++skipped_;
+    else
+      content_ += last_.content, style_ += last_.style, ++losses_;
+  }
+  std::string window_line(double) override {
+    std::ostringstream l;
+    l << std::fixed << std::setprecision(4) << (last_.warm ? " (2D warm start)" : "")
+      << (last_.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
+    if (losses_) l << "  content " << content_ / losses_ << "  style " << style_ / losses_;
+    if (skipped_) l << "  (" << skipped_ << " empty patches skipped)";
+    content_ = style_ = 0;
+    losses_ = skipped_ = 0;
+    return l.str();
+  }
+  void after_report() override {
+    if (o_.eval_every > 0 && t_.iteration() % o_.eval_every == 0) evaluate();
+  }
+  // The lr decay follows the budget's fraction; the refitted length only says when the run is done.
+  void refit(const Refit& r) override { t_.set_total_iters(r.total_iters); }
+  void save() override {
+    if (!o_.checkpoint.empty()) t_.save(o_.checkpoint, o_.scene_meta);
+  }
+  // The held-out losses, logged with the time they took.
+  void evaluate() {
+    if (!o_.log || t_.styles().holdout.empty()) return;
+    const auto t0 = std::chrono::steady_clock::now();
+    holdout_ = t_.evaluate_holdout(o_.eval_styles);
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    *o_.log << std::fixed << std::setprecision(4) << "  held-out (" << holdout_.styles
+            << " styles never trained on) at it " << t_.iteration() << ": content " << holdout_.content << "  style "
+            << holdout_.style << std::setprecision(1) << "  (" << s << " s)" << std::endl;
+  }
+
+ private:
+  HoldoutLoss& holdout_;
+  double content_ = 0, style_ = 0;
+  int losses_ = 0, skipped_ = 0;
+};
+
+}  // namespace
+
+StyleRunSummary run_style_training(StyleTrainer& trainer, const StyleRunOptions& opt) {
+  StyleRunSummary sum;
+  StyleLoopStage stage(trainer, opt, sum.last_holdout);
+  if (trainer.iteration() == 0 && opt.eval_every > 0) stage.evaluate();
+  const LoopResult r = run_training_loop(stage, loop_control(opt, style_stage_programs(trainer.model())));
+  if (opt.eval_every > 0 && trainer.iteration() % opt.eval_every != 0) stage.evaluate();
+  sum.iterations = r.iterations;
+  sum.seconds = r.seconds;
   return sum;
 }
 

@@ -42,6 +42,7 @@
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
+#include "lib/train/training_loop.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
 
@@ -66,6 +67,8 @@ struct StyleTrainConfig {
   uint64_t seed = 0;
   int finite_check_every = 50;
 
+  // Every field's rule, in one place: a host::SettingError naming the field.
+  void validate() const;
   nlohmann::json to_json() const;
   static StyleTrainConfig from_json(const nlohmann::json& j);
 };
@@ -150,19 +153,14 @@ class StyleTrainer {
   nlohmann::json features_meta_;
 };
 
-struct StyleRunOptions {
-  std::ostream* log = nullptr;
-  int log_every = 10;
-  int eval_every = 100;     // held-out losses every this many steps (0: never)
-  int eval_styles = 0;      // held-out styles in that evaluation (0: all)
-  std::string checkpoint;
-  int checkpoint_every = 200;
-  nlohmann::json scene_meta;
-  double time_budget_s = 0;  // > 0: stop after this much training time (lib/train/budget.hpp)
-  Clock clock;               // read before and after each step; empty: the steady clock
-  // Called after every step (and its periodic checkpoint); return false to stop early. An exception
-  // thrown here leaves the loop without the final checkpoint (the periodic ones are atomic).
-  std::function<bool(const StyleStepStats&)> after_step;
+// The training loop (lib/train/training_loop.hpp) around step(), with held-out losses every eval_every steps.
+struct StyleRunOptions : LoopOptions<StyleStepStats> {
+  StyleRunOptions() {
+    log_every = 10;
+    checkpoint_every = 200;
+  }
+  int eval_every = 100;  // held-out losses every this many steps (0: never)
+  int eval_styles = 0;   // held-out styles in that evaluation (0: all)
 };
 struct StyleRunSummary {
   int iterations = 0;
