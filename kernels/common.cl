@@ -29,6 +29,23 @@ inline float blocked_sum(__global const float* p, int n) {
   return s;
 }
 
+// The 8 columns a work-item of a (ceil(cols / 8), rows) range owns in a row-major [rows, cols] matrix:
+// declares j (the first column), width (<= 8, fewer at the right edge) and o (the offset of row n's
+// column j), and returns from the kernel past the matrix.
+#define COLUMN_BLOCK_OR_RETURN(rows, cols)                     \
+  const int j = get_global_id(0) * 8, n = get_global_id(1);    \
+  if (j >= (cols) || n >= (rows)) return;                      \
+  const int width = min(8, (cols) - j);                        \
+  const long o = (long)n * (cols) + j;
+
+// The lane loop of a chunked whole-tensor reduction (partials[p] over [p * chunk, min((p + 1) * chunk, n)),
+// one work-group of `lanes` a chunk): i runs over chunk get_group_id(0), lane get_local_id(0) taking every
+// lanes-th element from its own (neighbouring lanes read neighbouring floats).
+#define FOR_CHUNK_ELEMENTS(i, n, chunk, lanes)                                                      \
+  for (int i = (int)get_group_id(0) * (chunk) + (int)get_local_id(0),                              \
+           i##_end = min((int)get_group_id(0) * (chunk) + (chunk), (n));                           \
+       i < i##_end; i += (lanes))
+
 // A work-group's lanes combine their values in buf[0, lanes) (lanes a power of two, every lane calling,
 // buf filled and a barrier passed): buf[0] = OP over all of them, in a fixed tree order (deterministic).
 // OP is a two-argument function or macro, e.g. fmax or TREE_ADD.

@@ -4,19 +4,13 @@
 // Global (ceil(cols/8), rows): y[n, j] = x[n, j] - v[j] (the style features centred by their means).
 __kernel void subtract_row_vector(__global const float* x, __global const float* v, __global float* y, int rows,
                                   int cols) {
-  const int j = get_global_id(0) * 8, n = get_global_id(1);
-  if (j >= cols || n >= rows) return;
-  const int width = min(8, cols - j);
-  const long o = (long)n * cols + j;
+  COLUMN_BLOCK_OR_RETURN(rows, cols)
   for (int k = 0; k < width; ++k) y[o + k] = x[o + k] - v[j + k];
 }
 
 // Global (ceil(cols/8), rows): y[n, j] = x[n, j] * v[j] (W' = M diag(std), and dM = dW' diag(std)).
 __kernel void scale_columns(__global const float* x, __global const float* v, __global float* y, int rows, int cols) {
-  const int j = get_global_id(0) * 8, n = get_global_id(1);
-  if (j >= cols || n >= rows) return;
-  const int width = min(8, cols - j);
-  const long o = (long)n * cols + j;
+  COLUMN_BLOCK_OR_RETURN(rows, cols)
   for (int k = 0; k < width; ++k) y[o + k] = x[o + k] * v[j + k];
 }
 
@@ -31,10 +25,7 @@ __kernel void style_stats_backward(__global const float* s, __global const float
                                    __global const float* dcentred, __global const float* sum_dcentred,
                                    __global const float* dmean, __global const float* dstd, __global float* ds,
                                    int rows, int cols, int has_centred, int has_mean, int has_std) {
-  const int j = get_global_id(0) * 8, n = get_global_id(1);
-  if (j >= cols || n >= rows) return;
-  const int width = min(8, cols - j);
-  const long o = (long)n * cols + j;
+  COLUMN_BLOCK_OR_RETURN(rows, cols)
   const float inv_l = 1.0f / (float)rows;
   for (int k = 0; k < width; ++k) {
     float g = 0.0f;

@@ -49,6 +49,15 @@ typedef union {
   float s[VW];
 } vec_u;
 
+// acc[i][.] += L[p0 + i][k] * b[.] for the tile's MR rows: the rank-1 update of one k (ko: k's offset in a row).
+#define ACCUMULATE_ROW_K(acc, lrow, ko, b)                                  \
+  do {                                                                      \
+    _Pragma("unroll") for (int i = 0; i < MR; ++i) {                        \
+      const vec_t a = (vec_t)(lrow[i][ko]);                                 \
+      _Pragma("unroll") for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]); \
+    }                                                                       \
+  } while (0)
+
 // One element of the result: alpha * acc (+ beta * old). beta == 0 never reads C, so NaN or garbage in
 // an output buffer cannot leak into the result (BLAS semantics).
 inline float gemm_out(float acc, float alpha, float beta, __global const float* c) {
@@ -84,13 +93,7 @@ __kernel void gemm_tile(const int P, const int Q, const int K, const float alpha
 #pragma unroll
         for (int j = 0; j < NV; ++j) b[j] = VLOAD(0, r + j * VW);
         r += srk;
-        const size_t ko = (size_t)k * slk;
-#pragma unroll
-        for (int i = 0; i < MR; ++i) {
-          const vec_t a = (vec_t)(lrow[i][ko]);
-#pragma unroll
-          for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
-        }
+        ACCUMULATE_ROW_K(acc, lrow, (size_t)k * slk, b);
       }
     } else {
       // Edge tile along q: gather the valid columns one by one (zeros past Q).
@@ -105,13 +108,7 @@ __kernel void gemm_tile(const int P, const int Q, const int K, const float alpha
           b[j] = u.v;
         }
         r += srk;
-        const size_t ko = (size_t)k * slk;
-#pragma unroll
-        for (int i = 0; i < MR; ++i) {
-          const vec_t a = (vec_t)(lrow[i][ko]);
-#pragma unroll
-          for (int j = 0; j < NV; ++j) acc[i][j] = fma(a, b[j], acc[i][j]);
-        }
+        ACCUMULATE_ROW_K(acc, lrow, (size_t)k * slk, b);
       }
     }
 

@@ -116,25 +116,20 @@ inline void mode_taps(const VMLayout* L, int m, float3 p, ModeTaps* T) {
   cell_taps(L, &c, m, T);
 }
 
-// Bilinear plane value and linear line value for ranks [r, r+8), [r, r+4) and r.
-ALWAYS_INLINE float8 plane8(const global float* g, const ModeTaps* T, int r) {
-  float8 a = T->pw[0] * vload8(0, g + T->pt[0] + r);
-  a = fma((float8)(T->pw[1]), vload8(0, g + T->pt[1] + r), a);
-  a = fma((float8)(T->pw[2]), vload8(0, g + T->pt[2] + r), a);
-  return fma((float8)(T->pw[3]), vload8(0, g + T->pt[3] + r), a);
-}
-ALWAYS_INLINE float8 line8(const global float* g, const ModeTaps* T, int r) {
-  return fma((float8)(T->lw[1]), vload8(0, g + T->lt[1] + r), T->lw[0] * vload8(0, g + T->lt[0] + r));
-}
-ALWAYS_INLINE float4 plane4(const global float* g, const ModeTaps* T, int r) {
-  float4 a = T->pw[0] * vload4(0, g + T->pt[0] + r);
-  a = fma((float4)(T->pw[1]), vload4(0, g + T->pt[1] + r), a);
-  a = fma((float4)(T->pw[2]), vload4(0, g + T->pt[2] + r), a);
-  return fma((float4)(T->pw[3]), vload4(0, g + T->pt[3] + r), a);
-}
-ALWAYS_INLINE float4 line4(const global float* g, const ModeTaps* T, int r) {
-  return fma((float4)(T->lw[1]), vload4(0, g + T->lt[1] + r), T->lw[0] * vload4(0, g + T->lt[0] + r));
-}
+// Bilinear plane value and linear line value for ranks [r, r+W) (W = 8, 4: plane8, line8, plane4, line4)
+// and for rank r alone (plane1, line1).
+#define PLANE_AND_LINE_OF_WIDTH(W)                                                                     \
+  ALWAYS_INLINE float##W plane##W(const global float* g, const ModeTaps* T, int r) {                  \
+    float##W a = T->pw[0] * vload##W(0, g + T->pt[0] + r);                                            \
+    a = fma((float##W)(T->pw[1]), vload##W(0, g + T->pt[1] + r), a);                                  \
+    a = fma((float##W)(T->pw[2]), vload##W(0, g + T->pt[2] + r), a);                                  \
+    return fma((float##W)(T->pw[3]), vload##W(0, g + T->pt[3] + r), a);                               \
+  }                                                                                                    \
+  ALWAYS_INLINE float##W line##W(const global float* g, const ModeTaps* T, int r) {                   \
+    return fma((float##W)(T->lw[1]), vload##W(0, g + T->lt[1] + r), T->lw[0] * vload##W(0, g + T->lt[0] + r)); \
+  }
+PLANE_AND_LINE_OF_WIDTH(8)
+PLANE_AND_LINE_OF_WIDTH(4)
 ALWAYS_INLINE float plane1(const global float* g, const ModeTaps* T, int r) {
   return T->pw[0] * g[T->pt[0] + r] + T->pw[1] * g[T->pt[1] + r] + T->pw[2] * g[T->pt[2] + r] +
          T->pw[3] * g[T->pt[3] + r];
@@ -457,6 +452,14 @@ inline float new_to_old(int i, int n_new, float lo, float hi) {
   return clamp(lo + (hi - lo) * q, -1.0f, 1.0f);
 }
 
+// The ranks of one new cell, dst[0, R): mode m's plane (or line) values at p in the old grid.
+inline void resample_cell(const VMLayout* O, int m, float3 p, const global float* old_grid, global float* dst,
+                          bool plane) {
+  ModeTaps T;
+  mode_taps(O, m, p, &T);
+  for (int r = 0; r < T.R; ++r) dst[r] = plane ? plane1(old_grid, &T, r) : line1(old_grid, &T, r);
+}
+
 kernel void vm_resample(global const float* old_grid, global float* new_grid, int ncells, int ox, int oy, int oz,
                         int nx, int ny, int nz, int r0, int r1, int r2, float lox, float loy, float loz, float hix,
                         float hiy, float hiz) {
@@ -474,10 +477,7 @@ kernel void vm_resample(global const float* old_grid, global float* new_grid, in
       float3 p = (float3)(0.0f);
       float pu = new_to_old(iu, N.res[u], lo[u], hi[u]), pv = new_to_old(iv, N.res[v], lo[v], hi[v]);
       p = u == 0 ? (float3)(pu, v == 1 ? pv : 0.0f, v == 2 ? pv : 0.0f) : (float3)(0.0f, pu, pv);
-      ModeTaps T;
-      mode_taps(&O, m, p, &T);
-      global float* dst = new_grid + N.plane_off[m] + c * T.R;
-      for (int r = 0; r < T.R; ++r) dst[r] = plane1(old_grid, &T, r);
+      resample_cell(&O, m, p, old_grid, new_grid + N.plane_off[m] + c * RANK_OF(&O, m), true);
       return;
     }
     c -= cells;
@@ -488,10 +488,7 @@ kernel void vm_resample(global const float* old_grid, global float* new_grid, in
     if (c < cells) {
       const float pw = new_to_old(c, N.res[w], lo[w], hi[w]);
       const float3 p = w == 0 ? (float3)(pw, 0.0f, 0.0f) : (w == 1 ? (float3)(0.0f, pw, 0.0f) : (float3)(0.0f, 0.0f, pw));
-      ModeTaps T;
-      mode_taps(&O, m, p, &T);
-      global float* dst = new_grid + N.line_off[m] + c * T.R;
-      for (int r = 0; r < T.R; ++r) dst[r] = line1(old_grid, &T, r);
+      resample_cell(&O, m, p, old_grid, new_grid + N.line_off[m] + c * RANK_OF(&O, m), false);
       return;
     }
     c -= cells;

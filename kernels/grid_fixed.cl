@@ -35,11 +35,10 @@ inline bool fixed_nonfinite(float x) { return (as_uint(x) & 0x7f800000u) == 0x7f
 kernel __attribute__((reqd_work_group_size(BOUND_WG, 1, 1))) void vm_fixed_bound_partials(
     global const float* x, global float* partials, int n, int chunk) {
   local float buf[BOUND_WG];
-  const int p = get_group_id(0), l = get_local_id(0);
-  const int begin = p * chunk, end = min(begin + chunk, n);
+  const int l = get_local_id(0);
   float m = 0.0f;
   bool bad = false;
-  for (int i = begin + l; i < end; i += BOUND_WG) {
+  FOR_CHUNK_ELEMENTS(i, n, chunk, BOUND_WG) {
     const float v = x[i];
     bad |= fixed_nonfinite(v);
     m = fmax(m, fabs(v));
@@ -47,7 +46,7 @@ kernel __attribute__((reqd_work_group_size(BOUND_WG, 1, 1))) void vm_fixed_bound
   buf[l] = bad ? INFINITY : m;
   barrier(CLK_LOCAL_MEM_FENCE);
   LOCAL_TREE(buf, BOUND_WG, fmax)
-  if (l == 0) partials[p] = buf[0];
+  if (l == 0) partials[get_group_id(0)] = buf[0];
 }
 
 // One work-item. state[0] = s, state[1] = 0, or state[1] = 1 when a bound is not finite.

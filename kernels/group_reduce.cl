@@ -32,27 +32,23 @@ inline float group_sum(float v, local float* buf) {
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void sum_partials_group(
     __global const float* x, __global float* partials, int n, int chunk) {
   local float buf[WG];
-  const int p = get_group_id(0), l = get_local_id(0);
-  const int begin = p * chunk, end = min(begin + chunk, n);
   float s = 0.0f;
-  for (int i = begin + l; i < end; i += WG) s += x[i];
+  FOR_CHUNK_ELEMENTS(i, n, chunk, WG) s += x[i];
   s = group_sum(s, buf);
-  if (l == 0) partials[p] = s;
+  if (get_local_id(0) == 0) partials[get_group_id(0)] = s;
 }
 
 // Stage 1 of mean((a - b)^2).
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1))) void sqdiff_partials_group(
     __global const float* a, __global const float* b, __global float* partials, int n, int chunk) {
   local float buf[WG];
-  const int p = get_group_id(0), l = get_local_id(0);
-  const int begin = p * chunk, end = min(begin + chunk, n);
   float s = 0.0f;
-  for (int i = begin + l; i < end; i += WG) {
+  FOR_CHUNK_ELEMENTS(i, n, chunk, WG) {
     const float d = a[i] - b[i];
     s = fma(d, d, s);
   }
   s = group_sum(s, buf);
-  if (l == 0) partials[p] = s;
+  if (get_local_id(0) == 0) partials[get_group_id(0)] = s;
 }
 
 // ---- channel statistics: chunk k of channel c, outputs [nc][chunks] as norm.cl's chunked kernels -------

@@ -9,10 +9,7 @@
 // Global (ceil(cols/8), rows). y = (x - mean) * rsqrt(var + eps).
 __kernel void point_norm_forward(__global const float* x, __global const float* mean, __global const float* var,
                                  __global float* y, int rows, int cols, float eps) {
-  const int j = get_global_id(0) * 8, n = get_global_id(1);
-  if (j >= cols || n >= rows) return;
-  const int width = min(8, cols - j);
-  const long o = (long)n * cols + j;
+  COLUMN_BLOCK_OR_RETURN(rows, cols)
   for (int k = 0; k < width; ++k) y[o + k] = (x[o + k] - mean[j + k]) * rsqrt(var[j + k] + eps);
 }
 
@@ -23,10 +20,7 @@ __kernel void point_norm_forward(__global const float* x, __global const float* 
 __kernel void point_norm_backward(__global const float* y, __global const float* var, __global const float* dy,
                                   __global const float* sum_dy, __global const float* sum_dyy, __global float* dx,
                                   int rows, int cols, float eps, int fixed) {
-  const int j = get_global_id(0) * 8, n = get_global_id(1);
-  if (j >= cols || n >= rows) return;
-  const int width = min(8, cols - j);
-  const long o = (long)n * cols + j;
+  COLUMN_BLOCK_OR_RETURN(rows, cols)
   const float inv_k = 1.0f / (float)rows;
   for (int k = 0; k < width; ++k) {
     const float s = rsqrt(var[j + k] + eps);
@@ -162,6 +156,18 @@ inline float row_max_local(float qi, __local const float* k) {
   return row_max(qi, kmax, kmin);
 }
 
+// Z_i = sum_j e_ij and sum_j e_ij v_j, with e_ij = exp(q_i k_j - m) over a point's E channels (__local rows):
+// the softmax's normaliser and numerator of out_i (forward, and the backward's first pass).
+inline float2 softmax_sums_local(float qi, __local const float* k, __local const float* v, float m) {
+  float z = 0.0f, acc = 0.0f;
+  for (int j = 0; j < E; ++j) {
+    const float e = exp(fma(qi, k[j], -m));
+    z += e;
+    acc = fma(e, v[j], acc);
+  }
+  return (float2)(z, acc);
+}
+
 // Global: ceil(rows / AG_ROWS) * AG_LANES, local AG_LANES.
 __kernel __attribute__((reqd_work_group_size(AG_LANES, 1, 1)))
 void channel_attention_forward_group(__global const float* qkv, __global float* out, int rows) {
@@ -174,14 +180,9 @@ void channel_attention_forward_group(__global const float* qkv, __global float* 
   if (r >= nrows) return;
   __local const float* q = t + r * 3 * E;
   __local const float *k = q + E, *v = q + 2 * E;
-  const float qi = q[i], m = row_max_local(qi, k);
-  float z = 0.0f, acc = 0.0f;
-  for (int j = 0; j < E; ++j) {
-    const float e = exp(fma(qi, k[j], -m));
-    z += e;
-    acc = fma(e, v[j], acc);
-  }
-  out[(base + r) * E + i] = acc / z;
+  const float qi = q[i];
+  const float2 sums = softmax_sums_local(qi, k, v, row_max_local(qi, k));
+  out[(base + r) * E + i] = sums.y / sums.x;
 }
 
 // Two phases: lane i of a point computes Z_i, o_i and dq_i = sum_j ds_ij k_j, and leaves m_i, a_i = g_i / Z_i
@@ -204,13 +205,8 @@ void channel_attention_backward_group(__global const float* qkv, __global const 
   __global float* d = dqkv + (base + r) * 3 * E;
   if (active) {
     const float qi = q[i], m = row_max_local(qi, k);
-    float z = 0.0f, ev = 0.0f;
-    for (int j = 0; j < E; ++j) {
-      const float e = exp(fma(qi, k[j], -m));
-      z += e;
-      ev = fma(e, v[j], ev);
-    }
-    const float o = ev / z, a = g[lane] / z;
+    const float2 sums = softmax_sums_local(qi, k, v, m);
+    const float z = sums.x, o = sums.y / z, a = g[lane] / z;
     float dq = 0.0f;
     for (int j = 0; j < E; ++j) dq = fma(exp(fma(qi, k[j], -m)) * a * (v[j] - o), k[j], dq);
     d[i] = dq;
