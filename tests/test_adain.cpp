@@ -26,7 +26,7 @@ style::AdainModel& model() {
   static style::AdainModel m = [] {
     for (const char* f : {nn::kVggWeightsFile, nn::kDecoderWeightsFile})
       REQUIRE_MESSAGE(fs::exists(nn::weights_path(f)), "pretrained weights missing: " << nn::weights_path(f)
-                                                           << " — run `" << nn::kFetchWeightsCommand << "` first");
+                                                           << " — run `" << std::string(nn::kFetchWeightsCommand) << "` first");
     return style::AdainModel::load_default();
   }();
   return m;

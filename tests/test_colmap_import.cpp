@@ -162,7 +162,7 @@ TEST_CASE("import refuses bad photo folders, naming the files, and writes nothin
   }
   ImportOptions m = o;
   m.matcher = "vocab";
-  testing::expect_error([&] { import_with_colmap(m, keep); }, "--matcher");
+  testing::expect_error([&] { import_with_colmap(m, keep); }, "matcher must be auto, exhaustive or sequential");
   m = o;
   m.camera_model = "FISHEYE_PLUS";
   testing::expect_error([&] { import_with_colmap(m, keep); }, "camera model");

@@ -329,7 +329,7 @@ TEST_CASE("decoders: the paper's PlainDecoder and the fast decoder's specs") {
 
 TEST_CASE("decoders: AdaIN's decoder is bit-identical to the previous op chain; the fast decoder takes convs 2..9") {
   const std::string path = nn::weights_path(nn::kDecoderWeightsFile);
-  REQUIRE_MESSAGE(fs::exists(path), "pretrained weights missing: " << path << " — run `" << nn::kFetchWeightsCommand
+  REQUIRE_MESSAGE(fs::exists(path), "pretrained weights missing: " << path << " — run `" << std::string(nn::kFetchWeightsCommand)
                                                                    << "` first");
   ConvStack adain = nn::load_adain_decoder();
   CHECK(adain.layers()[0].index == 1);

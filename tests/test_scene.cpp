@@ -580,7 +580,7 @@ TEST_CASE("bad LLFF inputs: count mismatch, NaN pose, wrong shape, different siz
   {
     fs::path p = fresh("folder", 20, nullptr);
     std::string e = error_of([&] { load_scene(p.string(), quiet(4)); });
-    CHECK(has(e, "no image folder for --downsample 4"));
+    CHECK(has(e, "no image folder for downsample 4"));
   }
 }
 

@@ -153,12 +153,15 @@ TEST_CASE("stylize: bad input gets a clear error") {
                             out + "' ";
   expect(train + "--lr-decay 0", "--lr-decay must be in (0, 1]");
   expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
-  expect(train + "--decoder-warm -1", "--decoder-warm, --log-every");
-  expect(train + "--warm-maps photos", "--warm-maps) must be vgg or rendered, got 'photos'");
-  expect(train + "--style-decoder adain", "--style-decoder) must be stage2, vgg-adain or vgg-adain-relu4, got 'adain'");
+  expect(train + "--decoder-warm -1", "--decoder-warm must be >= 0, got -1");
+  expect(train + "--eval-every -1", "--log-every, --eval-every");
+  expect(train + "--warm-maps photos", "--warm-maps must be vgg or rendered, got 'photos'");
+  expect(train + "--style-decoder adain", "--style-decoder must be stage2, vgg-adain or vgg-adain-relu4, got 'adain'");
   expect(train + "--lr-decoder -1", "--lr-decoder must be a positive number");
   expect(train + "--lr-decoder 0", "--lr-decoder must be a positive number");
   expect(train + "--lr-stylizer 0", "--lr-stylizer must be a positive number");
   expect(train + "--style-size 128", "--style-size must be in [256, 4096] (the crop is 256), got 128");
+  expect(train + "--patch 12", "--patch must be a positive multiple of 8, got 12");
+  expect(train + "--iters 0", "--iters must be >= 1, got 0");
   CHECK_FALSE(fs::exists(out));  // every refusal came before anything was written
 }

@@ -83,7 +83,7 @@ std::string decoder_path() { return nn::weights_path(nn::kDecoderWeightsFile); }
 // Fails the test (never skips) when the set-up step has not been run.
 void require_weights() {
   for (const std::string& p : {vgg_path(), decoder_path()})
-    REQUIRE_MESSAGE(fs::exists(p), "pretrained weights missing: " << p << " — run `" << nn::kFetchWeightsCommand
+    REQUIRE_MESSAGE(fs::exists(p), "pretrained weights missing: " << p << " — run `" << std::string(nn::kFetchWeightsCommand)
                                                                    << "` first (weights folder: $STYLERF_WEIGHTS, "
                                                                       "default ~/.cache/stylerf/weights)");
 }

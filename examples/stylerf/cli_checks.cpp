@@ -1,9 +1,11 @@
 #include "examples/stylerf/cli_checks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <unistd.h>
 
@@ -56,6 +58,16 @@ void check_checkpoint_output(const std::string& out, bool resume, bool force) {
   fs::remove(probe, ec);
   if (const int n = host::remove_stale_temps(out))
     std::cout << "removed " << n << " temporary file(s) an interrupted earlier run left beside " << out << "\n";
+}
+
+std::string flag_for_field(const std::string& field) {
+  static const std::map<std::string, std::string> own = {
+      {"lr_decay_ratio", "--lr-decay"}, {"dst_bias", "--dst"}, {"warm_start", "--warm-start"},
+      {"holdout_styles", "--holdout-styles"}, {"time_budget_s", "--minutes"}};
+  if (const auto it = own.find(field); it != own.end()) return it->second;
+  std::string flag = "--" + field;
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
 }
 
 }  // namespace stylerf::cli

@@ -16,4 +16,9 @@ void check_int_range(const std::string& option, long long v, long long lo, long 
 // earlier writer left beside it.
 void check_checkpoint_output(const std::string& out, bool resume, bool force);
 
+// The flag that sets a library config field (host::SettingError::field()): "--" and the field with '-' for
+// '_' ("lr_decoder" -> "--lr-decoder"), except where the flag has its own name ("lr_decay_ratio" ->
+// "--lr-decay").
+std::string flag_for_field(const std::string& field);
+
 }  // namespace stylerf::cli

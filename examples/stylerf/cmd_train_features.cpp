@@ -81,19 +81,34 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
   return -1;
 }
 
-// Every option checked before anything is loaded; the profile a recipe names when --profile is absent.
+// The flags given, over a profile's config.
+void apply_feature_flags(const FeatureArgs& a, train::FeatureTrainConfig& cfg) {
+  if (a.given.count("iters")) cfg.iters = a.iters;
+  cfg.batch = a.batch;
+  cfg.patch = a.patch;
+  cfg.seed = a.seed;
+  if (a.given.count("tv")) cfg.tv = a.tv;
+  if (a.given.count("lr-grid")) cfg.lr_grid = a.lr_grid;
+  if (a.given.count("lr-basis")) cfg.lr_basis = a.lr_basis;
+  if (a.given.count("lr-decoder")) cfg.lr_decoder = a.lr_decoder;
+}
+
+// Every option checked before anything is loaded (the run's own here, the config's by the library's rules,
+// FeatureTrainConfig::validate); the profile a recipe names when --profile is absent.
 model::DecoderProfile check_feature_args(FeatureArgs& a) {
-  if (a.given.count("iters") && a.iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(a.iters) + ")");
   if (a.given.count("minutes") && !(a.minutes > 0 && std::isfinite(a.minutes)))
     throw Error("--minutes must be a positive number of minutes");
-  if (a.minutes > 0 && a.iters > 0) throw Error("--minutes and --iters exclude each other");
-  if (a.batch < 1 || a.log_every < 0 || a.ckpt_every < 0 || a.eval_views < 0)
-    throw Error("--batch must be >= 1; --log-every, --ckpt-every and --eval-views >= 0");
-  if (a.patch < 8 || a.patch % 8)
-    throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(a.patch) + ")");
+  if (a.minutes > 0 && a.given.count("iters")) throw Error("--minutes and --iters exclude each other");
+  if (a.log_every < 0 || a.ckpt_every < 0 || a.eval_views < 0)
+    throw Error("--log-every, --ckpt-every and --eval-views must be >= 0");
   if (a.profile_name.empty())
     a.profile_name = train::recipe_name(train::parse_recipe(a.recipe));  // a recipe's profile bears its name
   const auto profile = model::parse_decoder_profile(a.profile_name);
+  if (!a.resume) {
+    train::FeatureTrainConfig probe;
+    apply_feature_flags(a, probe);
+    probe.validate();
+  }
   stylerf::cli::check_checkpoint_output(a.out, a.resume, a.force);
   return profile;
 }
@@ -131,25 +146,19 @@ std::unique_ptr<train::FeatureTrainer> make_feature_trainer(const FeatureArgs& a
   if (a.resume) {
     auto trainer = std::make_unique<train::FeatureTrainer>(scene, *src.resumed, &std::cout);
     std::cout << "resuming from " << a.out << " at iteration " << trainer->iteration() << "\n";
-    if (a.iters > 0) trainer->set_total_iters(a.iters);
+    if (a.given.count("iters")) {
+      train::FeatureTrainConfig longer = trainer->config();
+      longer.iters = a.iters;
+      longer.validate();
+      trainer->set_total_iters(a.iters);
+    }
     if (trainer->done() && a.minutes <= 0)
       throw Error("--resume: checkpoint " + a.out + " is already at iteration " + std::to_string(trainer->iteration()) +
                   " of " + std::to_string(trainer->config().iters) + "; pass a larger --iters to continue");
     return trainer;
   }
   auto cfg = train::default_feature_config(scene, profile);
-  if (a.iters > 0) cfg.iters = a.iters;
-  cfg.batch = a.batch;
-  cfg.patch = a.patch;
-  cfg.seed = a.seed;
-  if (a.tv >= 0) cfg.tv = a.tv;
-  for (auto [v, dst, flag] : {std::tuple{a.lr_grid, &cfg.lr_grid, "--lr-grid"},
-                              std::tuple{a.lr_basis, &cfg.lr_basis, "--lr-basis"},
-                              std::tuple{a.lr_decoder, &cfg.lr_decoder, "--lr-decoder"}}) {
-    if (!a.given.count(flag + 2)) continue;
-    if (!(v > 0.0f) || !std::isfinite(v)) throw Error(std::string(flag) + " must be a positive number");
-    *dst = v;
-  }
+  apply_feature_flags(a, cfg);
   return std::make_unique<train::FeatureTrainer>(scene, src.geometry, cfg, &std::cout);
 }
 

@@ -113,28 +113,39 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
   return -1;
 }
 
-// Every option checked before anything loads (names and values).
+// The flags given, over a recipe's config.
+void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
+  cfg.sict = stylerf::style::parse_sict_mode(a.sict_name);
+  cfg.dst_bias = a.dst_name == "bias";
+  if (a.has("iters")) cfg.iters = a.iters;
+  cfg.patch = a.patch;
+  if (a.has("style-size")) cfg.style_size = a.style_size;
+  if (a.has("lr-stylizer")) cfg.lr_stylizer = a.lr_stylizer;
+  if (a.has("lr-decoder")) cfg.lr_decoder = a.lr_decoder;
+  if (a.has("lr-decay")) cfg.lr_decay_ratio = a.lr_decay;
+  if (a.has("warm-start")) cfg.warm_start = a.warm;
+  if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
+  if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
+  cfg.decoder_warm = a.decoder_warm;
+  cfg.seed = a.seed;
+}
+
+// Every option checked before anything loads (names and values): the run's own here, the config's by the
+// library's rules (StyleTrainConfig::validate) on the flags over the fast recipe.
 void check_style_args(const StyleArgs& a) {
-  if (a.has("iters") && a.iters < 1) throw Error("--iters must be >= 1 (got " + std::to_string(a.iters) + ")");
   if (a.has("minutes") && !(a.minutes > 0 && std::isfinite(a.minutes)))
     throw Error("--minutes must be a positive number of minutes");
-  if (a.minutes > 0 && a.iters > 0) throw Error("--minutes and --iters exclude each other");
-  if (a.patch < 8 || a.patch % 8)
-    throw Error("--patch must be a positive multiple of 8 (got " + std::to_string(a.patch) + ")");
-  if (a.style_size < 256 || a.style_size > 4096)
-    throw Error("--style-size must be in [256, 4096] (the crop is 256), got " + std::to_string(a.style_size));
-  if (a.warm < 0 || a.decoder_warm < 0 || a.log_every < 0 || a.eval_every < 0 || a.ckpt_every < 0 || a.eval_styles < 0)
-    throw Error("--warm-start, --decoder-warm, --log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
-  if (!(a.lr_stylizer > 0) || !std::isfinite(a.lr_stylizer)) throw Error("--lr-stylizer must be a positive number");
-  if (!(a.lr_decoder > 0) || !std::isfinite(a.lr_decoder)) throw Error("--lr-decoder must be a positive number");
-  if (!(a.lr_decay > 0 && a.lr_decay <= 1))
-    throw Error("--lr-decay must be in (0, 1], got " + std::to_string(a.lr_decay));
+  if (a.minutes > 0 && a.has("iters")) throw Error("--minutes and --iters exclude each other");
+  if (a.log_every < 0 || a.eval_every < 0 || a.ckpt_every < 0 || a.eval_styles < 0)
+    throw Error("--log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (a.dst_name != "bias" && a.dst_name != "no-bias")
     throw Error("--dst must be bias or no-bias, got '" + a.dst_name + "'");
-  stylerf::style::parse_sict_mode(a.sict_name);
   if (!a.recipe_name.empty()) train::parse_recipe(a.recipe_name);
-  if (a.has("warm-maps")) train::parse_warm_maps(a.warm_maps_name);
-  if (a.has("style-decoder")) model::parse_style_decoder(a.style_decoder_name);
+  if (!a.resume) {
+    train::StyleTrainConfig probe = train::style_recipe(train::Recipe::Fast);
+    apply_style_flags(a, probe);
+    probe.validate();
+  }
   stylerf::cli::check_checkpoint_output(a.out, a.resume, a.force);
 }
 
@@ -145,20 +156,8 @@ std::unique_ptr<train::StyleTrainer> new_style_trainer(const StyleArgs& a, const
   model::FeatureModel fm = model::FeatureModel::load(ck);
   const auto recipe = train::style_recipe_for(fm, a.recipe_name, a.features_path);
   train::StyleTrainConfig cfg = train::style_recipe(recipe);
-  cfg.sict = stylerf::style::parse_sict_mode(a.sict_name);
-  cfg.dst_bias = a.dst_name == "bias";
-  if (a.iters > 0) cfg.iters = a.iters;
-  cfg.patch = a.patch;
-  if (a.has("style-size")) cfg.style_size = a.style_size;
-  if (a.has("lr-stylizer")) cfg.lr_stylizer = a.lr_stylizer;
-  if (a.has("lr-decoder")) cfg.lr_decoder = a.lr_decoder;
-  if (a.has("lr-decay")) cfg.lr_decay_ratio = a.lr_decay;
-  if (a.has("warm-start")) cfg.warm_start = a.warm;
-  if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
-  if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
+  apply_style_flags(a, cfg);
   std::cout << "recipe " << train::recipe_name(recipe) << "\n";
-  cfg.decoder_warm = a.decoder_warm;
-  cfg.seed = a.seed;
   auto styles = train::StyleSet::from_dir(a.styles_dir, a.holdout, &std::cout);
   return std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
 }
@@ -201,7 +200,12 @@ int run_train_style(int argc, char** argv) {
   if (a.resume) {
     trainer = std::make_unique<train::StyleTrainer>(scene, ck, &std::cout);
     std::cout << "resuming from " << a.out << " at iteration " << trainer->iteration() << "\n";
-    if (a.iters > 0) trainer->set_total_iters(a.iters);
+    if (a.has("iters")) {
+      train::StyleTrainConfig longer = trainer->config();
+      longer.iters = a.iters;
+      longer.validate();
+      trainer->set_total_iters(a.iters);
+    }
     if (trainer->done() && a.minutes <= 0)
       throw Error("--resume: checkpoint " + a.out + " is already at iteration " + std::to_string(trainer->iteration()) +
                   "; pass a larger --iters to continue");

@@ -6,7 +6,9 @@
 #include <iostream>
 
 #include "bench/timing.hpp"
+#include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "host/error.hpp"
 #include "host/runtime.hpp"
 
 namespace stylerf::cli {
@@ -60,7 +62,11 @@ int main(int argc, char** argv) {
         print_profile_report();
         stylerf::host::Runtime::shutdown();
       } catch (const std::exception& e) {
-        std::cerr << "stylerf " << c.name << ": error: " << e.what() << std::endl;
+        // A library setting's error names its config field; the user typed a flag.
+        const auto* setting = dynamic_cast<const stylerf::host::SettingError*>(&e);
+        std::cerr << "stylerf " << c.name << ": error: "
+                  << (setting ? stylerf::cli::flag_for_field(setting->field()) + " " + setting->problem() : e.what())
+                  << std::endl;
         try {
           stylerf::host::Runtime::shutdown();
         } catch (const std::exception&) {

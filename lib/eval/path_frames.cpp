@@ -13,9 +13,9 @@ using host::Error;
 
 std::vector<scene::Camera> path_cameras(const scene::Scene& scene, int frames, int path_frames, int size) {
   if (frames < 1 || path_frames < frames)
-    throw Error("consistency: need 1 <= --frames <= --path-frames (got " + std::to_string(frames) + " and " +
+    throw host::SettingError("frames", "must be in 1..path_frames (got " + std::to_string(frames) + " and " +
                 std::to_string(path_frames) + ")");
-  if (size < 0 || size > 4096) throw Error("consistency: --size must be in [0, 4096] (0: the scene's)");
+  if (size < 0 || size > 4096) throw host::SettingError("size", "must be in [0, 4096] (0: the scene's)");
   const auto path = scene::default_path(scene, path_frames);
   std::vector<scene::Camera> out(path.begin(), path.begin() + frames);
   for (auto& c : out) c = c.with_longer_side(size);

@@ -24,51 +24,51 @@ std::vector<double> parse_numbers(const std::string& list, const std::string& sp
       used = 0;
     }
     if (used == 0 || used != item.size() || std::isnan(x))
-      throw Error("--region " + spec + ": '" + item + "' is not a number");
+      throw host::SettingError("region", spec + ": '" + item + "' is not a number");
     v.push_back(x);
   }
   return v;
 }
 void need_finite(const std::vector<double>& v, size_t count, const std::string& spec) {
   for (size_t i = 0; i < count; ++i)
-    if (!std::isfinite(v[i])) throw Error("--region " + spec + ": every coordinate must be finite");
+    if (!std::isfinite(v[i])) throw host::SettingError("region", spec + ": every coordinate must be finite");
 }
 }  // namespace
 
 Region Region::parse(const std::string& spec, const std::vector<scene::Camera>& path) {
   const auto colon = spec.find(':');
   if (colon == std::string::npos)
-    throw Error("--region '" + spec + "': expected box:x0,y0,z0,x1,y1,z1, sphere:x,y,z,r or depth:d0,d1");
+    throw host::SettingError("region", "'" + spec + "': expected box:x0,y0,z0,x1,y1,z1, sphere:x,y,z,r or depth:d0,d1");
   const std::string kind = spec.substr(0, colon);
   const std::vector<double> v = parse_numbers(spec.substr(colon + 1), spec);
   Region r;
   r.spec = spec;
   if (kind == "box") {
-    if (v.size() != 6) throw Error("--region " + spec + ": a box takes 6 numbers (x0,y0,z0,x1,y1,z1)");
+    if (v.size() != 6) throw host::SettingError("region", spec + ": a box takes 6 numbers (x0,y0,z0,x1,y1,z1)");
     need_finite(v, 6, spec);
     for (int a = 0; a < 3; ++a)
-      if (!(v[a] < v[3 + a])) throw Error("--region " + spec + ": each lower corner must be below the upper one");
+      if (!(v[a] < v[3 + a])) throw host::SettingError("region", spec + ": each lower corner must be below the upper one");
     r.kind = Box;
   } else if (kind == "sphere") {
-    if (v.size() != 4) throw Error("--region " + spec + ": a sphere takes 4 numbers (x,y,z,r)");
+    if (v.size() != 4) throw host::SettingError("region", spec + ": a sphere takes 4 numbers (x,y,z,r)");
     need_finite(v, 4, spec);
-    if (!(v[3] > 0)) throw Error("--region " + spec + ": the radius must be > 0");
+    if (!(v[3] > 0)) throw host::SettingError("region", spec + ": the radius must be > 0");
     r.kind = Sphere;
   } else if (kind == "depth") {
-    if (v.size() != 2) throw Error("--region " + spec + ": a depth interval takes 2 numbers (d0,d1)");
-    if (!std::isfinite(v[0]) || !(v[0] < v[1])) throw Error("--region " + spec + ": needs a finite d0 < d1");
-    if (path.empty()) throw Error("--region " + spec + ": a depth interval needs a camera path");
+    if (v.size() != 2) throw host::SettingError("region", spec + ": a depth interval takes 2 numbers (d0,d1)");
+    if (!std::isfinite(v[0]) || !(v[0] < v[1])) throw host::SettingError("region", spec + ": needs a finite d0 < d1");
+    if (path.empty()) throw host::SettingError("region", spec + ": a depth interval needs a camera path");
     std::array<double, 3> c{}, a{};
     for (const auto& cam : path)
       for (int k = 0; k < 3; ++k) c[k] += cam.position()[k] / path.size(), a[k] += cam.forward()[k];
     const double n = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-    if (!(n > 1e-6)) throw Error("--region " + spec + ": the cameras look in no common direction; use box: or sphere:");
+    if (!(n > 1e-6)) throw host::SettingError("region", spec + ": the cameras look in no common direction; use box: or sphere:");
     r.kind = Slab;
     r.p = {float(c[0]), float(c[1]), float(c[2]), float(a[0] / n), float(a[1] / n), float(a[2] / n), float(v[0]),
            float(v[1])};
     return r;
   } else {
-    throw Error("--region '" + spec + "': unknown kind '" + kind + "' (box, sphere or depth)");
+    throw host::SettingError("region", "'" + spec + "': unknown kind '" + kind + "' (box, sphere or depth)");
   }
   for (size_t i = 0; i < v.size(); ++i) r.p[i] = float(v[i]);
   return r;

@@ -131,7 +131,7 @@ Scene load_blender(const std::string& dir, const LoadOptions& opts) {
   if (!any_alpha) s.notes.push_back("images have no alpha channel: no background colour");
   s.effects.view_dependence = opts.view_dependence;
   s.effects.ndc = false;
-  if (opts.ndc == Switch::on) throw Error("--ndc on is only meaningful for forward-facing LLFF scenes, not " + dir);
+  if (opts.ndc == Switch::on) throw host::SettingError("ndc", "on is only meaningful for forward-facing captures, not " + dir);
 
   s.near = 2.0f;
   s.far = 6.0f;

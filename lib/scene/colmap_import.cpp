@@ -36,7 +36,7 @@ std::string join_some(const std::vector<std::string>& names, size_t most = 8) {
 // Every file of the folder (dot-files aside) must be an image, all of one size.
 std::vector<std::string> check_images(const std::string& dir, ImportReport& report) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw Error("import: --images " + dir + " is not a folder");
+  if (!fs::is_directory(dir, ec)) throw host::SettingError("images", dir + " is not a folder");
   std::vector<std::string> names, bad;
   std::map<std::string, std::array<int, 2>> sizes;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
@@ -175,9 +175,9 @@ ImportReport import_with_colmap(const ImportOptions& o, const std::function<void
   ImportReport report;
   if (o.out.empty()) throw Error("import: no output folder (-o)");
   if (o.matcher != "auto" && o.matcher != "exhaustive" && o.matcher != "sequential")
-    throw Error("import: --matcher must be auto, exhaustive or sequential, got '" + o.matcher + "'");
+    throw host::SettingError("matcher", "must be auto, exhaustive or sequential, got '" + o.matcher + "'");
   if (colmap_model_id(o.camera_model) < 0) throw Error("import: unknown COLMAP camera model '" + o.camera_model + "'");
-  if (o.max_image_size < 0) throw Error("import: --max-image-size must be 0 (as given) or positive");
+  if (o.max_image_size < 0) throw host::SettingError("max_image_size", "must be 0 (as given) or positive");
   const fs::path out = fs::path(o.out).lexically_normal();
   std::error_code ec;
   if (fs::exists(out, ec) && !o.force) throw Error("import: " + out.string() + " exists (--force replaces it)");

@@ -35,7 +35,7 @@ ImageFolder choose_folder(const std::string& dir, int downsample) {
   for (const auto& e : fs::directory_iterator(dir, ec))
     if (e.is_directory(ec) && e.path().filename().string().rfind("images", 0) == 0)
       have += (have.empty() ? "" : ", ") + e.path().filename().string();
-  throw Error("LLFF scene " + dir + ": no image folder for --downsample " + std::to_string(downsample) +
+  throw Error("LLFF scene " + dir + ": no image folder for downsample " + std::to_string(downsample) +
               " (looked for images_" + std::to_string(downsample) + " and finer ones down to images/; found: " +
               (have.empty() ? "none" : have) + ")");
 }

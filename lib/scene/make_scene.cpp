@@ -54,13 +54,13 @@ void write_rgba_png(const std::string& path, const AnalyticView& v, int w, int h
 
 MakeSceneSummary make_scene(const std::string& dir_arg, const MakeSceneOptions& o) {
   const auto start = std::chrono::steady_clock::now();
-  if (o.size < 8 || o.size > 4096) throw Error("make-scene: --size must be in 8..4096");
+  if (o.size < 8 || o.size > 4096) throw host::SettingError("size", "must be in 8..4096, got " + std::to_string(o.size));
   // View i goes to val when i % 10 == 0 and to test when i % 10 == 5: 6 views give one of each and 4 to train.
   if (o.views < 6 || o.views > 100000)
-    throw Error("make-scene: --views must be in 6..100000 (views 0 and 5 become the val and test splits)");
-  if (o.supersample < 1 || o.supersample > 16) throw Error("make-scene: --supersample must be in 1..16");
+    throw host::SettingError("views", "must be in 6..100000 (views 0 and 5 become the val and test splits)");
+  if (o.supersample < 1 || o.supersample > 16) throw host::SettingError("supersample", "must be in 1..16");
   if (!(o.camera_angle_x > 0.01f && o.camera_angle_x < 3.1f)) throw Error("make-scene: the field of view must be in (0.01, 3.1) radians");
-  if (!(o.radius > 2.5f) || !std::isfinite(o.radius)) throw Error("make-scene: --radius must exceed 2.5 (cameras outside the [-1.5,1.5]^3 box)");
+  if (!(o.radius > 2.5f) || !std::isfinite(o.radius)) throw host::SettingError("radius", "must exceed 2.5 (cameras outside the [-1.5,1.5]^3 box)");
   const fs::path dir = fs::path(dir_arg).lexically_normal();
   check_replaceable(dir);
   const fs::path tmp = dir.string() + ".partial-" + std::to_string(::getpid());

@@ -116,8 +116,9 @@ std::string Scene::describe() const {
 
 int resolve_downsample(const std::string& dir, int requested) {
   if (requested > 0) return requested;
-  if (requested < 0) throw Error("--downsample must be at least 1, or 0 for the scene's default (got " +
-                                 std::to_string(requested) + ")");
+  if (requested < 0)
+    throw host::SettingError("downsample", "must be at least 1, or 0 for the scene's default (got " +
+                                               std::to_string(requested) + ")");
   std::error_code ec;
   return std::filesystem::exists(std::filesystem::path(dir) / "poses_bounds.npy", ec) ? 4 : 1;
 }
@@ -126,7 +127,8 @@ Scene load_scene(const std::string& dir, const LoadOptions& opts) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw Error("scene directory " + dir + " does not exist");
-  if (opts.downsample < 1) throw Error("--downsample must be at least 1 (got " + std::to_string(opts.downsample) + ")");
+  if (opts.downsample < 1)
+    throw host::SettingError("downsample", "must be at least 1 (got " + std::to_string(opts.downsample) + ")");
   Scene s;
   if (fs::exists(fs::path(dir) / "transforms_train.json", ec)) {
     s = load_blender(dir, opts);

@@ -28,7 +28,7 @@ Tensor adain_stylize(AdainModel& model, const Tensor& content, const Tensor& sty
 
 io::Image load_image_for_adain(const std::string& path, int size) {
   if (size < kAdainMinSide || size > kAdainMaxSide)
-    throw Error("adain: --size must be in [" + std::to_string(kAdainMinSide) + ", " + std::to_string(kAdainMaxSide) +
+    throw host::SettingError("size", "must be in [" + std::to_string(kAdainMinSide) + ", " + std::to_string(kAdainMaxSide) +
                 "] (got " + std::to_string(size) + ")");
   // Transparent pixels (Blender renders) become white, as the scenes are shown.
   const std::array<float, 3> white{1.0f, 1.0f, 1.0f};

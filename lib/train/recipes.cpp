@@ -16,8 +16,8 @@ Recipe style_recipe_for(const model::FeatureModel& fm, const std::string& recipe
   const std::string profile = model::decoder_profile_name(fm.profile);
   const Recipe r = parse_recipe(recipe.empty() ? profile : recipe);
   if (r == Recipe::Fast && fm.profile != model::DecoderProfile::Fast)
-    throw host::Error("--recipe fast needs a fast-profile feature checkpoint; " + features_path + " has the " +
-                      profile + " profile (use --recipe paper)");
+    throw host::SettingError("recipe", "fast needs a fast-profile feature checkpoint; " + features_path + " has the " +
+                                           profile + " profile (the paper recipe takes it)");
   return r;
 }
 

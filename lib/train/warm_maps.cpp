@@ -18,7 +18,7 @@ const char* warm_maps_name(WarmMaps m) { return m == WarmMaps::Rendered ? "rende
 WarmMaps parse_warm_maps(const std::string& name) {
   if (name == "vgg") return WarmMaps::Vgg;
   if (name == "rendered") return WarmMaps::Rendered;
-  throw Error("warm-start maps (--warm-maps) must be vgg or rendered, got '" + name + "'");
+  throw host::SettingError("warm_maps", "must be vgg or rendered, got '" + name + "'");
 }
 
 float RenderedWarmMaps::opacity(int view, int i, int j) const {
