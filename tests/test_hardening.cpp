@@ -177,6 +177,8 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   expect(td + "--minutes nan -o " + out, "--minutes must be a number");
   expect(td + "--lr-grid nan -o " + out, "--lr-grid must be a number");
   expect(td + "--lr-grid -1 -o " + out, "--lr-grid must be a number");
+  expect(td + "--batch 0 -o " + out, "--batch must be in [1, 4194304], got 0");  // DensityTrainConfig::validate's rule
+  expect(td + "--iters 100 --upsample-at 50,20 -o " + out, "--upsample-at must be strictly increasing");
   expect(td + "--ckpt-every -5 -o " + out, "--ckpt-every");
   expect(td + "--eval-views -1 -o " + out, "--eval-views");
   expect(td + "--init-voxels 64^3 --final-voxels 32^3 -o " + out, "must not exceed --final-voxels");

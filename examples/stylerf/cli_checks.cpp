@@ -63,7 +63,8 @@ void check_checkpoint_output(const std::string& out, bool resume, bool force) {
 std::string flag_for_field(const std::string& field) {
   static const std::map<std::string, std::string> own = {
       {"lr_decay_ratio", "--lr-decay"}, {"dst_bias", "--dst"}, {"warm_start", "--warm-start"},
-      {"holdout_styles", "--holdout-styles"}, {"time_budget_s", "--minutes"}};
+      {"holdout_styles", "--holdout-styles"}, {"time_budget_s", "--minutes"},
+      {"voxels_init", "--init-voxels"}, {"voxels_final", "--final-voxels"}};
   if (const auto it = own.find(field); it != own.end()) return it->second;
   std::string flag = "--" + field;
   std::replace(flag.begin(), flag.end(), '_', '-');

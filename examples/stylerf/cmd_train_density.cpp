@@ -133,16 +133,20 @@ void check_density_args(DensityArgs& a) {
   if (a.has("iters")) cli::check_int_range("--iters", a.iters, 1, 10000000);
   if (a.has("minutes")) cli::check_range("--minutes", a.minutes, 0.01, 100000);
   if (a.minutes > 0 && (a.has("iters") || a.resume)) throw Error("--minutes goes without --iters and --resume");
-  cli::check_int_range("--batch", a.batch, 1, 1 << 22);
   cli::check_int_range("--log-every", a.log_every, 0, 100000000);
   cli::check_int_range("--ckpt-every", a.ckpt_every, 0, 100000000);
   cli::check_int_range("--eval-views", a.eval_views, 0, 100000);
-  if (a.has("lr-grid")) cli::check_range("--lr-grid", a.lr_grid, 1e-8, 10);
   if (a.has("ert")) cli::check_range("--ert", a.ert, 0.0, 0.5);
   if (a.shading.empty() && train::parse_recipe(a.recipe) == train::Recipe::Paper) a.shading = "per-sample";
   if (!a.shading.empty() && a.shading != "per-sample" && a.shading != "deferred")
     throw Error("--shading: unknown '" + a.shading + "' (per-sample, deferred)");
-  if (a.has("lr-net")) cli::check_range("--lr-net", a.lr_net, 1e-8, 10);
+  {  // the config's own rules (DensityTrainConfig::validate), on the flags over the defaults
+    train::DensityTrainConfig probe;
+    probe.batch = a.batch;
+    if (a.has("lr-grid")) probe.lr_grid = a.lr_grid;
+    if (a.has("lr-net")) probe.lr_net = a.lr_net;
+    probe.validate();
+  }
   if (a.resume)
     for (const char* o : {"final-voxels", "init-voxels", "upsample-at", "mask-at", "density-rank", "app-rank",
                           "lr-grid", "lr-net", "density-activation", "shading"})
@@ -194,8 +198,8 @@ std::unique_ptr<train::DensityTrainer> new_density_trainer(const DensityArgs& a,
   if (a.no_mask) cfg.alpha_mask = false;
   if (!a.density_rank.empty()) cfg.model.density_rank = parse_rank(a.density_rank, "--density-rank");
   if (!a.app_rank.empty()) cfg.model.app_rank = parse_rank(a.app_rank, "--app-rank");
-  if (a.lr_grid > 0) cfg.lr_grid = a.lr_grid;
-  if (a.lr_net > 0) cfg.lr_net = a.lr_net;
+  if (a.has("lr-grid")) cfg.lr_grid = a.lr_grid;
+  if (a.has("lr-net")) cfg.lr_net = a.lr_net;
   if (!a.shading.empty()) cfg.model.deferred_shading = a.shading == "deferred";
   return std::make_unique<train::DensityTrainer>(scene, cfg);
 }

@@ -44,6 +44,26 @@ DensityTrainConfig DensityTrainConfig::from_json(const json& j) {
   return c;
 }
 
+void DensityTrainConfig::validate() const {
+  using host::SettingError;
+  auto in_range = [](const char* field, double v, double lo, double hi) {
+    if (!std::isfinite(v) || v < lo || v > hi) {
+      std::ostringstream m;
+      m << "must be a number in [" << lo << ", " << hi << "] (got " << v << ")";
+      throw SettingError(field, m.str());
+    }
+  };
+  schedule.validate();
+  if (batch < 1 || batch > (1 << 22)) throw SettingError("batch", "must be in [1, 4194304], got " + std::to_string(batch));
+  in_range("lr_grid", lr_grid, 1e-8, 10);
+  in_range("lr_net", lr_net, 1e-8, 10);
+  in_range("beta1", beta1, 0, 0.999999);
+  in_range("beta2", beta2, 0, 0.999999);
+  for (auto [field, w] : {std::pair{"l1_initial", l1_initial}, std::pair{"l1_rest", l1_rest},
+                          std::pair{"tv_density", tv_density}, std::pair{"tv_app", tv_app}})
+    in_range(field, w, 0, 1e6);
+}
+
 DensityTrainConfig default_density_config(const scene::Scene& scene) {
   DensityTrainConfig c;
   if (scene.format == "blender") {
@@ -99,9 +119,8 @@ static std::array<int, 3> res_for(const model::Geometry& g, int64_t voxels) {
 static uint64_t sampler_seed(uint64_t seed, int iteration) { return seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration); }
 
 DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConfig& cfg) : scene_(&scene), cfg_(cfg) {
-  cfg_.schedule.validate();
+  cfg_.validate();
   planned_ = cfg_.schedule;
-  if (cfg_.batch < 1) throw Error("train-density: batch must be >= 1");
   model::Geometry probe;
   for (int a = 0; a < 3; ++a) probe.box_lo[a] = scene.aabb[0][a], probe.box_hi[a] = scene.aabb[1][a];
   model_ = DensityModel::create(scene, cfg_.model, res_for(probe, cfg_.schedule.voxels_init), cfg_.seed);

@@ -48,6 +48,8 @@ struct DensityTrainConfig {
   // grid need not show in the loss. About 6 ms per check for a 300^3 grid. Not stored in checkpoints.
   int finite_check_every = 25;
 
+  // Every field's rule, in one place (the schedule's too): a host::SettingError naming the field.
+  void validate() const;
   nlohmann::json to_json() const;
   static DensityTrainConfig from_json(const nlohmann::json& j);
 };

@@ -10,21 +10,21 @@ namespace stylerf::train {
 
 using host::Error;
 
-static void check_sorted(const std::vector<int>& v, const char* name) {
+static void check_sorted(const std::vector<int>& v, const char* field) {
   for (size_t i = 0; i < v.size(); ++i) {
-    if (v[i] < 1) throw Error(std::string("schedule: ") + name + " has iteration " + std::to_string(v[i]) + " (< 1)");
-    if (i > 0 && v[i] <= v[i - 1])
-      throw Error(std::string("schedule: ") + name + " must be strictly increasing");
+    if (v[i] < 1) throw host::SettingError(field, "has iteration " + std::to_string(v[i]) + " (< 1)");
+    if (i > 0 && v[i] <= v[i - 1]) throw host::SettingError(field, "must be strictly increasing");
   }
 }
 
 void Schedule::validate() const {
-  if (iters < 1) throw Error("schedule: iters must be >= 1, got " + std::to_string(iters));
-  if (voxels_init < 8 || voxels_final < 8) throw Error("schedule: voxel counts must be >= 8");
+  if (iters < 1) throw host::SettingError("iters", "must be >= 1, got " + std::to_string(iters));
+  if (voxels_init < 8) throw host::SettingError("voxels_init", "must be >= 8, got " + std::to_string(voxels_init));
+  if (voxels_final < 8) throw host::SettingError("voxels_final", "must be >= 8, got " + std::to_string(voxels_final));
   if (!(lr_decay_ratio > 0.0f && lr_decay_ratio <= 1.0f))
-    throw Error("schedule: lr decay ratio must be in (0, 1], got " + std::to_string(lr_decay_ratio));
-  check_sorted(upsample_at, "upsample list");
-  check_sorted(mask_at, "alpha-mask list");
+    throw host::SettingError("lr_decay_ratio", "must be in (0, 1], got " + std::to_string(lr_decay_ratio));
+  check_sorted(upsample_at, "upsample_at");
+  check_sorted(mask_at, "mask_at");
 }
 
 std::vector<int64_t> Schedule::voxel_list() const {
