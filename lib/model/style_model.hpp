@@ -160,6 +160,10 @@ class StyleModel : public nn::Module {
   // consistency table and costs a frame).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
                                       const RegionHead* region = nullptr, int supersample = 1) const;
+  // CameraContent::pixel_acc for a map of w x h blocks whose sub-rays' opacity ranged over
+  // [acc_lo, acc_hi] per block: rendered one ray a pixel only near silhouettes (see the definition).
+  std::vector<float> pixel_opacity(const scene::Scene& scene, const scene::Camera& cam, int w, int h,
+                                   const std::vector<float>& acc_lo, const std::vector<float>& acc_hi, int chunk) const;
   // RGB interleaved [H*W*3] in [0,1] (clamped) of a camera's content under a style code, cut to the
   // camera's size.
   std::vector<float> stylize_camera(const CameraContent& cc, const style::StyleCode& code, int cam_w, int cam_h) const;
