@@ -145,8 +145,9 @@ class StyleModel : public nn::Module {
     // composited with the scene's weights, divided by the kept opacity; 0 where nothing was kept).
     std::vector<float> region_mask;
     // Scenes with a background, when the map is coarser than the image (stride > 1): the opacity of one
-    // ray per image pixel [cam H * cam W] (the geometry alone, with early termination: cheap), so that
-    // over_background cuts silhouettes at the image's resolution rather than the map's blocks.
+    // ray per image pixel [cam H * cam W] (the geometry alone, with early termination), so that
+    // over_background cuts silhouettes at the image's resolution rather than the map's blocks. Rendered
+    // only in blocks near a silhouette (pixel_opacity): elsewhere 0 or 1.
     std::vector<float> pixel_acc;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
