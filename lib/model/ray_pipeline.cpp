@@ -121,6 +121,10 @@ ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene:
       chunk);
 }
 
+int64_t rays_per_call(const Geometry& g, int64_t chunk) {
+  return std::max<int64_t>(1, std::min<int64_t>(chunk, kMaxSamplesPerCall / std::max<int64_t>(1, g.max_samples)));
+}
+
 ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& render, const scene::Scene& scene,
                          const scene::Camera& cam, int chunk) {
   if (chunk < 1) throw Error("render_camera: chunk must be >= 1");
@@ -138,8 +142,7 @@ ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& re
   // MLP: [kept, 128] floats), so a call is bounded to kMaxSamplesPerCall possible samples (1 GiB of such
   // activations) whatever chunk is asked for: dense NDC scenes reach ~1700 samples a ray, and 8192 rays
   // of them asked for a 2.7 GB buffer, beyond PoCL's 2 GiB per-buffer limit.
-  const int64_t step = std::max<int64_t>(
-      1, std::min<int64_t>(chunk, kMaxSamplesPerCall / std::max<int64_t>(1, g.max_samples)));
+  const int64_t step = rays_per_call(g, chunk);
   for (int64_t b = 0; b < n; b += step) {
     const int64_t R = std::min<int64_t>(step, n - b);
     std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));

@@ -67,6 +67,9 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
 // (depth divided by acc where acc > 1e-6, else 0). A chunk holds at most kMaxSamplesPerCall / max_samples
 // rays, whatever `chunk` says.
 constexpr int64_t kMaxSamplesPerCall = int64_t(1) << 21;
+// The rays of one renderer call asked `chunk`, bounded so that every ray keeping all of its samples stays
+// within kMaxSamplesPerCall.
+int64_t rays_per_call(const Geometry& g, int64_t chunk);
 struct ViewValues {
   int width = 0, height = 0, channels = 0;
   std::vector<float> value, acc, depth;

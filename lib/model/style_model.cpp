@@ -257,7 +257,7 @@ std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const sc
                                              int chunk) const {
   // A block whose sub-rays, and its 8 neighbours' sub-rays, all saw (almost) nothing or (almost) full
   // opacity lies away from any silhouette: its pixels take that value. Only the other blocks' pixels are
-  // rendered, one ray each (for lego at 800x800, ~1 in 8 blocks).
+  // rendered, one ray each, in calls bounded as render_camera's (rays_per_call).
   constexpr float kSettled = 1e-3f;
   const int s = stride(), W = cam.width, H = cam.height;
   auto block = [&](int bx, int by) { return size_t(std::clamp(by, 0, h - 1)) * w + size_t(std::clamp(bx, 0, w - 1)); };
@@ -283,8 +283,9 @@ std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const sc
   if (todo.empty()) return out;
   const scene::Rays rays = scene::camera_rays(scene, cam);
   const OpacityHead head;
-  for (size_t b = 0; b < todo.size(); b += size_t(chunk)) {
-    const size_t R = std::min(todo.size() - b, size_t(chunk));
+  const size_t step = size_t(rays_per_call(features.geo, chunk));
+  for (size_t b = 0; b < todo.size(); b += step) {
+    const size_t R = std::min(todo.size() - b, step);
     std::vector<float> o(3 * R), d(3 * R);
     for (size_t i = 0; i < R; ++i)
       for (int k = 0; k < 3; ++k) {
