@@ -11,7 +11,9 @@
 //    a text file named .png is an error naming the file; a style folder skips it;
 //  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image;
 //  - supersampled content: the mean of the n x n sub-ray renders (c, opacities, depth, region mask), one
-//    ray per block centre at n = 1, and out-of-range n refused.
+//    ray per block centre at n = 1, and out-of-range n refused;
+//  - a path's content rendered once and shared by two styles (eval table) gives each style the very
+//    frames it gets rendered alone.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -20,6 +22,7 @@
 #include <random>
 
 #include "host/error.hpp"
+#include "lib/eval/path_frames.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
@@ -277,6 +280,26 @@ TEST_CASE("pixel opacity rendered near silhouettes only equals one ray a pixel e
     CHECK(rendered > 0);  // the generated scene has silhouettes in view
     CHECK(settled > 0);   // and empty space around them
   }
+}
+
+TEST_CASE("content rendered once for several styles gives each the frames it gets alone") {
+  model::StyleModel m = small_style_model();
+  m.features.geo.has_background = true;
+  m.features.geo.background = {1.0f, 1.0f, 1.0f};
+  const scene::Scene& sc = testing::small_scene();
+  std::vector<scene::Camera> cams{sc.train[0].camera, sc.train[1].camera};
+  const auto contents = eval::content_frames(m, sc, cams, 4096, 2);
+  REQUIRE(contents.size() == cams.size());
+  for (uint64_t seed : {11u, 23u}) {
+    CAPTURE(seed);
+    const style::StyleCode code = random_code(seed);
+    const auto shared = eval::stylerf_frames(m, contents, cams, code, true);
+    const auto alone = eval::stylerf_frames(m, sc, cams, code, true, 4096, 2);
+    REQUIRE(shared.size() == alone.size());
+    for (size_t i = 0; i < shared.size(); ++i) CHECK(shared[i].data == alone[i].data);
+  }
+  testing::expect_error([&] { eval::stylerf_frames(m, contents, {cams[0]}, random_code(5), true); },
+                        "2 contents for 1 cameras");
 }
 
 TEST_CASE("background compositing uses the rendered opacity") {

@@ -266,6 +266,15 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
                                                              style::StyleEncoder::default_cache_dir()));
     rows.push_back({style_model_label(ck), {}, {}});
   }
+  // Each model's content of the path's frames, once for every style (the style-independent bulk of a frame).
+  std::vector<std::vector<model::StyleModel::CameraContent>> contents;
+  for (const auto& m : models) {
+    const auto t = Clock::now();
+    contents.push_back(eval::content_frames(*m, w.scene, w.path.cams, w.p.chunk,
+                                            w.p.supersample > 0 ? w.p.supersample : m->inference_supersample));
+    std::cout << "  content of " << w.path.cams.size() << " frames rendered once for all styles ("
+              << fmt(seconds_since(t), 1) << " s)" << std::endl;
+  }
   for (size_t si = 0; si < styles.size(); ++si) {
     const std::string& st = styles[si];
     const auto t = Clock::now();
@@ -278,9 +287,8 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
     for (size_t mi = 0; mi < models.size(); ++mi) {
       style::StyleCode code = encoders[mi]->encode(st).code;
       scene_stats[mi].attach(code);
-      const auto f = eval::stylerf_frames(*models[mi], w.scene, w.path.cams, code,
-                                          models[mi]->features.geo.has_background, w.p.chunk,
-                                          w.p.supersample > 0 ? w.p.supersample : models[mi]->inference_supersample);
+      const auto f = eval::stylerf_frames(*models[mi], contents[mi], w.path.cams, code,
+                                          models[mi]->features.geo.has_background);
       rows[mi].styles.push_back(st);
       rows[mi].scores.push_back(eval::score_frames(f, w.path.warps, w.dist));
       std::cout << "    " << rows[mi].name << ": " << score_line(rows[mi].scores.back()) << "\n";

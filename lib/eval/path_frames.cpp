@@ -80,15 +80,39 @@ std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<
   return out;
 }
 
+std::vector<model::StyleModel::CameraContent> content_frames(const model::StyleModel& m, const scene::Scene& scene,
+                                                              const std::vector<scene::Camera>& cams, int chunk,
+                                                              int supersample) {
+  std::vector<model::StyleModel::CameraContent> out;
+  out.reserve(cams.size());
+  for (const auto& cam : cams) out.push_back(m.render_camera_content(scene, cam, chunk, nullptr, supersample));
+  return out;
+}
+
+std::vector<io::Image> stylerf_frames(const model::StyleModel& m,
+                                      const std::vector<model::StyleModel::CameraContent>& contents,
+                                      const std::vector<scene::Camera>& cams, const style::StyleCode& code,
+                                      bool over_background) {
+  if (contents.size() != cams.size())
+    throw Error("stylerf frames: " + std::to_string(contents.size()) + " contents for " +
+                std::to_string(cams.size()) + " cameras");
+  std::vector<io::Image> out;
+  for (size_t i = 0; i < cams.size(); ++i) {
+    const auto& cam = cams[i];
+    auto rgb = m.stylize_camera(contents[i], code, cam.width, cam.height);
+    if (over_background) m.over_background(rgb, contents[i], cam.width, cam.height);
+    out.push_back(planar_image(rgb, cam.width, cam.height));
+  }
+  return out;
+}
+
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
                                       bool over_background, int chunk, int supersample) {
   std::vector<io::Image> out;
   for (const auto& cam : cams) {
-    const auto cc = m.render_camera_content(scene, cam, chunk, nullptr, supersample);
-    auto rgb = m.stylize_camera(cc, code, cam.width, cam.height);
-    if (over_background) m.over_background(rgb, cc, cam.width, cam.height);
-    out.push_back(planar_image(rgb, cam.width, cam.height));
+    const std::vector<model::StyleModel::CameraContent> one{m.render_camera_content(scene, cam, chunk, nullptr, supersample)};
+    out.push_back(stylerf_frames(m, one, {cam}, code, over_background).front());
   }
   return out;
 }

@@ -37,8 +37,22 @@ io::Image load_style_for_eval(const std::string& path);
 std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<io::Image>& content,
                                     const io::Image& style_image);
 
-// over_background: composite over the scene's background by the rendered opacity (as `stylize` does).
-// supersample: content rays per feature-map block and axis (StyleModel::render_camera_content).
+// The style-independent part of StyleRF's frames (SICT's output, opacity, depth): rendered once per
+// camera and shared by every style scored on the same frames, since it is most of a frame's cost (fern
+// at 1008x756 with 3x3 rays a block: ~35 of 40 s). supersample: content rays per feature-map block and
+// axis (StyleModel::render_camera_content).
+std::vector<model::StyleModel::CameraContent> content_frames(const model::StyleModel& m, const scene::Scene& scene,
+                                                              const std::vector<scene::Camera>& cams,
+                                                              int chunk = 4096, int supersample = 1);
+
+// The frames of one style from content_frames' contents of the same cameras. over_background: composite
+// over the scene's background by the rendered opacity (as `stylize` does).
+std::vector<io::Image> stylerf_frames(const model::StyleModel& m,
+                                      const std::vector<model::StyleModel::CameraContent>& contents,
+                                      const std::vector<scene::Camera>& cams, const style::StyleCode& code,
+                                      bool over_background);
+
+// Both of the above for one style.
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
                                       bool over_background, int chunk = 4096, int supersample = 1);
