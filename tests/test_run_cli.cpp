@@ -1,6 +1,7 @@
 // `stylerf run` end to end on a tiny generated scene: every step's output, summary.json and index.html,
-// resuming (a second run keeps every step; a changed option reruns its step and what reads it), and bad
-// input refused before any work.
+// resuming (a second run keeps every step; a changed option reruns its step and what reads it), the
+// --minutes plan (a measured frame sizes the style stage and the evaluation; a resumed run plans the same),
+// and bad input refused before any work.
 #include <doctest/doctest.h>
 
 #include <filesystem>
@@ -93,6 +94,31 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(r.output.find("== features: done in an earlier run") != std::string::npos);
   CHECK(r.output.find("== style: stylerf train-style") != std::string::npos);
   CHECK(testing::read_json(out / "summary.json")["per_style"].size() == 3);
+}
+
+TEST_CASE("run --minutes: the style stage planned from a measured frame, the same plan on resume") {
+  const auto& in = inputs();
+  const fs::path out = testing::small_work_dir() / "run_minutes";
+  fs::remove_all(out);
+  const std::string cmd = "run --scene '" + in.scene.string() + "' --styles '" + in.styles.string() + "' -o '" +
+                          out.string() + "' --holdout-styles 2 --minutes 2 --frames 3 --eval-views 1 " +
+                          "--table-frames 8 --max-videos 1";
+  auto r = testing::run_cli(cmd);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(fs::exists(out / "probe/frames/metrics.json"));
+  CHECK(r.output.find("evaluation predicted") != std::string::npos);
+  const auto steps = testing::read_json(out / "steps.json");
+  CHECK(steps.contains("probe_style"));
+  CHECK(steps.contains("probe_frames"));
+  CHECK(fs::exists(out / "summary.json"));
+
+  // Resumed: the recorded seconds give the same plan, so the style stage keeps its key and nothing runs.
+  r = testing::run_cli(cmd);
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(count(r.output, "done in an earlier run") == 11);
+  CHECK(count(r.output, ": stylerf ") == 0);
 }
 
 TEST_CASE("run: bad input is refused before any work, naming the problem") {

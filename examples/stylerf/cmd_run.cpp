@@ -11,17 +11,23 @@
 //   OUT/logs/<step>.log, OUT/steps.json              each step's output, and what resuming keeps
 // Each step is skipped when OUT already holds its output for the same inputs and options, so a killed
 // run resumes (examples/stylerf/pipeline_steps.hpp).
+// Under --minutes the run keeps to its budget at any image size: after the features it times one frame of
+// this scene (OUT/probe), predicts the evaluation (lib/eval/eval_budget.hpp), gives the style stage what is
+// left and, when the evaluation would not fit its share, renders fewer video frames or styles.
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/pipeline_steps.hpp"
 #include "examples/stylerf/run_report.hpp"
+#include "lib/eval/eval_budget.hpp"
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
 #include "lib/style/style_image.hpp"
@@ -167,6 +173,64 @@ Shown shown_styles(const RunOptions& o) {
   return r;
 }
 
+// The cost of one frame of this scene on this machine (eval_budget.hpp): a one-step style checkpoint (the
+// frame's cost does not depend on the weights' values) and 3 path frames of the first shown style.
+// `spent` gains the probe's seconds.
+eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, const fs::path& out,
+                                 const std::string& f_ck, const std::string& style, const std::string& key,
+                                 double& spent) {
+  const std::string p_ck = (out / "probe/style.ckpt").string(), p_dir = (out / "probe/frames").string();
+  auto p = steps.run("probe_style",
+                     args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
+                          std::to_string(o.holdout), "--recipe", o.recipe, "--iters", "1", "--warm-start", "0",
+                          "--force", "-o", p_ck),
+                     p_ck, key);
+  spent += p.seconds;
+  spent += steps.run("probe_frames",
+            args(o, "stylize", "--ckpt", p_ck, "--style", style, "--views", "path", "--frames", "3", "--no-losses",
+                 "--cache", "none", "-o", p_dir),
+            p_dir + "/metrics.json", p.key).seconds;
+  std::ifstream in(p_dir + "/metrics.json");
+  const auto timing = nlohmann::json::parse(in).at("timing");
+  eval::FrameCost c;
+  c.content = timing.at("content_render_s_per_view").get<double>();
+  const double frame = 1.0 / std::max(1e-6, timing.at("frames_per_s_after_first").get<double>());
+  c.style2d = std::max(frame - c.content, 0.1 * frame);
+  return c;
+}
+
+// Under --minutes: the style stage's minutes and the evaluation's counts, from the seconds spent so far
+// and the measured frame. The evaluation gets what the nominal split leaves it, or up to 35% of what is
+// left when that is more; the style stage gets the rest; the counts shrink (fit_eval) to the evaluation's
+// share. Predictions carry a 15% margin.
+constexpr double kEvalMargin = 1.15;
+
+struct EvalPlan {
+  double style_minutes = 0;
+  eval::EvalCounts counts;
+};
+
+EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wanted, double minutes, double spent_s,
+                         double nominal_style_min) {
+  const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
+  EvalPlan plan;
+  const double share = std::max(left - nominal_style, 0.35 * left);
+  plan.counts = eval::fit_eval(c, wanted, share / kEvalMargin);
+  const double eval_s = kEvalMargin * eval::eval_seconds(c, plan.counts);
+  plan.style_minutes = std::max(0.25 * nominal_style, left - eval_s) / 60.0;
+  std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
+            << " s of content + " << c.style2d << " s a style; evaluation predicted " << std::setprecision(1)
+            << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min";
+  const std::string cuts = eval::describe_cuts(wanted, plan.counts);
+  if (!cuts.empty()) std::cout << " (to fit: " << cuts << ")";
+  std::cout << std::endl;
+  if (left - eval_s < 0.25 * nominal_style)
+    std::cout << "stylerf run: warning: --minutes " << minutes << " is too short for this scene here; the run will "
+              << "end about " << std::setprecision(0) << (0.25 * nominal_style - (left - eval_s)) / 60.0
+              << " min late" << std::endl;
+  return plan;
+}
+
 int run_pipeline(int argc, char** argv) {
   RunOptions o;
   int rc = 0;
@@ -183,7 +247,8 @@ int run_pipeline(int argc, char** argv) {
   if (budget.iters.empty())
     std::cout << "stylerf run: recipe " << o.recipe << "; training minutes: density " << std::fixed
               << std::setprecision(1) << budget.density << ", features " << budget.features << ", style "
-              << budget.style << std::endl;
+              << budget.style << (o.stage_minutes.empty() ? " (replanned from a measured frame after the features)" : "")
+              << std::endl;
   else
     std::cout << "stylerf run: recipe " << o.recipe << "; training iterations: density " << budget.iters[0]
               << ", features " << budget.iters[1] << ", style " << budget.iters[2] << std::endl;
@@ -205,24 +270,41 @@ int run_pipeline(int argc, char** argv) {
                                            "-o", f_ck);
   for (const auto& a : length(1, budget.features)) features.push_back(a);
   auto f = steps.run("features", features, f_ck, d.key);
+  // The held-out renders of the first two stages come first: the style stage's minutes are planned
+  // from the time spent so far.
+  // Seconds spent so far, a skipped step counting its recorded seconds: a resumed run plans the same
+  // style minutes, so the style step keeps its key.
+  double spent = d.seconds + f.seconds;
+  spent += steps.run("density_test", args(o, "render", "--ckpt", d_ck, "--views", "test", "-o", (out / "density_test").string()),
+            (out / "density_test/metrics.json").string(), d.key).seconds;
+  spent += steps.run("features_test",
+            args(o, "render", "--ckpt", f_ck, "--views", "test", "-o", (out / "features_test").string()),
+            (out / "features_test/metrics.json").string(), f.key).seconds;
+  eval::EvalCounts counts;
+  counts.eval_views = o.eval_views, counts.holdout = o.holdout, counts.video_frames = o.frames;
+  counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
+  const bool by_minutes = budget.iters.empty() && o.stage_minutes.empty();
+  double style_minutes = budget.style;
+  if (by_minutes) {
+    const eval::FrameCost cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent);
+    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style);
+    style_minutes = plan.style_minutes;
+    counts = plan.counts;
+  }
   std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
                                         std::to_string(o.holdout), "--recipe", o.recipe, "--force", "-o", s_ck);
-  for (const auto& a : length(2, budget.style)) style.push_back(a);
+  for (const auto& a : length(2, style_minutes)) style.push_back(a);
   auto s = steps.run("style", style, s_ck, f.key + styles_fp);
 
   const std::string upstream = s.key + d.key;
-  steps.run("density_test", args(o, "render", "--ckpt", d_ck, "--views", "test", "-o", (out / "density_test").string()),
-                      (out / "density_test/metrics.json").string(), d.key);
-  steps.run("features_test",
-                      args(o, "render", "--ckpt", f_ck, "--views", "test", "-o", (out / "features_test").string()),
-                      (out / "features_test/metrics.json").string(), f.key);
   steps.run("style_eval",
                       args(o, "eval-style", "--ckpt", s_ck, "--views", std::to_string(o.eval_views), "--images",
                            (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
                       (out / "style_eval.json").string(), upstream);
+  const std::vector<std::string> shown_now(shown.begin(), shown.begin() + counts.shown);
   std::vector<std::string> vid = args(o, "stylize", "--ckpt", s_ck, "--views", "path", "--frames",
-                                      std::to_string(o.frames), "--no-losses", "-o", (out / "videos").string());
-  for (const auto& st : shown) vid.insert(vid.end(), {"--style", st});
+                                      std::to_string(counts.video_frames), "--no-losses", "-o", (out / "videos").string());
+  for (const auto& st : shown_now) vid.insert(vid.end(), {"--style", st});
   steps.run("videos", vid, (out / "videos/metrics.json").string(), upstream);
   steps.run("mix",
                       args(o, "stylize", "--ckpt", s_ck, "--views", "test", "--mix-grid",
@@ -232,7 +314,7 @@ int run_pipeline(int argc, char** argv) {
   std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", d_ck + "," + s_ck, "--frames",
                                         std::to_string(o.table_frames), "-o", (out / "consistency").string(),
                                         "--styles");
-  for (const auto& st : shown) table.push_back(st);
+  for (const auto& st : shown_now) table.push_back(st);
   steps.run("consistency", table, (out / "consistency/table.json").string(), upstream);
 
   RunReportInput in;
@@ -241,7 +323,7 @@ int run_pipeline(int argc, char** argv) {
   in.scene = o.scene;
   in.minutes = !budget.iters.empty() ? 0.0 : o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
   in.steps = steps.record();
-  in.shown_styles = shown;
+  in.shown_styles = shown_now;
   in.corners = corners;
   const RunSummary summary = write_run_report(in);
   print_run_summary(summary, std::cout);

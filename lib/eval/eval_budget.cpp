@@ -1,0 +1,46 @@
+#include "lib/eval/eval_budget.hpp"
+
+#include <algorithm>
+
+namespace stylerf::eval {
+
+namespace {
+constexpr double kStartupPerStep = 8.0;  // seconds: weights, checkpoint, scene, style codes (lego 1/4 runs)
+constexpr int kMixCells = 25;
+}  // namespace
+
+double eval_seconds(const FrameCost& c, const EvalCounts& n) {
+  const double k = c.content, s = c.style2d;
+  // eval-style: each view's content once; per style ours, AdaIN's and their losses.
+  const double style_eval = n.eval_views * (k + n.holdout * 3.0 * s);
+  // videos: each frame's content once, then each shown style.
+  const double videos = n.video_frames * (k + n.shown * s);
+  const double mix = k + kMixCells * s;
+  // table: the content of its frames once (eval table shares it between styles); per style our frames
+  // and AdaIN's, and LPIPS pairs for both (t-1 and t-7); the RGB floor's frames and pairs.
+  const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
+  const double table = n.table_frames * k + n.shown * (2.0 * n.table_frames * s + 2.0 * pairs * 2.0 * s) +
+                       n.table_frames * s + pairs * 2.0 * s;
+  return style_eval + videos + mix + table + 4 * kStartupPerStep;
+}
+
+EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds) {
+  EvalCounts n = wanted;
+  auto fits = [&] { return eval_seconds(c, n) <= seconds; };
+  while (!fits() && n.video_frames > std::min(24, wanted.video_frames)) --n.video_frames;
+  while (!fits() && n.shown > 1) --n.shown;
+  while (!fits() && n.video_frames > std::min(8, wanted.video_frames)) --n.video_frames;
+  return n;
+}
+
+std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got) {
+  std::string s;
+  if (got.video_frames < wanted.video_frames)
+    s += "video frames " + std::to_string(wanted.video_frames) + " -> " + std::to_string(got.video_frames);
+  if (got.shown < wanted.shown)
+    s += std::string(s.empty() ? "" : ", ") + "styles shown " + std::to_string(wanted.shown) + " -> " +
+         std::to_string(got.shown);
+  return s;
+}
+
+}  // namespace stylerf::eval

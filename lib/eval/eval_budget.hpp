@@ -1,0 +1,47 @@
+// How `stylerf run --minutes M` keeps to M (lib/eval so that tests and research code reach it): what its evaluation will cost, predicted from a measured
+// frame, and what it can keep when that does not fit.
+//
+// Evaluation cost grows with the image and the scene: 4 minutes for lego at 200x200, about 35 at 800x800,
+// and hours for fern at 1008x756 (a frame there is 40 s, 35 of them the style-independent content). A
+// fixed share of the budget cannot hold that, so the run measures, after the feature stage, what one
+// frame costs on this machine with this scene (a probe: a one-step style checkpoint and a 3-frame
+// stylize; the frame's cost does not depend on the trained weights' values), predicts the evaluation
+// from the counts below, gives the style stage what is left, and shrinks the counts when the evaluation
+// would take more than its share.
+#pragma once
+#include <string>
+
+namespace stylerf::eval {
+
+// Measured costs on this machine and scene, in seconds.
+struct FrameCost {
+  double content = 0;  // one frame's content (SICT output, opacity, depth) at the recipe's rays per block
+  double style2d = 0;  // one style's DST and decoder on it, at the frame's size
+};
+
+// What the evaluation renders.
+struct EvalCounts {
+  int eval_views = 5;     // eval-style's test views
+  int holdout = 12;       // held-out styles eval-style scores on each
+  int video_frames = 60;  // frames of each video
+  int shown = 3;          // styles with a video and a consistency row
+  int table_frames = 16;  // frames the consistency table scores
+};
+
+// Predicted seconds of the evaluation steps after the style stage (eval-style, videos, mix sheet,
+// consistency table), from the frame's costs. What a step does beyond frames is counted in frames of
+// the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about a style2d, plus a
+// start-up allowance per step (loading weights, the scene, encoding styles). Lego 1/4's 60-minute run
+// (content 0.77 s, style2d 0.12 s) took 221 s for these steps; this predicts 216 s for them (with the
+// table rendering content per style, as it then did).
+double eval_seconds(const FrameCost& c, const EvalCounts& n);
+
+// The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
+// then fewer shown styles (down to 1), then fewer video frames (down to 8). The table keeps its frames
+// (its long range needs t - 7) and eval-style its views. The result may still not fit: the caller says so.
+EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds);
+
+// One line naming what was cut from `wanted` to get `got` ("" when nothing was).
+std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got);
+
+}  // namespace stylerf::eval

@@ -1,0 +1,61 @@
+// The evaluation budget of `stylerf run` (lib/eval/eval_budget.hpp): the predicted seconds against a hand
+// count, each count raising them, and what fit_eval cuts, in its order, when the evaluation does not fit.
+#include <doctest/doctest.h>
+
+#include "lib/eval/eval_budget.hpp"
+
+using namespace stylerf::eval;
+
+TEST_CASE("eval budget: predicted seconds follow the frames each step renders") {
+  const FrameCost c{2.0, 0.5};
+  EvalCounts n;
+  n.eval_views = 1, n.holdout = 2, n.video_frames = 10, n.shown = 1, n.table_frames = 8;
+  // eval-style 1 x (2 + 2 x 3 x 0.5) = 5; videos 10 x (2 + 0.5) = 25; mix 2 + 25 x 0.5 = 14.5;
+  // table: pairs 7 + 1 = 8; 8 x 2 + 1 x (2 x 8 x 0.5 + 2 x 8 x 2 x 0.5) + 8 x 0.5 + 8 x 2 x 0.5 = 16 + 24 + 4 + 8
+  // = 52; start-up 4 x 8 = 32.
+  CHECK(eval_seconds(c, n) == doctest::Approx(5 + 25 + 14.5 + 52 + 32));
+  const double base = eval_seconds(c, n);
+  for (int which = 0; which < 5; ++which) {
+    CAPTURE(which);
+    EvalCounts m = n;
+    int* counts[] = {&m.eval_views, &m.holdout, &m.video_frames, &m.shown, &m.table_frames};
+    *counts[which] += 1;
+    CHECK(eval_seconds(c, m) > base);
+  }
+  CHECK(eval_seconds({4.0, 0.5}, n) > base);  // dearer content
+  CHECK(eval_seconds({2.0, 1.0}, n) > base);  // dearer 2D work
+}
+
+TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then frames to 8") {
+  const FrameCost c{10.0, 1.0};  // content-bound, like fern at 1008x756
+  const EvalCounts wanted;       // 5 views x 12 styles, 3 videos of 60 frames, 16 table frames
+  const double full = eval_seconds(c, wanted);
+  CHECK(fit_eval(c, wanted, full).video_frames == wanted.video_frames);  // fits: unchanged
+  CHECK(describe_cuts(wanted, fit_eval(c, wanted, full)).empty());
+
+  EvalCounts v24 = wanted;
+  v24.video_frames = 24;
+  const EvalCounts a = fit_eval(c, wanted, eval_seconds(c, v24) + 1.0);  // frames alone suffice
+  CHECK(a.shown == wanted.shown);
+  CHECK(a.video_frames >= 24);
+  CHECK(a.video_frames < wanted.video_frames);
+  CHECK(eval_seconds(c, a) <= eval_seconds(c, v24) + 1.0);
+
+  EvalCounts one = v24;
+  one.shown = 1;
+  const EvalCounts b = fit_eval(c, wanted, eval_seconds(c, one));  // styles go next, at 24 frames
+  CHECK(b.shown == 1);
+  CHECK(b.video_frames == 24);
+  CHECK(describe_cuts(wanted, b) == "video frames 60 -> 24, styles shown 3 -> 1");
+
+  const EvalCounts d = fit_eval(c, wanted, 1.0);  // nothing fits: the floor of every cut, never below
+  CHECK(d.shown == 1);
+  CHECK(d.video_frames == 8);
+  CHECK(d.table_frames == wanted.table_frames);
+  CHECK(d.eval_views == wanted.eval_views);
+  CHECK(eval_seconds(c, d) > 1.0);  // still over: the caller reports it
+
+  EvalCounts few = wanted;
+  few.video_frames = 6;  // a user's own small count is not raised
+  CHECK(fit_eval(c, few, 1.0).video_frames == 6);
+}
