@@ -111,7 +111,10 @@ TEST_CASE("run --minutes: the style stage planned from a measured frame, the sam
   const auto steps = testing::read_json(out / "steps.json");
   CHECK(steps.contains("probe_style"));
   CHECK(steps.contains("probe_frames"));
-  CHECK(fs::exists(out / "summary.json"));
+  const auto summary = testing::read_json(out / "summary.json");
+  REQUIRE(summary.contains("plan"));
+  CHECK(summary["plan"]["frame_content_s"].get<double>() > 0);
+  CHECK(summary["plan"]["style_minutes"].get<double>() > 0);
 
   // Resumed: the recorded seconds give the same plan, so the style stage keeps its key and nothing runs.
   r = testing::run_cli(cmd);

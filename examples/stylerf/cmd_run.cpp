@@ -285,10 +285,17 @@ int run_pipeline(int argc, char** argv) {
   counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
   const bool by_minutes = budget.iters.empty() && o.stage_minutes.empty();
   double style_minutes = budget.style;
+  eval::FrameCost cost;
+  nlohmann::json plan_json;  // for summary.json
   if (by_minutes) {
-    const eval::FrameCost cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent);
+    cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent);
     const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style);
     style_minutes = plan.style_minutes;
+    plan_json = {{"frame_content_s", cost.content},
+                 {"frame_style_s", cost.style2d},
+                 {"predicted_eval_s", kEvalMargin * eval::eval_seconds(cost, plan.counts)},
+                 {"style_minutes", style_minutes},
+                 {"cuts", eval::describe_cuts(counts, plan.counts)}};
     counts = plan.counts;
   }
   std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
@@ -297,10 +304,26 @@ int run_pipeline(int argc, char** argv) {
   auto s = steps.run("style", style, s_ck, f.key + styles_fp);
 
   const std::string upstream = s.key + d.key;
-  steps.run("style_eval",
-                      args(o, "eval-style", "--ckpt", s_ck, "--views", std::to_string(o.eval_views), "--images",
-                           (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
-                      (out / "style_eval.json").string(), upstream);
+  const double eval_style_s =
+      steps.run("style_eval",
+                args(o, "eval-style", "--ckpt", s_ck, "--views", std::to_string(o.eval_views), "--images",
+                     (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
+                (out / "style_eval.json").string(), upstream)
+          .seconds;
+  if (by_minutes) {
+    // The style stage and eval-style may have run past their plan: what is left now sizes the rest.
+    const double left = o.minutes * 60.0 - (spent + s.seconds + eval_style_s);
+    eval::EvalCounts rest = counts;
+    rest.eval_views = 0;  // done
+    const eval::EvalCounts fitted = eval::fit_eval(cost, rest, left / kEvalMargin);
+    const std::string cuts = eval::describe_cuts(rest, fitted);
+    if (!cuts.empty()) {
+      std::cout << "stylerf run: " << std::fixed << std::setprecision(1) << left / 60.0
+                << " min left for the videos, mix sheet and table: " << cuts << std::endl;
+      plan_json["late_cuts"] = cuts;
+    }
+    counts.video_frames = fitted.video_frames, counts.shown = fitted.shown;
+  }
   const std::vector<std::string> shown_now(shown.begin(), shown.begin() + counts.shown);
   std::vector<std::string> vid = args(o, "stylize", "--ckpt", s_ck, "--views", "path", "--frames",
                                       std::to_string(counts.video_frames), "--no-losses", "-o", (out / "videos").string());
@@ -324,6 +347,7 @@ int run_pipeline(int argc, char** argv) {
   in.minutes = !budget.iters.empty() ? 0.0 : o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
   in.steps = steps.record();
   in.shown_styles = shown_now;
+  in.plan = plan_json;
   in.corners = corners;
   const RunSummary summary = write_run_report(in);
   print_run_summary(summary, std::cout);

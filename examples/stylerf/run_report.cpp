@@ -94,8 +94,8 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   h << "<h2>Stages</h2>\n<table><tr><th>step</th><th>seconds</th><th>peak memory (MB)</th><th>held-out PSNR "
        "(dB)</th></tr>\n";
   // In the order the steps run (the record is a JSON object, which keeps its keys sorted).
-  std::vector<std::string> order = {"density", "features", "style", "density_test", "features_test",
-                                    "style_eval", "videos", "mix", "consistency"};
+  std::vector<std::string> order = {"density", "features",   "density_test", "features_test", "probe_style",
+                                    "probe_frames", "style", "style_eval", "videos", "mix", "consistency"};
   for (const auto& [name, st] : in.steps.items())
     if (std::find(order.begin(), order.end(), name) == order.end()) order.push_back(name);
   for (const auto& name : order) {
@@ -107,7 +107,18 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
     h << "<tr><td style=\"text-align:left\">" << html_escape(name) << "</td><td>" << fmt(st.value("seconds", 0.0), 1)
       << "</td><td>" << fmt(st.value("peak_rss_mb", std::nan("")), 0) << "</td><td>" << psnr << "</td></tr>\n";
   }
-  h << "</table>\n<h2>Checks</h2>\n<table><tr><th>measure</th><th>value</th><th>limit</th><th></th></tr>\n";
+  h << "</table>\n";
+  if (in.plan.is_object()) {
+    h << "<p>Time plan: a frame of this scene costs " << fmt(number(in.plan, "frame_content_s"), 2)
+      << " s of content and " << fmt(number(in.plan, "frame_style_s"), 2) << " s a style here (probe_*); the "
+      << "evaluation was predicted at " << fmt(number(in.plan, "predicted_eval_s") / 60.0, 1)
+      << " min, the style stage given " << fmt(number(in.plan, "style_minutes"), 1) << " min.";
+    for (const char* k : {"cuts", "late_cuts"})
+      if (!in.plan.value(k, std::string()).empty())
+        h << " To fit the budget: " << html_escape(in.plan.value(k, std::string())) << ".";
+    h << "</p>\n";
+  }
+  h << "<h2>Checks</h2>\n<table><tr><th>measure</th><th>value</th><th>limit</th><th></th></tr>\n";
   for (const auto& c : sum["checks"])
     h << "<tr><td style=\"text-align:left\">" << html_escape(c.value("name", "")) << "</td><td>"
       << fmt(number(c, "value"), 4) << "</td><td>" << (c.value("at_most", true) ? "&le; " : "&ge; ")
@@ -162,6 +173,7 @@ RunSummary write_run_report(const RunReportInput& in, const RunLimits& limits) {
   j["scene"] = in.scene;
   j["training_minutes"] = in.minutes;
   j["steps"] = in.steps;
+  if (in.plan.is_object()) j["plan"] = in.plan;
   double total = 0;
   for (const auto& [name, st] : in.steps.items()) total += st.value("seconds", 0.0);
   j["total_seconds"] = total;

@@ -14,6 +14,8 @@ struct RunReportInput {
   nlohmann::json steps;                   // PipelineSteps::record(): seconds per step
   std::vector<std::string> shown_styles;  // the videos' and the consistency table's styles
   std::vector<std::string> corners;       // the mix sheet's four styles
+  nlohmann::json plan;                    // under --minutes: the measured frame, the predicted evaluation
+                                          // and what was cut to fit (null otherwise)
 };
 
 // The degeneracy limits `stylerf run --check` (and the demo) hold a run to: a stylizer that ignores its
