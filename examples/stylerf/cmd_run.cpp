@@ -190,11 +190,22 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
             args(o, "stylize", "--ckpt", p_ck, "--style", style, "--views", "path", "--frames", "3", "--no-losses",
                  "--cache", "none", "-o", p_dir),
             p_dir + "/metrics.json", p.key).seconds;
-  std::ifstream in(p_dir + "/metrics.json");
-  const auto timing = nlohmann::json::parse(in).at("timing");
+  const std::string metrics = p_dir + "/metrics.json";
   eval::FrameCost c;
-  c.content = timing.at("content_render_s_per_view").get<double>();
-  const double frame = 1.0 / std::max(1e-6, timing.at("frames_per_s_after_first").get<double>());
+  double fps = 0;
+  try {
+    std::ifstream in(metrics);
+    const auto timing = nlohmann::json::parse(in).at("timing");
+    c.content = timing.at("content_render_s_per_view").get<double>();
+    fps = timing.at("frames_per_s_after_first").get<double>();
+  } catch (const std::exception& e) {
+    throw Error(metrics + ": the frame probe's timing is unreadable (" + e.what() + "); delete " +
+                (out / "probe").string() + " to measure again");
+  }
+  if (!(c.content > 0) || !(fps > 0) || !std::isfinite(c.content) || !std::isfinite(fps))
+    throw Error(metrics + ": the frame probe measured no time (content " + num(c.content) + " s, " + num(fps) +
+                " frames/s); delete " + (out / "probe").string() + " to measure again");
+  const double frame = 1.0 / fps;
   c.style2d = std::max(frame - c.content, 0.1 * frame);
   return c;
 }
