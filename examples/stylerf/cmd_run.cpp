@@ -219,6 +219,8 @@ constexpr double kEvalMargin = 1.15;
 struct EvalPlan {
   double style_minutes = 0;
   eval::EvalCounts counts;
+  double predicted_eval_s = 0;  // with the margin
+  std::string cuts;             // what fit_eval cut ("" when nothing)
 };
 
 EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wanted, double minutes, double spent_s,
@@ -228,12 +230,13 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   const double share = std::max(left - nominal_style, 0.35 * left);
   plan.counts = eval::fit_eval(c, wanted, share / kEvalMargin);
   const double eval_s = kEvalMargin * eval::eval_seconds(c, plan.counts);
+  plan.predicted_eval_s = eval_s;
+  plan.cuts = eval::describe_cuts(wanted, plan.counts);
   plan.style_minutes = std::max(0.25 * nominal_style, left - eval_s) / 60.0;
   std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
             << " s of content + " << c.style2d << " s a style; evaluation predicted " << std::setprecision(1)
             << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min";
-  const std::string cuts = eval::describe_cuts(wanted, plan.counts);
-  if (!cuts.empty()) std::cout << " (to fit: " << cuts << ")";
+  if (!plan.cuts.empty()) std::cout << " (to fit: " << plan.cuts << ")";
   std::cout << std::endl;
   if (left - eval_s < 0.25 * nominal_style)
     std::cout << "stylerf run: warning: --minutes " << minutes << " is too short for this scene here; the run will "
@@ -281,10 +284,9 @@ int run_pipeline(int argc, char** argv) {
                                            "-o", f_ck);
   for (const auto& a : length(1, budget.features)) features.push_back(a);
   auto f = steps.run("features", features, f_ck, d.key);
-  // The held-out renders of the first two stages come first: the style stage's minutes are planned
-  // from the time spent so far.
-  // Seconds spent so far, a skipped step counting its recorded seconds: a resumed run plans the same
-  // style minutes, so the style step keeps its key.
+  // The held-out renders of the first two stages come before the style stage, whose minutes are planned
+  // from the seconds spent so far (a skipped step counts its recorded seconds, so a resumed run plans the
+  // same minutes and the style step keeps its key).
   double spent = d.seconds + f.seconds;
   spent += steps.run("density_test", args(o, "render", "--ckpt", d_ck, "--views", "test", "-o", (out / "density_test").string()),
             (out / "density_test/metrics.json").string(), d.key).seconds;
@@ -304,9 +306,9 @@ int run_pipeline(int argc, char** argv) {
     style_minutes = plan.style_minutes;
     plan_json = {{"frame_content_s", cost.content},
                  {"frame_style_s", cost.style2d},
-                 {"predicted_eval_s", kEvalMargin * eval::eval_seconds(cost, plan.counts)},
+                 {"predicted_eval_s", plan.predicted_eval_s},
                  {"style_minutes", style_minutes},
-                 {"cuts", eval::describe_cuts(counts, plan.counts)}};
+                 {"cuts", plan.cuts}};
     counts = plan.counts;
   }
   std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
