@@ -1,5 +1,6 @@
 // Perf mode of the spatial kernels of kernels/nn.cl (part of `stylerf bench ops`): relu, 2x2 max pool,
-// x2 upsample, im2col, col2im at the sizes StyleRF runs them (256x256 images); and of kernels/strided.cl
+// x2 upsample, the polyphase pool and its interleave, im2col, col2im at the sizes StyleRF runs them (256x256
+// images); and of kernels/strided.cl
 // at AlexNet LPIPS's sizes for a 256x256 image: 3x3 stride-2 max pool, the strided im2col / col2im of
 // conv1 (11x11/4/2) and conv2 (5x5/1/2), and the whole strided conv2d (im2col + GEMM) in GFLOP/s. The
 // kernels are memory-bound, so their figure is GB/s = (bytes read once + bytes written) / time; im2col
@@ -75,6 +76,24 @@ void bench_ops_spatial(const BenchOptions& opt) {
         best_of(reps, [&] { host::launch("nn", "upsample2x_forward", {h, nc}, x, y, s / 2, s / 2); }));
     row("upsample2x_backward", shape, 5 * b, best_of(reps, [&] { nn::upsample2x_backward(dy); }),
         best_of(reps, [&] { host::launch("nn", "upsample2x_backward", {h, nc}, dy, dx, s / 2, s / 2); }));
+  }
+  {  // the VGG tail's polyphase pool and the decoder's interleave at a 256x256 patch's relu3_1 size
+     // [1,256,s/4,s/4] -> [4,256,s/8,s/8] (decoder_phases), and [4,256,s/8,s/8] -> [1,256,s/4,s/4]
+    const int q = s / 4;
+    Tensor x = Tensor::full({1, 256, q, q}, 1.0f), dy = Tensor::full({4, 256, q / 2, q / 2}, 1.0f);
+    Tensor y = Tensor::zeros(dy.shape()), dx = Tensor::zeros(x.shape());
+    const double b = double(x.numel()) * 4;
+    const std::string shape = host::shape_str(x.shape());
+    const int nc = 256;
+    const size_t po = size_t(q / 2) * size_t(q / 2), pi = size_t(q) * size_t(q);
+    row("maxpool_phases_fwd", shape, 2 * b, best_of(reps, [&] { nn::maxpool2x2_phases_forward(x); }),
+        best_of(reps, [&] { host::launch("nn", "maxpool2x2_phases_forward", {po, size_t(4 * nc)}, x, y, nc, q, q); }));
+    row("maxpool_phases_bwd", shape, 3 * b, best_of(reps, [&] { nn::maxpool2x2_phases_backward(x, dy); }),
+        best_of(reps, [&] { host::launch("nn", "maxpool2x2_phases_backward", {pi, size_t(nc)}, x, dy, dx, nc, q, q); }));
+    row("phase_interleave_fwd", host::shape_str(y.shape()), 2 * b, best_of(reps, [&] { nn::phase_interleave_forward(y); }),
+        best_of(reps, [&] { host::launch("nn", "phase_interleave_forward", {pi, size_t(nc)}, y, dx, nc, q / 2, q / 2); }));
+    row("phase_interleave_bwd", shape, 2 * b, best_of(reps, [&] { nn::phase_interleave_backward(x); }),
+        best_of(reps, [&] { host::launch("nn", "phase_interleave_backward", {po, size_t(4 * nc)}, x, y, nc, q / 2, q / 2); }));
   }
   // im2col / col2im of VGG conv1_2 (64 channels at s x s, 3x3 reflect): col is [576, s*s]; and of the
   // decoder's 256-channel layer at s/2 (col [2304, s*s/4]).

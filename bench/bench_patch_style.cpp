@@ -92,6 +92,8 @@ int bench_patch_style(const BenchOptions& opt) {
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
                                                   style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
   const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
+  if (opt.decoder_phases && !vgg_adain) throw Error("bench patch: --decoder-phases needs a vgg-adain decoder");
+  m.decoder_phases = opt.decoder_phases;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
   int w = 0, h = 0;
@@ -109,7 +111,8 @@ int bench_patch_style(const BenchOptions& opt) {
   std::cout << "device: " << rt.device().describe() << "\n"
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
             << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
-            << (vgg_adain ? "vgg-adain: VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
+            << (vgg_adain ? std::string(m.decoder_phases ? "vgg-adain, pool at 4 phases: " : "vgg-adain: ") +
+                                "VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
                           : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
             << " after a warm-up step\n";
   const char* names[] = {"render fwd", "field fwd",  "SICT fwd",     "DST fwd",      "decoder fwd", "VGG fwd",
@@ -177,9 +180,13 @@ int bench_patch_style(const BenchOptions& opt) {
   }
   // vgg-adain: the tail's convs at the map's size (three 256 -> 256) and half of it (conv4_1), then AdaIN's
   // decoder from half the map's size; the frozen tail's backward computes d input only (1x its forward,
-  // against 2x for a trained stack).
-  const double tail = vgg_adain ? 2.0 * 9.0 * (3.0 * 256 * 256 * h * w + 256.0 * 512 * (h / 2) * (w / 2)) : 0.0;
-  const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) : stack_flops(m.features.decoder, h, w);
+  // against 2x for a trained stack). With the pool's four phases, conv4_1 and the decoder's first conv
+  // run four times.
+  const double phases = m.decoder_phases ? 4.0 : 1.0;
+  const double first = 2.0 * 9.0 * 512 * 256 * (h / 2) * (w / 2);
+  const double tail = vgg_adain ? 2.0 * 9.0 * (3.0 * 256 * 256 * h * w + phases * 256.0 * 512 * (h / 2) * (w / 2)) : 0.0;
+  const double stack = vgg_adain ? stack_flops(m.style_decoder, h / 2, w / 2) + (phases - 1) * first
+                                 : stack_flops(m.features.decoder, h, w);
   const double dec = tail + stack, dec_bwd = tail + 2 * stack;
   const double vg = 2 * vgg_flops(S) + vgg_flops(256);  // true + stylised patch, the style image
   // SICT per point, on the F grid components (Sict::forward_factored): the covariance 2 F^2, q/k/v 2 F 96,
@@ -212,6 +219,7 @@ int bench_patch_style(const BenchOptions& opt) {
   if (!opt.json_path.empty()) {
     nlohmann::json j = {{"bench", "patch"}, {"stage", 3}, {"profile", model::decoder_profile_name(profile)},
                         {"style_decoder", model::style_decoder_name(decoder_kind)},
+                        {"decoder_phases", m.decoder_phases},
                         {"size", S}, {"rays", R}, {"samples", samples}, {"kept", kept},
                         {"geometry", st.source}, {"device", rt.device().describe()}, {"repeats", repeats},
                         {"step_seconds", best_total / 1e3}, {"parts", rows}};

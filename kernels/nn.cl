@@ -312,3 +312,71 @@ __kernel void upsample2x_backward(__global const float* dy, __global float* dx, 
   }
   for (; ix < W; ++ix) dst[ix] = (g0[2 * ix] + g0[2 * ix + 1]) + (g1[2 * ix] + g1[2 * ix + 1]);
 }
+
+// ---- polyphase ("a trous") 2x2 max pooling and its interleave --------------------------------------
+// A stride-2 pool fixes a 2-pixel grid to the image; its four phases, one per offset (a, b) in {0,1}^2,
+// together are a stride-1 pool. Stacked as batch blocks (block 2a + b holds phase (a, b)), the layers
+// after the pool run on each phase as on an ordinary image, and phase_interleave puts the phases back
+// side by side, where a nearest upsampling would have repeated one of them. The result moves with its
+// input by one pixel of the pooled-from map instead of two (lib/nn/ops.hpp).
+
+// y[(2a+b)*N + n, c, i, j] = max over r, s in {0,1} of x[n, c, min(2i+a+r, H-1), min(2j+b+s, W-1)].
+// Global: (Ho * Wo, 4 * N * C), H and W even.
+__kernel void maxpool2x2_phases_forward(__global const float* x, __global float* y, int NC, int H, int W) {
+  const int idx = get_global_id(0);
+  const int pc = get_global_id(1);
+  const int Ho = H / 2, Wo = W / 2;
+  if (idx >= Ho * Wo) return;
+  const int phase = pc / NC, nc = pc - phase * NC;
+  const int y0 = 2 * (idx / Wo) + (phase >> 1), x0 = 2 * (idx % Wo) + (phase & 1);
+  const int y1 = min(y0 + 1, H - 1), x1 = min(x0 + 1, W - 1);
+  __global const float* p = x + (long)nc * H * W;
+  y[(long)pc * Ho * Wo + idx] = fmax(fmax(p[y0 * W + x0], p[y0 * W + x1]), fmax(p[y1 * W + x0], p[y1 * W + x1]));
+}
+
+// dx[n, c, y, x] = the sum of dy over the windows whose first maximum (order (0,0), (0,1), (1,0), (1,1),
+// as maxpool2x2_backward) is (y, x). A pixel lies in the windows starting at (y-1|y, x-1|x); a clamped
+// window at the last row / column counts its repeated pixel once. Every dx element is written.
+// Global: (H * W, N * C).
+__kernel void maxpool2x2_phases_backward(__global const float* x, __global const float* dy, __global float* dx,
+                                         int NC, int H, int W) {
+  const int idx = get_global_id(0);
+  const int nc = get_global_id(1);
+  if (idx >= H * W) return;
+  const int py = idx / W, px = idx - py * W;
+  const int Ho = H / 2, Wo = W / 2;
+  __global const float* p = x + (long)nc * H * W;
+  float sum = 0.0f;
+  for (int oy = max(py - 1, 0); oy <= py; ++oy)
+    for (int ox = max(px - 1, 0); ox <= px; ++ox) {
+      const int y1 = min(oy + 1, H - 1), x1 = min(ox + 1, W - 1);
+      const float v00 = p[oy * W + ox], v01 = p[oy * W + x1], v10 = p[y1 * W + ox], v11 = p[y1 * W + x1];
+      const float m = fmax(fmax(v00, v01), fmax(v10, v11));
+      const int ay = (v00 == m || v01 == m) ? oy : y1;
+      const int ax = v00 == m ? ox : v01 == m ? x1 : v10 == m ? ox : x1;
+      if (ay != py || ax != px) continue;
+      const int phase = (oy & 1) * 2 + (ox & 1);
+      sum += dy[((long)phase * NC + nc) * Ho * Wo + (oy >> 1) * Wo + (ox >> 1)];
+    }
+  dx[(long)nc * H * W + idx] = sum;
+}
+
+// y[n, c, 2i+a, 2j+b] = x[(2a+b)*N + n, c, i, j]: x [4N, C, h, w] -> y [N, C, 2h, 2w]. Global: (4hw, N*C).
+__kernel void phase_interleave_forward(__global const float* x, __global float* y, int NC, int h, int w) {
+  const int idx = get_global_id(0);
+  const int nc = get_global_id(1);
+  if (idx >= 4 * h * w) return;
+  const int Y = idx / (2 * w), X = idx - Y * (2 * w);
+  const int phase = (Y & 1) * 2 + (X & 1);
+  y[(long)nc * 4 * h * w + idx] = x[((long)phase * NC + nc) * h * w + (Y >> 1) * w + (X >> 1)];
+}
+
+// Its transpose (a permutation): dx[(2a+b)*N + n, c, i, j] = dy[n, c, 2i+a, 2j+b]. Global: (hw, 4*N*C).
+__kernel void phase_interleave_backward(__global const float* dy, __global float* dx, int NC, int h, int w) {
+  const int idx = get_global_id(0);
+  const int pc = get_global_id(1);
+  if (idx >= h * w) return;
+  const int phase = pc / NC, nc = pc - phase * NC;
+  const int Y = 2 * (idx / w) + (phase >> 1), X = 2 * (idx % w) + (phase & 1);
+  dx[(long)pc * h * w + idx] = dy[(long)nc * 4 * h * w + Y * 2 * w + X];
+}

@@ -69,4 +69,27 @@ inline RefTensor ref_pool(const RefTensor& x) {
   return y;
 }
 
+// The stride-2 pool of x moved by (a, b) (a, b in {0,1}), windows past the last row / column repeating
+// it: phase 2a + b of nn::maxpool2x2_phases_forward. H and W even.
+inline RefTensor ref_pool_phase(const RefTensor& x, int a, int b) {
+  RefTensor y{x.C, x.H / 2, x.W / 2, std::vector<double>(size_t(x.C) * (x.H / 2) * (x.W / 2))};
+  for (int c = 0; c < x.C; ++c)
+    for (int yy = 0; yy < y.H; ++yy)
+      for (int xx = 0; xx < y.W; ++xx) {
+        const int y0 = 2 * yy + a, x0 = 2 * xx + b, y1 = std::min(y0 + 1, x.H - 1), x1 = std::min(x0 + 1, x.W - 1);
+        y.at(c, yy, xx) = std::max(std::max(x.at(c, y0, x0), x.at(c, y0, x1)), std::max(x.at(c, y1, x0), x.at(c, y1, x1)));
+      }
+  return y;
+}
+
+// Four phase images (index 2a + b) side by side: y(c, 2i + a, 2j + b) = phase[2a + b](c, i, j).
+inline RefTensor ref_interleave(const std::vector<RefTensor>& ph) {
+  const RefTensor& p0 = ph[0];
+  RefTensor y{p0.C, 2 * p0.H, 2 * p0.W, std::vector<double>(p0.v.size() * 4)};
+  for (int c = 0; c < y.C; ++c)
+    for (int yy = 0; yy < y.H; ++yy)
+      for (int xx = 0; xx < y.W; ++xx) y.at(c, yy, xx) = ph[size_t((yy % 2) * 2 + xx % 2)].at(c, yy / 2, xx / 2);
+  return y;
+}
+
 }  // namespace stylerf::testing

@@ -135,6 +135,35 @@ void check_stack(const ConvStackSpec& spec, int H, int W, uint64_t seed) {
   }
 }
 
+// The stack fed the four grid phases of one map (forward's phase_input), in double: each phase through
+// the layers up to the first upsampling, interleaved there (testing::ref_interleave), then the rest.
+RefTensor ref_stack_phases(const ConvStackSpec& spec, const RefParams& p, std::vector<RefTensor> ph) {
+  const size_t n = spec.channels.size() - 1;
+  size_t i = 0;
+  bool interleaved = false;
+  for (; i < n && !interleaved; ++i) {
+    for (RefTensor& x : ph) {
+      x = testing::ref_conv(x, p.w[i], p.b[i], spec.channels[i + 1], 3, spec.pad == Padding::Reflect);
+      if (i + 1 < n) testing::ref_relu(x);
+    }
+    interleaved = spec.upsample_after[i];
+  }
+  RefTensor x = testing::ref_interleave(ph);
+  for (; i < n; ++i) {
+    x = testing::ref_conv(x, p.w[i], p.b[i], spec.channels[i + 1], 3, spec.pad == Padding::Reflect);
+    if (i + 1 < n) testing::ref_relu(x);
+    if (spec.upsample_after[i]) x = testing::ref_upsample(x);
+  }
+  return x;
+}
+
+std::vector<RefTensor> split_phases(const std::vector<double>& v, int C, int H, int W) {
+  std::vector<RefTensor> ph;
+  const size_t n = size_t(C) * H * W;
+  for (size_t k = 0; k < 4; ++k) ph.push_back({C, H, W, std::vector<double>(v.begin() + long(k * n), v.begin() + long((k + 1) * n))});
+  return ph;
+}
+
 std::vector<float> host_of(const Tensor& t) { return t.to_host(); }
 
 }  // namespace
@@ -385,4 +414,80 @@ TEST_CASE("decoders: AdaIN's decoder is bit-identical to the previous op chain; 
   // The copy is not shared: re-initialising the fast decoder leaves AdaIN's weights alone.
   fast.init_he(1);
   CHECK(adain.layers()[1].w.value.to_host() == st.get("5.weight").data);
+}
+
+TEST_CASE("conv stack: phase input interleaves at the first upsampling; forward and backward against the reference") {
+  // Upsamplings after convs 1 and 2: the first interleaves the phases, the second repeats as always.
+  const ConvStackSpec spec = spec_of({3, 4, 4, 2}, {true, true, false}, Padding::Reflect);
+  const int H = 3, W = 4, cin = 3;
+  ConvStack s(spec, 80);
+  for (nn::Param* q : s.params())
+    if (q->name.size() > 5 && q->name.compare(q->name.size() - 5, 5, ".bias") == 0)
+      q->value.upload(testing::random_normal(size_t(q->value.numel()), 87, 0.2f));
+  const RefParams p = params_of(s);
+  auto x = testing::random_normal(size_t(4 * cin * H * W), 81);
+  ConvStack::Ctx ctx;
+  Tensor y = s.forward(Tensor::from_host(x, {4, cin, H, W}), &ctx, /*phase_input=*/true);
+  const RefTensor yr = ref_stack_phases(spec, p, split_phases(to_double(x), cin, H, W));
+  REQUIRE(y.shape() == host::Shape{1, yr.C, yr.H, yr.W});
+  REQUIRE(yr.H == 4 * H);
+  check_close(y.to_host(), yr.v, 1e-4, 1e-4, "phase stack forward");
+
+  auto g = testing::random_normal(yr.v.size(), 82);
+  const auto gd = to_double(g);
+  Tensor dx = s.backward(ctx, Tensor::from_host(g, y.shape()));
+  REQUIRE(dx.shape() == host::Shape{4, cin, H, W});
+  auto loss_x = [&](const std::vector<double>& v) {
+    return testing::dot(gd, ref_stack_phases(spec, p, split_phases(v, cin, H, W)).v);
+  };
+  check_close(dx.to_host(), testing::finite_difference(loss_x, to_double(x), 1e-5), 1e-4, 1e-4, "phase stack dx");
+  // The first conv runs on all four phases: its weight gradient sums them.
+  auto idx = std::vector<size_t>{0, p.w[0].size() / 2, p.w[0].size() - 1};
+  auto fw = testing::finite_difference_at(
+      [&](const std::vector<double>& v) {
+        RefParams q = p;
+        q.w[0] = v;
+        return testing::dot(gd, ref_stack_phases(spec, q, split_phases(to_double(x), cin, H, W)).v);
+      },
+      p.w[0], idx, 1e-5);
+  check_close(pick(s.layers()[0].w.grad.to_host(), idx), fw, 1e-4, 1e-4, "phase stack dw0");
+
+  CHECK(testing::error_of([&] { s.forward(Tensor::zeros({2, cin, H, W}), nullptr, true); }).find("4 phase blocks") !=
+        std::string::npos);
+}
+
+// What the vgg-adain decoder's lattice of strokes came from (docs/experiments.md), at toy size: VGG's
+// tail pools with stride 2, and AdaIN's decoder repeats each pooled pixel over 2 x 2, so the picture is
+// painted on a grid fixed to the image and a one-pixel move of the input changes it, not only moves it.
+// With the pool's four phases interleaved at the upsampling, a one-pixel move only moves it.
+TEST_CASE("phases: conv, pool, convs and an upsampling move with their input by one pixel; one phase does not") {
+  const int C = 3, H = 16, W = 32;
+  const auto w1 = testing::random_normal(size_t(4 * C * 9), 90, 0.3f), b1 = testing::random_normal(4, 91, 0.1f);
+  const Tensor tw1 = Tensor::from_host(w1, {4, C, 3, 3}), tb1 = Tensor::from_host(b1, {4});
+  const ConvStack stack(spec_of({4, 6, 5, 3}, {true, false, false}, Padding::Reflect), 92);
+  auto x0 = testing::random_normal(size_t(C * H * W), 93);
+  std::vector<float> x1(x0.size());  // x0 moved left by one pixel (the last column repeated)
+  for (int c = 0; c < C; ++c)
+    for (int yy = 0; yy < H; ++yy)
+      for (int xx = 0; xx < W; ++xx) x1[(size_t(c) * H + yy) * W + xx] = x0[(size_t(c) * H + yy) * W + std::min(xx + 1, W - 1)];
+  auto run = [&](const std::vector<float>& x, bool phases) {
+    Tensor h = nn::relu_forward(nn::conv2d_forward(Tensor::from_host(x, {1, C, H, W}), tw1, tb1, Padding::Reflect));
+    h = phases ? nn::maxpool2x2_phases_forward(h) : nn::maxpool2x2_forward(h);
+    return stack.forward(h, nullptr, phases).to_host();
+  };
+  // Output columns far enough from the borders that padding does not reach them (receptive field < 10 px).
+  auto moved_by_one = [&](bool phases) {
+    const auto y0 = run(x0, phases), y1 = run(x1, phases);
+    double worst = 0, scale = 0;
+    for (int c = 0; c < 3; ++c)
+      for (int yy = 0; yy < H; ++yy)
+        for (int xx = 10; xx < W - 11; ++xx) {
+          const size_t i = (size_t(c) * H + yy) * W + xx;
+          worst = std::max(worst, double(std::abs(y1[i] - y0[i + 1])));
+          scale = std::max(scale, double(std::abs(y0[i])));
+        }
+    return worst / scale;
+  };
+  CHECK(moved_by_one(true) < 1e-5);
+  CHECK(moved_by_one(false) > 0.05);
 }

@@ -203,3 +203,104 @@ TEST_CASE("spatial ops: bad shapes give clear errors") {
   e = error_of([] { nn::relu_backward(Tensor::zeros({1, 1, 2, 2}), Tensor::zeros({1, 1, 2, 3})); });
   CHECK(e.find("dy") != std::string::npos);
 }
+
+// ---- polyphase 2x2 max pooling and its interleave -------------------------------------------------
+namespace {
+// [N, C, H, W] -> [4N, C, H/2, W/2] in double: block 2a + b is the pool moved by (a, b).
+std::vector<double> ref_pool_phases(const std::vector<double>& x, int N, int C, int H, int W) {
+  const size_t plane = size_t(H / 2) * (W / 2);
+  std::vector<double> y(4 * size_t(N) * C * plane);
+  for (int ph = 0; ph < 4; ++ph)
+    for (int p = 0; p < N * C; ++p)
+      for (int i = 0; i < H / 2; ++i)
+        for (int j = 0; j < W / 2; ++j) {
+          const int y0 = 2 * i + ph / 2, x0 = 2 * j + ph % 2, y1 = std::min(y0 + 1, H - 1), x1 = std::min(x0 + 1, W - 1);
+          auto at = [&](int yy, int xx) { return x[(size_t(p) * H + yy) * W + xx]; };
+          y[(size_t(ph) * N * C + p) * plane + size_t(i) * (W / 2) + j] =
+              std::max(std::max(at(y0, x0), at(y0, x1)), std::max(at(y1, x0), at(y1, x1)));
+        }
+  return y;
+}
+}  // namespace
+
+TEST_CASE("maxpool2x2 phases: forward against a double reference, backward against finite differences") {
+  // 2 x 2 (every window of phases 1..3 is clamped), 4 x 6, 6 x 10 (interior windows that overlap).
+  const int sizes[][2] = {{2, 2}, {4, 6}, {6, 10}};
+  for (const auto& hw : sizes) {
+    const int N = 2, C = 3, H = hw[0], W = hw[1];
+    CAPTURE(H);
+    CAPTURE(W);
+    auto x = away_from_kinks(size_t(N) * C * H * W, 40 + W);
+    Tensor tx = Tensor::from_host(x, {N, C, H, W});
+    Tensor y = nn::maxpool2x2_phases_forward(tx);
+    REQUIRE(y.shape() == Shape{4 * N, C, H / 2, W / 2});
+    check_close(y.to_host(), ref_pool_phases(to_double(x), N, C, H, W), 0.0, 0.0, "phases forward (exact)");
+    // Phase (0, 0) is the ordinary stride-2 pool.
+    const auto yv = y.to_host();
+    const auto p0 = nn::maxpool2x2_forward(tx).to_host();
+    CHECK(std::equal(p0.begin(), p0.end(), yv.begin()));
+
+    auto g = testing::random_normal(yv.size(), 50 + W);
+    const auto gd = to_double(g);
+    Tensor dx = nn::maxpool2x2_phases_backward(tx, Tensor::from_host(g, y.shape()));
+    auto f = [&](const std::vector<double>& v) { return testing::dot(gd, ref_pool_phases(v, N, C, H, W)); };
+    check_close(dx.to_host(), testing::finite_difference(f, to_double(x), 1e-3), 1e-6, 1e-6, "phases backward");
+  }
+}
+
+TEST_CASE("maxpool2x2 phases: ties and clamped windows send each window's gradient to one element") {
+  // A constant input: every window's maximum is a tie; the sum of dy must arrive exactly once each.
+  const int H = 4, W = 6;
+  Tensor x = Tensor::full({1, 1, H, W}, -2.5f);
+  auto g = testing::random_normal(size_t(4 * (H / 2) * (W / 2)), 60);
+  auto dx = nn::maxpool2x2_phases_backward(x, Tensor::from_host(g, {4, 1, H / 2, W / 2})).to_host();
+  REQUIRE(testing::all_finite(dx));
+  double sg = 0, sd = 0;
+  for (float v : g) sg += v;
+  for (float v : dx) sd += v;
+  CHECK(sd == doctest::Approx(sg).epsilon(1e-6));
+  // First maximum in row-major order: a window at (oy, ox) gives all of its dy to (oy, ox), so every pixel
+  // gets exactly the dy of the window starting on it.
+  for (int oy = 0; oy < H; ++oy)
+    for (int ox = 0; ox < W; ++ox) {
+      const int ph = (oy % 2) * 2 + ox % 2;
+      CHECK(dx[size_t(oy * W + ox)] == g[size_t(ph * (H / 2) * (W / 2) + (oy / 2) * (W / 2) + ox / 2)]);
+    }
+  // Extreme magnitudes stay exact (max and a sum of at most 4 terms of one sign).
+  std::vector<float> big = {1e30f, -1e30f, 3e30f, 2e-30f, -1e-30f, 1e30f, 5e29f, -3e30f};
+  Tensor tb = Tensor::from_host(big, {1, 1, 2, 4});
+  check_close(nn::maxpool2x2_phases_forward(tb).to_host(), ref_pool_phases(to_double(big), 1, 1, 2, 4), 0.0, 0.0,
+              "phases extreme (exact)");
+  CHECK(testing::all_finite(nn::maxpool2x2_phases_backward(tb, Tensor::full({4, 1, 1, 2}, 1e37f)).to_host()));
+}
+
+TEST_CASE("phase interleave: a permutation whose backward is its transpose") {
+  const int N = 2, C = 3, h = 3, w = 5;
+  auto x = testing::random_normal(size_t(4 * N * C * h * w), 70);
+  Tensor y = nn::phase_interleave_forward(Tensor::from_host(x, {4 * N, C, h, w}));
+  REQUIRE(y.shape() == Shape{N, C, 2 * h, 2 * w});
+  const auto yv = y.to_host();
+  for (int n = 0; n < N; ++n)
+    for (int c = 0; c < C; ++c)
+      for (int yy = 0; yy < 2 * h; ++yy)
+        for (int xx = 0; xx < 2 * w; ++xx) {
+          const int ph = (yy % 2) * 2 + xx % 2;
+          CHECK(yv[((size_t(n) * C + c) * 2 * h + yy) * 2 * w + xx] ==
+                x[((size_t(ph) * N + n) * C + c) * h * w + size_t(yy / 2) * w + xx / 2]);
+        }
+  // The backward undoes the forward exactly, and <g, P x> = <P^T g, x>.
+  const auto back = nn::phase_interleave_backward(y).to_host();
+  CHECK(back == x);
+  auto g = testing::random_normal(yv.size(), 71);
+  const auto pg = nn::phase_interleave_backward(Tensor::from_host(g, y.shape())).to_host();
+  CHECK(testing::dot(to_double(g), to_double(yv)) == doctest::Approx(testing::dot(to_double(pg), to_double(x))));
+}
+
+TEST_CASE("polyphase ops refuse shapes they cannot take, naming them") {
+  CHECK(error_of([] { nn::maxpool2x2_phases_forward(Tensor::zeros({1, 2, 5, 4})); }).find("even") != std::string::npos);
+  CHECK(error_of([] { nn::maxpool2x2_phases_backward(Tensor::zeros({1, 2, 4, 4}), Tensor::zeros({1, 2, 2, 2})); })
+            .find("dy") != std::string::npos);
+  CHECK(error_of([] { nn::phase_interleave_forward(Tensor::zeros({6, 2, 3, 3})); }).find("[6, 2, 3, 3]") !=
+        std::string::npos);
+  CHECK(error_of([] { nn::phase_interleave_backward(Tensor::zeros({1, 2, 3, 4})); }).find("even") != std::string::npos);
+}

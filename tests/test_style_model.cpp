@@ -319,6 +319,71 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
   CHECK_THROWS_WITH_AS(model::parse_style_decoder("adain"), doctest::Contains("stage2, vgg-adain or vgg-adain-relu4"), host::Error);
 }
 
+// The stylised frames' lattice of strokes (docs/experiments.md): VGG's pool paints relu4_1 on a grid of
+// two map pixels fixed to the image, so a map moved by one pixel gave another picture, not the same one
+// moved. With the pool's four phases (decoder_phases) it gives the same one moved by the stride.
+TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the map by one map pixel; it trains and round-trips") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdain);
+  cfg.decoder_phases = true;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).decoder_phases);
+  {
+    auto j = cfg.to_json();
+    j.erase("decoder_phases");  // written before the option existed
+    CHECK_FALSE(train::StyleTrainConfig::from_json(j).decoder_phases);
+    auto bad = cfg;
+    bad.style_decoder = model::StyleDecoderKind::Stage2;
+    CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("decoder_phases"), host::Error);
+  }
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto& m = t.model();
+  REQUIRE(m.decoder_phases);
+  {
+    // A real image's relu3_1 (8 x 40), and the same moved left by one pixel (the last column repeated).
+    nn::VggEncoder vgg = nn::VggEncoder::load_default();
+    const auto full = vgg.forward(train::load_style_image(styles.train[0], 160, 160, nullptr), 3, false)[2].to_host();
+    const int C = 256, H = 8, W = 40, s = m.stride();
+    REQUIRE(full.size() == size_t(C) * W * W);
+    std::vector<float> x0(size_t(C) * H * W);
+    for (int c = 0; c < C; ++c)
+      std::copy_n(full.begin() + long(c) * W * W, H * W, x0.begin() + long(c) * H * W);
+    std::vector<float> x1(x0.size());
+    for (size_t p = 0; p < size_t(C) * H; ++p)
+      for (int xx = 0; xx < W; ++xx) x1[p * W + size_t(xx)] = x0[p * W + size_t(std::min(xx + 1, W - 1))];
+    // Image columns beyond the padding's reach (the tail and AdaIN's decoder see ~11 map pixels each way).
+    auto moved_by_stride = [&](bool phases) {
+      m.decoder_phases = phases;
+      const auto y0 = m.decode_map(Tensor::from_host(x0, {1, C, H, W}), nullptr, nullptr).to_host();
+      const auto y1 = m.decode_map(Tensor::from_host(x1, {1, C, H, W}), nullptr, nullptr).to_host();
+      const int HI = H * s, WI = W * s;
+      double worst = 0, scale = 0;
+      for (int c = 0; c < 3; ++c)
+        for (int yy = 0; yy < HI; ++yy)
+          for (int xx = 12 * s; xx < (W - 13) * s; ++xx) {
+            const size_t i = (size_t(c) * HI + size_t(yy)) * WI + size_t(xx);
+            worst = std::max(worst, double(std::abs(y1[i] - y0[i + size_t(s)])));
+            scale = std::max(scale, double(std::abs(y0[i])));
+          }
+      MESSAGE("decoder " << std::string(phases ? "with" : "without") << " phases: a map moved by one pixel changes the "
+                         << "picture moved back by " << worst / scale << " of its largest value");
+      return worst / scale;
+    };
+    CHECK(moved_by_stride(false) > 0.02);
+    CHECK(moved_by_stride(true) < 1e-3);  // float rounding of other tilings: ~1e-4
+    m.decoder_phases = true;
+  }
+  const auto dst0 = m.dst.fc_w.value.to_host();
+  while (!t.done()) CHECK(std::isfinite(t.step().style));
+  CHECK(m.dst.fc_w.value.to_host() != dst0);
+  const std::string path = (testing::small_work_dir() / "style_vgg_adain_phases.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  const auto ck = io::load_checkpoint(path, "style");
+  CHECK(ck.meta.at("style_model").at("decoder_phases") == true);
+  const auto loaded = model::StyleModel::load(ck);
+  CHECK(loaded.decoder_phases);
+  check_same_stylized_view(m, loaded, styles.holdout[0]);
+}
+
 TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style's; its gradient; it trains and round-trips") {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
   const auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdainRelu4);

@@ -61,8 +61,8 @@ class VggAdainMapDecoder : public MapDecoder {
                  StyleModel::DecoderCtx* ctx) const override {
     if (ctx && (map.dim(2) % 2 || map.dim(3) % 2))
       throw Error("style model: the vgg-adain decoder trains on maps with even sides, got " + host::shape_str(map.shape()));
-    const Tensor r41 = m.vgg_tail.forward(even_sides(map), ctx ? &ctx->tail : nullptr);
-    return m.style_decoder.forward(renormalise(r41, code, ctx), ctx ? &ctx->stack : nullptr);
+    const Tensor r41 = m.vgg_tail.forward(even_sides(map), ctx ? &ctx->tail : nullptr, m.decoder_phases);
+    return m.style_decoder.forward(renormalise(r41, code, ctx), ctx ? &ctx->stack : nullptr, m.decoder_phases);
   }
   Tensor backward(StyleModel& m, const StyleModel::DecoderCtx& ctx, const Tensor& drgb, bool need_dx) const override {
     // Without need_dx (the decoder warm-up) neither the stack's first col2im nor the tail runs.

@@ -388,7 +388,8 @@ void StyleModel::save(io::Checkpoint& ck) {
       {"sict", style::sict_mode_name(sict.mode)},
       {"dst_bias", dst.bias},
       {"decoder", style_decoder_name(decoder_kind())},
-      {"inference_supersample", inference_supersample}};
+      {"inference_supersample", inference_supersample},
+      {"decoder_phases", decoder_phases}};
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
@@ -399,12 +400,14 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   bool bias = true;
   StyleDecoderKind decoder = StyleDecoderKind::Stage2;
   int supersample = 1;
+  bool phases = false;
   try {
     const json& sm = ck.meta.at("style_model");
     mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
     bias = sm.at("dst_bias").get<bool>();
     decoder = parse_style_decoder(sm.value("decoder", std::string("stage2")));  // absent before the option existed
     supersample = sm.value("inference_supersample", 1);  // absent before recipes set it
+    phases = sm.value("decoder_phases", false);           // absent before the option existed
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
   } catch (const Error& e) {
@@ -418,6 +421,7 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
                 " is outside 1.." + std::to_string(kMaxSupersample));
   m.inference_supersample = supersample;
+  m.decoder_phases = phases;
   return m;
 }
 

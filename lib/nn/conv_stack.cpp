@@ -233,20 +233,29 @@ std::vector<std::pair<int64_t, int64_t>> layer_sizes(const std::vector<ConvStack
 }
 }  // namespace
 
-Tensor ConvStack::forward(const Tensor& x, Ctx* ctx) const {
+Tensor ConvStack::forward(const Tensor& x, Ctx* ctx, bool phase_input) const {
   if (empty()) throw Error(where() + "::forward: empty stack (no weights loaded)");
   if (!x.defined() || x.ndim() != 4 || x.dim(1) != in_channels() || x.numel() == 0)
     throw Error(where() + "::forward: input must be a non-empty [N, " + std::to_string(in_channels()) +
                 ", H, W], got " + (x.defined() ? host::shape_str(x.shape()) : std::string("an undefined tensor")));
+  if (phase_input && (x.dim(0) % 4 || upsamplings() == 0))
+    throw Error(where() + "::forward: phase input needs a batch of 4 phase blocks and an upsampling to "
+                          "interleave them, got " + host::shape_str(x.shape()) + " and " +
+                std::to_string(upsamplings()) + " upsamplings");
   layer_sizes(layers_, pad_, x.dim(2), x.dim(3), where() + "::forward");  // before any launch
-  if (ctx) *ctx = Ctx();
+  if (ctx) {
+    *ctx = Ctx();
+    ctx->phase_input = phase_input;
+  }
   Tensor h = x;
+  bool interleave = phase_input;
   for (const Layer& l : layers_) {
     if (ctx) ctx->inputs.push_back(h);
     h = conv2d_forward(h, l.w.value, l.b.value, pad_);
     if (l.relu) h = relu_forward(h);
     if (ctx) ctx->relu_out.push_back(l.relu ? h : Tensor());
-    if (l.upsample) h = upsample2x_forward(h);
+    if (l.upsample) h = interleave ? phase_interleave_forward(h) : upsample2x_forward(h);
+    if (l.upsample) interleave = false;
   }
   return h;
 }
@@ -259,11 +268,16 @@ Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx) {
                 " convs)");
   const Tensor& x = ctx.inputs[0];
   auto sizes = layer_sizes(layers_, pad_, x.dim(2), x.dim(3), op);
-  host::expect_shape(dy, {x.dim(0), out_channels(), sizes.back().first, sizes.back().second}, op.c_str(), "dy");
+  const int64_t n = ctx.phase_input ? x.dim(0) / 4 : x.dim(0);
+  host::expect_shape(dy, {n, out_channels(), sizes.back().first, sizes.back().second}, op.c_str(), "dy");
+  int first_upsample = -1;
+  for (int i = 0; i < int(layers_.size()) && first_upsample < 0; ++i)
+    if (layers_[size_t(i)].upsample) first_upsample = i;
   Tensor d = dy;
   for (int i = int(layers_.size()) - 1; i >= 0; --i) {
     Layer& l = layers_[i];
-    if (l.upsample) d = upsample2x_backward(d);
+    if (l.upsample)
+      d = ctx.phase_input && i == first_upsample ? phase_interleave_backward(d) : upsample2x_backward(d);
     if (l.relu) d = relu_backward(ctx.relu_out[i], d);
     Conv2dGrads g = conv2d_backward(ctx.inputs[i], l.w.value, d, pad_, /*need_dx=*/i > 0 || need_dx,
                                     /*need_params=*/true);

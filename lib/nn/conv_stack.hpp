@@ -50,6 +50,7 @@ class ConvStack : public Module {
   struct Ctx {
     std::vector<Tensor> inputs;    // each conv's input
     std::vector<Tensor> relu_out;  // each conv's ReLU output (undefined for the last conv)
+    bool phase_input = false;      // forward's
   };
 
   ConvStack() = default;
@@ -80,7 +81,11 @@ class ConvStack : public Module {
   // x [N, Cin, H, W] -> [N, Cout, H * 2^u, W * 2^u]. Checks every layer's input size before launching
   // anything: a reflect-padded conv needs H, W >= 2 (PyTorch's ReflectionPad2d(1) refuses a 1-pixel
   // side too), so a 1x1 input is an Error naming the layer; zero padding takes any size.
-  Tensor forward(const Tensor& x, Ctx* ctx = nullptr) const;
+  // phase_input: x holds the four grid phases of one map as batch blocks ([4N, Cin, H, W], from
+  // maxpool2x2_phases_forward and convs), and the first upsampling interleaves them instead
+  // (phase_interleave_forward): the output is [N, Cout, H * 2^u, W * 2^u]. An Error when the stack has no
+  // upsampling or the batch is not a multiple of 4.
+  Tensor forward(const Tensor& x, Ctx* ctx = nullptr, bool phase_input = false) const;
   // dy of forward's output -> dx (undefined when need_dx is false: the first conv skips its col2im).
   // Adds dW and db of every conv into the Params' grads.
   Tensor backward(const Ctx& ctx, const Tensor& dy, bool need_dx = true);

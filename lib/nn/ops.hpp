@@ -58,6 +58,19 @@ Tensor maxpool2x2_backward(const Tensor& x, const Tensor& dy);
 Tensor maxpool_forward(const Tensor& x, int k, int stride);
 Tensor maxpool_backward(const Tensor& x, const Tensor& dy, int k, int stride);
 
+// Polyphase ("a trous") 2x2 max pooling: the stride-2 pool at each of its four grid offsets, which
+// together are a stride-1 pool. x [N,C,H,W], H and W even -> [4N, C, H/2, W/2], batch block 2a + b the
+// pool moved by (a, b) (windows past the last row / column repeat it). Convs run on the phases as on any
+// batch; phase_interleave_forward then puts them side by side: [4N, C, h, w] -> [N, C, 2h, 2w], y[n, c,
+// 2i+a, 2j+b] = x[(2a+b)N + n, c, i, j], where a nearest upsampling of one phase would repeat it. A pool,
+// convs and an upsampling become a net that moves with its input by one pixel, not two: what keeps the
+// vgg-adain decoder from painting on a grid fixed to the image (lib/model/map_decoder.cpp).
+// Backward routes each window's dy to its first maximum (as maxpool2x2_backward), summed over windows.
+Tensor maxpool2x2_phases_forward(const Tensor& x);
+Tensor maxpool2x2_phases_backward(const Tensor& x, const Tensor& dy);
+Tensor phase_interleave_forward(const Tensor& x);
+Tensor phase_interleave_backward(const Tensor& dy);  // the transpose: [N, C, 2h, 2w] -> [4N, C, h, w]
+
 // Nearest-neighbour x2 upsampling; backward sums each 2x2 block.
 Tensor upsample2x_forward(const Tensor& x);
 Tensor upsample2x_backward(const Tensor& dy);

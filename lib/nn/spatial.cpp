@@ -119,6 +119,49 @@ Tensor maxpool_backward(const Tensor& x, const Tensor& dy, int k, int stride) {
   return dx;
 }
 
+// ---- polyphase 2x2 max pooling and its interleave -------------------------------------------------
+Tensor maxpool2x2_phases_forward(const Tensor& x) {
+  const Planes p = pool_planes(x, "maxpool2x2_phases_forward");
+  if (p.h % 2 || p.w % 2)
+    throw Error("maxpool2x2_phases_forward: H and W must be even, input is " + host::shape_str(x.shape()));
+  Tensor y({4 * x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_phases_forward output");
+  check_int_size(y, "maxpool2x2_phases_forward");
+  host::launch("nn", "maxpool2x2_phases_forward", {size_t(p.h / 2) * size_t(p.w / 2), 4 * size_t(p.nc)}, x, y,
+               p.nc, p.h, p.w);
+  return y;
+}
+
+Tensor maxpool2x2_phases_backward(const Tensor& x, const Tensor& dy) {
+  const Planes p = pool_planes(x, "maxpool2x2_phases_backward");
+  if (p.h % 2 || p.w % 2)
+    throw Error("maxpool2x2_phases_backward: H and W must be even, input is " + host::shape_str(x.shape()));
+  expect_shape(dy, {4 * x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_phases_backward", "dy");
+  Tensor dx(x.shape(), "maxpool2x2_phases_backward dx");
+  host::launch("nn", "maxpool2x2_phases_backward", {size_t(p.h) * size_t(p.w), size_t(p.nc)}, x, dy, dx, p.nc,
+               p.h, p.w);
+  return dx;
+}
+
+Tensor phase_interleave_forward(const Tensor& x) {
+  const Planes p = planes_of(x, "phase_interleave_forward");
+  if (x.dim(0) % 4)
+    throw Error("phase_interleave_forward: the batch must hold 4 phase blocks, got " + host::shape_str(x.shape()));
+  const int nc = p.nc / 4;
+  Tensor y({x.dim(0) / 4, x.dim(1), 2 * int64_t(p.h), 2 * int64_t(p.w)}, "phase_interleave_forward output");
+  host::launch("nn", "phase_interleave_forward", {4 * size_t(p.h) * size_t(p.w), size_t(nc)}, x, y, nc, p.h, p.w);
+  return y;
+}
+
+Tensor phase_interleave_backward(const Tensor& dy) {
+  const Planes p = planes_of(dy, "phase_interleave_backward");
+  if (p.h % 2 || p.w % 2)
+    throw Error("phase_interleave_backward: dy must have even H and W, got " + host::shape_str(dy.shape()));
+  Tensor dx({4 * dy.dim(0), dy.dim(1), p.h / 2, p.w / 2}, "phase_interleave_backward dx");
+  host::launch("nn", "phase_interleave_backward", {size_t(p.h / 2) * size_t(p.w / 2), 4 * size_t(p.nc)}, dy, dx,
+               p.nc, p.h / 2, p.w / 2);
+  return dx;
+}
+
 // ---- x2 nearest upsampling -----------------------------------------------------------------------
 Tensor upsample2x_forward(const Tensor& x) {
   const Planes p = planes_of(x, "upsample2x_forward");

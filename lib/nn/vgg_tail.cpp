@@ -19,7 +19,7 @@ VggTail::VggTail(const VggEncoder& vgg) {
   pad_ = vgg.padding();
 }
 
-Tensor VggTail::forward(const Tensor& x, Ctx* ctx) const {
+Tensor VggTail::forward(const Tensor& x, Ctx* ctx, bool phases) const {
   if (!loaded()) throw Error("VggTail::forward: no weights");
   const int64_t cin = convs_[0].w.dim(1);
   if (x.ndim() != 4 || x.dim(1) != cin || x.dim(2) < 2 || x.dim(3) < 2 || x.dim(2) % 2 || x.dim(3) % 2)
@@ -28,10 +28,11 @@ Tensor VggTail::forward(const Tensor& x, Ctx* ctx) const {
   if (ctx) {
     ctx->inputs.clear();
     ctx->outputs.clear();
+    ctx->phases = phases;
   }
   Tensor h = x;
   for (int i = 0; i < int(convs_.size()); ++i) {
-    if (i == kPoolBefore) h = maxpool2x2_forward(h);
+    if (i == kPoolBefore) h = phases ? maxpool2x2_phases_forward(h) : maxpool2x2_forward(h);
     if (ctx) ctx->inputs.push_back(h);
     h = relu_forward(conv2d_forward(h, convs_[size_t(i)].w, convs_[size_t(i)].b, pad_));
     if (ctx) ctx->outputs.push_back(h);
@@ -47,7 +48,10 @@ Tensor VggTail::backward(const Ctx& ctx, const Tensor& dy) const {
     const Tensor& in = ctx.inputs[size_t(i)];
     d = relu_backward(ctx.outputs[size_t(i)], d);
     d = conv2d_backward(in, convs_[size_t(i)].w, d, pad_, /*need_dx=*/true, /*need_params=*/false).dx;
-    if (i == kPoolBefore) d = maxpool2x2_backward(ctx.outputs[size_t(i) - 1], d);
+    if (i == kPoolBefore) {
+      const Tensor& pooled_from = ctx.outputs[size_t(i) - 1];
+      d = ctx.phases ? maxpool2x2_phases_backward(pooled_from, d) : maxpool2x2_backward(pooled_from, d);
+    }
   }
   return d;
 }

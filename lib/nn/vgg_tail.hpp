@@ -19,13 +19,16 @@ class VggTail {
   struct Ctx {
     std::vector<Tensor> inputs;  // each step's input
     std::vector<Tensor> outputs; // each step's output
+    bool phases = false;         // forward's
   };
   VggTail() = default;
   explicit VggTail(const VggEncoder& vgg);  // copies (shares) conv3_2 .. conv4_1 of a loaded encoder
   bool loaded() const { return !convs_.empty(); }
 
   // x [N, 256, H, W] relu3_1 features, H and W even and >= 2 -> relu4_1 [N, 512, H/2, W/2].
-  Tensor forward(const Tensor& x, Ctx* ctx = nullptr) const;
+  // phases: the pool's four grid offsets as batch blocks, [4N, 512, H/2, W/2] (maxpool2x2_phases_forward):
+  // relu4_1 at every relu3_1 pixel, for a decoder that interleaves them (ConvStack::forward's phase_input).
+  Tensor forward(const Tensor& x, Ctx* ctx = nullptr, bool phases = false) const;
   // d relu4_1 -> d relu3_1 (the weights are frozen: no parameter gradients).
   Tensor backward(const Ctx& ctx, const Tensor& dy) const;
 

@@ -31,7 +31,7 @@ using nlohmann::json;
 // ---- config and style sets --------------------------------------------------------------------------------
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
-      warm_start, decoder_warm, running_init_patches, inference_supersample, seed
+      warm_start, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -46,7 +46,7 @@ json StyleTrainConfig::to_json() const {
 StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
-  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}};
+  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -80,6 +80,9 @@ void StyleTrainConfig::validate() const {
   if (inference_supersample < 1 || inference_supersample > model::kMaxSupersample)
     throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) + ", got " +
                                                     std::to_string(inference_supersample));
+  if (decoder_phases && style_decoder == model::StyleDecoderKind::Stage2)
+    throw SettingError("decoder_phases", "needs a vgg-adain decoder (the phases are those of VGG's pool); the "
+                                         "stage2 decoder has none");
 }
 
 StyleSet StyleSet::from_dir(const std::string& dir, int holdout, std::ostream* log) {
@@ -142,6 +145,7 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
                              "feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   model_.inference_supersample = cfg_.inference_supersample;
+  model_.decoder_phases = cfg_.decoder_phases;
   init(log);
   init_running_stats(log);
 }
