@@ -15,8 +15,8 @@ struct BenchOptions {
   std::vector<std::string> parts;
   // bench patch only: a density or feature checkpoint whose geometry to render (empty: a synthetic
   // geometry where every sample counts), the stage, the decoder profile, the patch side, and (stage 3) the
-  // style decoder (stage2 | vgg-adain | vgg-adain-relu4) and whether its VGG pool runs at all four grid
-  // phases (the fast recipe's StyleModel::decoder_phases).
+  // style decoder (stage2 | vgg-adain | vgg-adain-relu4) and whether vgg-adain's VGG pool runs at all four
+  // grid phases (the fast recipe's StyleModel::decoder_phases).
   std::string ckpt, profile = "fast", style_decoder = "stage2";
   bool decoder_phases = false;
   int stage = 2, size = 256;

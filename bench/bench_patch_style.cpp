@@ -92,7 +92,8 @@ int bench_patch_style(const BenchOptions& opt) {
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
                                                   style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
   const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
-  if (opt.decoder_phases && !vgg_adain) throw Error("bench patch: --decoder-phases needs a vgg-adain decoder");
+  if (opt.decoder_phases && decoder_kind != model::StyleDecoderKind::VggAdain)
+    throw Error("bench patch: --decoder-phases needs --style-decoder vgg-adain");
   m.decoder_phases = opt.decoder_phases;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);

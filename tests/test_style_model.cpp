@@ -334,6 +334,8 @@ TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the ma
     auto bad = cfg;
     bad.style_decoder = model::StyleDecoderKind::Stage2;
     CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("decoder_phases"), host::Error);
+    bad.style_decoder = model::StyleDecoderKind::VggAdainRelu4;
+    CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("not vgg-adain-relu4"), host::Error);
   }
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto& m = t.model();

@@ -44,7 +44,7 @@ int run_bench(int argc, char** argv) {
       "style-decoder", po::value(&opt.style_decoder)->default_value("stage2"),
       "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain | vgg-adain-relu4 (train-style --style-decoder)")(
       "decoder-phases", po::bool_switch(&opt.decoder_phases),
-      "patch --stage 3, vgg-adain*: VGG's pool at all four grid phases (the fast recipe's)")(
+      "patch --stage 3 --style-decoder vgg-adain: VGG's pool at all four grid phases (the fast recipe's)")(
       "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
       "views", po::value(&opt.views)->default_value(3), "render: held-out views to render")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(

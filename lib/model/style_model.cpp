@@ -421,6 +421,9 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
                 " is outside 1.." + std::to_string(kMaxSupersample));
   m.inference_supersample = supersample;
+  if (phases && decoder != StyleDecoderKind::VggAdain)
+    throw Error("checkpoint " + ck.path + ": style_model.decoder_phases is set for the " +
+                style_decoder_name(decoder) + " decoder (only vgg-adain has them)");
   m.decoder_phases = phases;
   return m;
 }

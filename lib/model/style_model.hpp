@@ -75,7 +75,7 @@ class StyleModel : public nn::Module {
   // Content rays per feature-map block and axis that inference uses unless told otherwise (a recipe's
   // choice, saved in the checkpoint; 1: one ray per block centre, what training renders).
   int inference_supersample = 1;
-  // VggAdain*: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it
+  // VggAdain only: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it
   // would repeat one (nn::maxpool2x2_phases_forward). Its picture moves with the map by one map pixel; a
   // single offset paints from relu4_1 on a grid of two map pixels fixed to the image, which shows as a
   // lattice of strokes that changes as the camera moves (docs/experiments.md). Saved in the checkpoint.

@@ -64,7 +64,7 @@ struct StyleTrainConfig {
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   int inference_supersample = 1;  // saved with the model: the rays per block inference uses by default
-  bool decoder_phases = false;    // VggAdain*: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
+  bool decoder_phases = false;    // VggAdain: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
   uint64_t seed = 0;
   int finite_check_every = 50;
 
