@@ -175,10 +175,11 @@ Shown shown_styles(const RunOptions& o) {
 
 // The cost of one frame of this scene on this machine (eval_budget.hpp): a one-step style checkpoint (the
 // frame's cost does not depend on the weights' values) and 3 path frames of the first shown style.
-// `spent` gains the probe's seconds.
+// `spent` gains the probe's seconds; `style_fixed_s` gets the one-step run's, what a style stage costs
+// besides its training minutes (start-up, loading, the first and last held-out checks, the checkpoint).
 eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, const fs::path& out,
                                  const std::string& f_ck, const std::string& style, const std::string& key,
-                                 double& spent) {
+                                 double& spent, double& style_fixed_s) {
   const std::string p_ck = (out / "probe/style.ckpt").string(), p_dir = (out / "probe/frames").string();
   auto p = steps.run("probe_style",
                      args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
@@ -186,6 +187,7 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
                           "--force", "-o", p_ck),
                      p_ck, key);
   spent += p.seconds;
+  style_fixed_s = p.seconds;
   spent += steps.run("probe_frames",
             args(o, "stylize", "--ckpt", p_ck, "--style", style, "--views", "path", "--frames", "3", "--no-losses",
                  "--cache", "none", "-o", p_dir),
@@ -212,9 +214,14 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
 
 // Under --minutes: the style stage's minutes and the evaluation's counts, from the seconds spent so far
 // and the measured frame. The evaluation gets what the nominal split leaves it, or up to 35% of what is
-// left when that is more; the style stage gets the rest; the counts shrink (fit_eval) to the evaluation's
-// share. Predictions carry a 15% margin.
+// left when that is more; the style stage gets the rest, less its held-out checks and fixed seconds; the
+// counts shrink (fit_eval) to the evaluation's share. Predictions carry a 15% margin.
 constexpr double kEvalMargin = 1.15;
+// train-style's --minutes count its steps only; its held-out check every 100 steps comes on top, about as
+// long as 5 steps (lego 1/4: 4.3-5.2 s a check at ~1.0 s a step; horns 1/8: 5.1-6.6 s at ~1.1 s), so the
+// stage's wall time is its minutes x (1 + this) plus the fixed seconds the probe measured. Without it both
+// 90-minute runs' style stages ended 2.4-2.7 min past their plan, and the videos paid for it.
+constexpr double kHeldOutShare = 0.06;
 
 struct EvalPlan {
   double style_minutes = 0;
@@ -224,7 +231,7 @@ struct EvalPlan {
 };
 
 EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wanted, double minutes, double spent_s,
-                         double nominal_style_min) {
+                         double nominal_style_min, double style_fixed_s) {
   const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
   EvalPlan plan;
   const double share = std::max(left - nominal_style, 0.35 * left);
@@ -232,15 +239,16 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   const double eval_s = kEvalMargin * eval::eval_seconds(c, plan.counts);
   plan.predicted_eval_s = eval_s;
   plan.cuts = eval::describe_cuts(wanted, plan.counts);
-  plan.style_minutes = std::max(0.25 * nominal_style, left - eval_s) / 60.0;
+  const double style_train_s = (left - eval_s - style_fixed_s) / (1 + kHeldOutShare);
+  plan.style_minutes = std::max(0.25 * nominal_style, style_train_s) / 60.0;
   std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
             << " s of content + " << c.style2d << " s a style; evaluation predicted " << std::setprecision(1)
-            << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min";
+            << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min of training";
   if (!plan.cuts.empty()) std::cout << " (to fit: " << plan.cuts << ")";
   std::cout << std::endl;
-  if (left - eval_s < 0.25 * nominal_style)
+  if (style_train_s < 0.25 * nominal_style)
     std::cout << "stylerf run: warning: --minutes " << minutes << " is too short for this scene here; the run will "
-              << "end about " << std::setprecision(0) << (0.25 * nominal_style - (left - eval_s)) / 60.0
+              << "end about " << std::setprecision(0) << (0.25 * nominal_style - style_train_s) * (1 + kHeldOutShare) / 60.0
               << " min late" << std::endl;
   return plan;
 }
@@ -301,8 +309,9 @@ int run_pipeline(int argc, char** argv) {
   eval::FrameCost cost;
   nlohmann::json plan_json;  // for summary.json
   if (by_minutes) {
-    cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent);
-    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style);
+    double style_fixed_s = 0;
+    cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent, style_fixed_s);
+    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style, style_fixed_s);
     style_minutes = plan.style_minutes;
     plan_json = {{"frame_content_s", cost.content},
                  {"frame_style_s", cost.style2d},
