@@ -120,10 +120,18 @@ Tensor maxpool_backward(const Tensor& x, const Tensor& dy, int k, int stride) {
 }
 
 // ---- polyphase 2x2 max pooling and its interleave -------------------------------------------------
+namespace {
+// Every phase has the same H/2 x W/2 windows only when both sides are even.
+Planes even_planes(const Tensor& x, const char* op, const char* name) {
+  const Planes p = planes_of(x, op);
+  if (p.h % 2 || p.w % 2 || p.h < 2 || p.w < 2)
+    throw Error(std::string(op) + ": " + name + " must have even H and W >= 2, got " + host::shape_str(x.shape()));
+  return p;
+}
+}  // namespace
+
 Tensor maxpool2x2_phases_forward(const Tensor& x) {
-  const Planes p = pool_planes(x, "maxpool2x2_phases_forward");
-  if (p.h % 2 || p.w % 2)
-    throw Error("maxpool2x2_phases_forward: H and W must be even, input is " + host::shape_str(x.shape()));
+  const Planes p = even_planes(x, "maxpool2x2_phases_forward", "the input");
   Tensor y({4 * x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_phases_forward output");
   check_int_size(y, "maxpool2x2_phases_forward");
   host::launch("nn", "maxpool2x2_phases_forward", {size_t(p.h / 2) * size_t(p.w / 2), 4 * size_t(p.nc)}, x, y,
@@ -132,9 +140,7 @@ Tensor maxpool2x2_phases_forward(const Tensor& x) {
 }
 
 Tensor maxpool2x2_phases_backward(const Tensor& x, const Tensor& dy) {
-  const Planes p = pool_planes(x, "maxpool2x2_phases_backward");
-  if (p.h % 2 || p.w % 2)
-    throw Error("maxpool2x2_phases_backward: H and W must be even, input is " + host::shape_str(x.shape()));
+  const Planes p = even_planes(x, "maxpool2x2_phases_backward", "the input");
   expect_shape(dy, {4 * x.dim(0), x.dim(1), p.h / 2, p.w / 2}, "maxpool2x2_phases_backward", "dy");
   Tensor dx(x.shape(), "maxpool2x2_phases_backward dx");
   host::launch("nn", "maxpool2x2_phases_backward", {size_t(p.h) * size_t(p.w), size_t(p.nc)}, x, dy, dx, p.nc,
@@ -153,9 +159,7 @@ Tensor phase_interleave_forward(const Tensor& x) {
 }
 
 Tensor phase_interleave_backward(const Tensor& dy) {
-  const Planes p = planes_of(dy, "phase_interleave_backward");
-  if (p.h % 2 || p.w % 2)
-    throw Error("phase_interleave_backward: dy must have even H and W, got " + host::shape_str(dy.shape()));
+  const Planes p = even_planes(dy, "phase_interleave_backward", "dy");
   Tensor dx({4 * dy.dim(0), dy.dim(1), p.h / 2, p.w / 2}, "phase_interleave_backward dx");
   host::launch("nn", "phase_interleave_backward", {size_t(p.h / 2) * size_t(p.w / 2), 4 * size_t(p.nc)}, dy, dx,
                p.nc, p.h / 2, p.w / 2);
