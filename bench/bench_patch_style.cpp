@@ -21,6 +21,7 @@
 #include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "lib/io/checkpoint.hpp"
+#include "lib/model/map_decoder.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/nn/adam.hpp"
 #include "lib/nn/layout.hpp"
@@ -92,8 +93,8 @@ int bench_patch_style(const BenchOptions& opt) {
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
                                                   style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
   const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
-  if (opt.decoder_phases && decoder_kind != model::StyleDecoderKind::VggAdain)
-    throw Error("bench patch: --decoder-phases needs --style-decoder vgg-adain");
+  if (opt.decoder_phases && !model::map_decoder_for(decoder_kind).has_vgg_pool())
+    throw Error("bench patch: --decoder-phases needs --style-decoder vgg-adain or vgg-adain-relu4");
   m.decoder_phases = opt.decoder_phases;
   nn::VggEncoder vgg = nn::VggEncoder::load_default();
   nn::Adam adam({{"stylizer", 1e-4f}, {"decoder", 1e-5f}}, 0.9f, 0.99f);
@@ -112,7 +113,7 @@ int bench_patch_style(const BenchOptions& opt) {
   std::cout << "device: " << rt.device().describe() << "\n"
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
             << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
-            << (vgg_adain ? std::string(m.decoder_phases ? "vgg-adain, pool at 4 phases: " : "vgg-adain: ") +
+            << (vgg_adain ? std::string(model::style_decoder_name(decoder_kind)) + (m.decoder_phases ? ", pool at 4 phases: " : ": ") +
                                 "VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
                           : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
             << " after a warm-up step\n";

@@ -322,9 +322,11 @@ TEST_CASE("the vgg-adain style decoder: VGG's tail then AdaIN's decoder; it trai
 // The stylised frames' lattice of strokes (docs/experiments.md): VGG's pool paints relu4_1 on a grid of
 // two map pixels fixed to the image, so a map moved by one pixel gave another picture, not the same one
 // moved. With the pool's four phases (decoder_phases) it gives the same one moved by the stride.
-TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the map by one map pixel; it trains and round-trips") {
+// kind: either vgg-adain decoder. vgg-adain-relu4 decodes with scene statistics, as at inference (a
+// frame's own statistics change as it moves, which is not the pool's doing).
+static void check_grid_phases(model::StyleDecoderKind kind) {
   const auto styles = train::StyleSet::from_dir(style_dir(), 1);
-  auto cfg = vgg_decoder_config(model::StyleDecoderKind::VggAdain);
+  auto cfg = vgg_decoder_config(kind);
   cfg.decoder_phases = true;
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).decoder_phases);
   {
@@ -333,9 +335,7 @@ TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the ma
     CHECK_FALSE(train::StyleTrainConfig::from_json(j).decoder_phases);
     auto bad = cfg;
     bad.style_decoder = model::StyleDecoderKind::Stage2;
-    CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("decoder_phases"), host::Error);
-    bad.style_decoder = model::StyleDecoderKind::VggAdainRelu4;
-    CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("not vgg-adain-relu4"), host::Error);
+    CHECK_THROWS_WITH_AS(bad.validate(), doctest::Contains("not stage2"), host::Error);
   }
   train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
   auto& m = t.model();
@@ -353,10 +353,19 @@ TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the ma
     for (size_t p = 0; p < size_t(C) * H; ++p)
       for (int xx = 0; xx < W; ++xx) x1[p * W + size_t(xx)] = x0[p * W + size_t(std::min(xx + 1, W - 1))];
     // Image columns beyond the padding's reach (the tail and AdaIN's decoder see ~11 map pixels each way).
+    style::StyleCode code;
+    const style::StyleCode* code_ptr = nullptr;
+    if (kind == model::StyleDecoderKind::VggAdainRelu4) {
+      code = m.style_code(vgg.forward(train::load_style_image(styles.holdout[0], 32, 32, nullptr), 4, false), nullptr);
+      const nn::ChannelStats scene = nn::channel_stats_forward(m.vgg_tail.forward(Tensor::from_host(x0, {1, C, H, W})));
+      code.scene_mean = scene.mean;
+      code.scene_std = scene.std;
+      code_ptr = &code;
+    }
     auto moved_by_stride = [&](bool phases) {
       m.decoder_phases = phases;
-      const auto y0 = m.decode_map(Tensor::from_host(x0, {1, C, H, W}), nullptr, nullptr).to_host();
-      const auto y1 = m.decode_map(Tensor::from_host(x1, {1, C, H, W}), nullptr, nullptr).to_host();
+      const auto y0 = m.decode_map(Tensor::from_host(x0, {1, C, H, W}), code_ptr, nullptr).to_host();
+      const auto y1 = m.decode_map(Tensor::from_host(x1, {1, C, H, W}), code_ptr, nullptr).to_host();
       const int HI = H * s, WI = W * s;
       double worst = 0, scale = 0;
       for (int c = 0; c < 3; ++c)
@@ -366,7 +375,8 @@ TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the ma
             worst = std::max(worst, double(std::abs(y1[i] - y0[i + size_t(s)])));
             scale = std::max(scale, double(std::abs(y0[i])));
           }
-      MESSAGE("decoder " << std::string(phases ? "with" : "without") << " phases: a map moved by one pixel changes the "
+      MESSAGE(std::string(model::style_decoder_name(kind)) << " decoder " << std::string(phases ? "with" : "without")
+                                             << " phases: a map moved by one pixel changes the "
                          << "picture moved back by " << worst / scale << " of its largest value");
       return worst / scale;
     };
@@ -384,6 +394,14 @@ TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the ma
   const auto loaded = model::StyleModel::load(ck);
   CHECK(loaded.decoder_phases);
   check_same_stylized_view(m, loaded, styles.holdout[0]);
+}
+
+TEST_CASE("the vgg-adain decoder with grid phases: the picture moves with the map by one map pixel; it trains and round-trips") {
+  check_grid_phases(model::StyleDecoderKind::VggAdain);
+}
+
+TEST_CASE("the vgg-adain-relu4 decoder with grid phases: the same, each phase re-normalised") {
+  check_grid_phases(model::StyleDecoderKind::VggAdainRelu4);
 }
 
 TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style's; its gradient; it trains and round-trips") {
@@ -414,28 +432,34 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
     // (random maps leave relu4_1 channels nearly constant over a few pixels, which the normalisation
     // amplifies until float differences mean nothing); the step 3e-3 lies where differences from 1e-2
     // to 1e-3 agree to 1%.
-    model::StyleModel::DecoderCtx ctx;
+    // With the pool's grid phases the re-normalisation runs on each phase (four batch blocks).
     const Tensor map8 = vgg.forward(train::load_style_image(styles.train[0], 32, 32, nullptr), 3, false)[2];
     x = map8.to_host();
-    const Tensor rgb = m.decode_map(map8, &code, &ctx);
-    const auto g = testing::random_normal(size_t(rgb.numel()), 8);
-    const auto dmap = m.decode_map_backward(ctx, Tensor::from_host(g, rgb.shape()), true).to_host();
-    const auto v = testing::random_normal(x.size(), 9);
-    auto loss = [&](double e) {
-      std::vector<float> xe(x.size());
-      for (size_t i = 0; i < x.size(); ++i) xe[i] = float(x[i] + e * v[i]);
-      const auto out = m.decode_map(Tensor::from_host(xe, {1, 256, 8, 8}), &code, nullptr).to_host();
-      double l = 0;
-      for (size_t i = 0; i < out.size(); ++i) l += double(g[i]) * out[i];
-      return l;
-    };
-    const double e = 3e-3, fd = (loss(e) - loss(-e)) / (2 * e);
-    double an = 0;
-    for (size_t i = 0; i < v.size(); ++i) an += double(dmap[i]) * v[i];
-    CAPTURE(fd);
-    CAPTURE(an);
-    MESSAGE("relu4 decoder directional derivative: analytic " << an << ", central difference " << fd);
-    CHECK(std::abs(an - fd) <= 2e-2 * std::abs(fd) + 1e-3);
+    for (const bool phases : {false, true}) {
+      m.decoder_phases = phases;
+      model::StyleModel::DecoderCtx ctx;
+      const Tensor rgb = m.decode_map(map8, &code, &ctx);
+      const auto g = testing::random_normal(size_t(rgb.numel()), 8);
+      const auto dmap = m.decode_map_backward(ctx, Tensor::from_host(g, rgb.shape()), true).to_host();
+      const auto v = testing::random_normal(x.size(), 9);
+      auto loss = [&](double e) {
+        std::vector<float> xe(x.size());
+        for (size_t i = 0; i < x.size(); ++i) xe[i] = float(x[i] + e * v[i]);
+        const auto out = m.decode_map(Tensor::from_host(xe, {1, 256, 8, 8}), &code, nullptr).to_host();
+        double l = 0;
+        for (size_t i = 0; i < out.size(); ++i) l += double(g[i]) * out[i];
+        return l;
+      };
+      const double e = 3e-3, fd = (loss(e) - loss(-e)) / (2 * e);
+      double an = 0;
+      for (size_t i = 0; i < v.size(); ++i) an += double(dmap[i]) * v[i];
+      CAPTURE(fd);
+      CAPTURE(an);
+      MESSAGE("relu4 decoder " << std::string(phases ? "with" : "without") << " phases, directional derivative: analytic " << an
+                                  << ", central difference " << fd);
+      CHECK(std::abs(an - fd) <= 2e-2 * std::abs(fd) + 1e-3);
+    }
+    m.decoder_phases = false;
   }
   const auto dst0 = m.dst.fc_w.value.to_host();
   while (!t.done()) CHECK(std::isfinite(t.step().style));

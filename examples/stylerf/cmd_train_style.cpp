@@ -15,6 +15,7 @@
 #include "examples/stylerf/commands.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
+#include "lib/model/map_decoder.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/recipes.hpp"
@@ -126,9 +127,8 @@ void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
   if (a.has("warm-start")) cfg.warm_start = a.warm;
   if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
   if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
-  // The recipe's grid phases belong to the vgg-adain decoder's VGG pool (the stage2 decoder has none;
-  // vgg-adain-relu4 re-normalises each map by its own statistics, not measured with them).
-  if (cfg.style_decoder != model::StyleDecoderKind::VggAdain) cfg.decoder_phases = false;
+  // The recipe's grid phases belong to the vgg-adain decoders' VGG pool (the stage2 decoder has none).
+  if (!model::map_decoder_for(cfg.style_decoder).has_vgg_pool()) cfg.decoder_phases = false;
   cfg.decoder_warm = a.decoder_warm;
   cfg.seed = a.seed;
 }

@@ -27,6 +27,23 @@ Tensor pad_to_even(const Tensor& x) {
 
 Tensor even_sides(const Tensor& map) { return map.dim(2) % 2 || map.dim(3) % 2 ? pad_to_even(map) : map; }
 
+// Channel statistics [1, C] -> [n, C], the row repeated: with the pool's grid phases relu4_1 is n = 4 batch
+// blocks of one map, each re-normalised to the same statistics. On the host: two rows of 512 floats.
+nn::ChannelStats repeat_stats(const nn::ChannelStats& s, int64_t n) {
+  if (s.mean.dim(0) == n) return s;
+  if (s.mean.dim(0) != 1)
+    throw Error("style model: relu4_1 statistics for " + std::to_string(s.mean.dim(0)) + " maps cannot serve " +
+                std::to_string(n) + " grid phases");
+  auto rep = [n](const Tensor& t, const char* name) {
+    const auto v = t.to_host();
+    std::vector<float> o;
+    o.reserve(v.size() * size_t(n));
+    for (int64_t i = 0; i < n; ++i) o.insert(o.end(), v.begin(), v.end());
+    return Tensor::from_host(o, {n, t.dim(1)}, name);
+  };
+  return {rep(s.mean, "relu4_1 mean per phase"), rep(s.std, "relu4_1 std per phase")};
+}
+
 // Stage 2's decoder, fine-tuned: the paper's. Its parameters are the feature model's, saved with it.
 class Stage2MapDecoder : public MapDecoder {
  public:
@@ -53,6 +70,7 @@ class VggAdainMapDecoder : public MapDecoder {
  public:
   StyleDecoderKind kind() const override { return StyleDecoderKind::VggAdain; }
   bool needs_fast_profile() const override { return true; }
+  bool has_vgg_pool() const override { return true; }
   void init(StyleModel& m) const override {
     m.vgg_tail = nn::VggTail(nn::VggEncoder::load_default());
     m.style_decoder = nn::load_adain_decoder("", "style.decoder.", kGroupStyleDecoder);
@@ -83,7 +101,8 @@ class VggAdainMapDecoder : public MapDecoder {
 
 // VggAdain with relu4_1 moved to the style's own relu4_1 channel statistics (AdaIN at relu4_1): from the
 // map's own statistics in training, from the scene's (model::SceneStyleStats) at inference when the code
-// has them.
+// has them. With the grid phases each phase is moved: from its own statistics in training (each is the
+// whole map, subsampled), from the scene's at inference (the same map for all four, so no lattice).
 class VggAdainRelu4MapDecoder : public VggAdainMapDecoder {
  public:
   StyleDecoderKind kind() const override { return StyleDecoderKind::VggAdainRelu4; }
@@ -94,9 +113,11 @@ class VggAdainRelu4MapDecoder : public VggAdainMapDecoder {
     if (!code || !code->deep_mean.defined() || !code->deep_std.defined())
       throw Error("style model: the vgg-adain-relu4 decoder needs the style's relu4_1 statistics (StyleCode "
                   "deep_mean / deep_std; style::set_relu4_stats)");
-    const nn::ChannelStats target{code->deep_mean, code->deep_std};
+    const int64_t n = r41.dim(0);
+    const nn::ChannelStats target = repeat_stats({code->deep_mean, code->deep_std}, n);
     const bool scene_stats = !ctx && code->scene_mean.defined() && code->scene_std.defined();
-    Tensor renormed = scene_stats ? nn::adain_between_stats_forward(r41, {code->scene_mean, code->scene_std}, target)
+    Tensor renormed = scene_stats ? nn::adain_between_stats_forward(
+                                        r41, repeat_stats({code->scene_mean, code->scene_std}, n), target)
                                   : nn::adain_to_stats_forward(r41, target);
     if (ctx) {
       ctx->relu4 = r41;

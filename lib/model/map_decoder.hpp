@@ -20,6 +20,8 @@ class MapDecoder {
   // Whether it re-normalises relu4_1 to the style's statistics: the style code then carries them, and a
   // map can hold one style only (regions blend pictures, not DST outputs).
   virtual bool renormalises_relu4() const { return false; }
+  // Whether it has VGG's 2x2 pool (the vgg-adain kinds): what StyleModel::decoder_phases applies to.
+  virtual bool has_vgg_pool() const { return false; }
   // A fresh model's decoder: what it loads (VGG's tail, AdaIN's decoder) into m.
   virtual void init(StyleModel& m) const = 0;
   // code: the style's (relu4_1 statistics where renormalises_relu4); ctx: training (null at inference,

@@ -421,9 +421,9 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
                 " is outside 1.." + std::to_string(kMaxSupersample));
   m.inference_supersample = supersample;
-  if (phases && decoder != StyleDecoderKind::VggAdain)
+  if (phases && !m.map_decoder->has_vgg_pool())
     throw Error("checkpoint " + ck.path + ": style_model.decoder_phases is set for the " +
-                style_decoder_name(decoder) + " decoder (only vgg-adain has them)");
+                style_decoder_name(decoder) + " decoder (only the vgg-adain decoders have them)");
   m.decoder_phases = phases;
   return m;
 }

@@ -80,8 +80,8 @@ void StyleTrainConfig::validate() const {
   if (inference_supersample < 1 || inference_supersample > model::kMaxSupersample)
     throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) + ", got " +
                                                     std::to_string(inference_supersample));
-  if (decoder_phases && style_decoder != model::StyleDecoderKind::VggAdain)
-    throw SettingError("decoder_phases", std::string("needs the vgg-adain decoder (the phases are those of its VGG "
+  if (decoder_phases && !model::map_decoder_for(style_decoder).has_vgg_pool())
+    throw SettingError("decoder_phases", std::string("needs a vgg-adain decoder (the phases are those of its VGG "
                                                      "pool), not ") + model::style_decoder_name(style_decoder));
 }
 
