@@ -14,11 +14,17 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
   // table: pairs 7 + 1 = 8; 8 x 2 + 1 x (2 x 8 x 0.5 + 2 x 8 x 2 x 0.5) + 8 x 0.5 + 8 x 2 x 0.5 = 16 + 24 + 4 + 8
   // = 52; start-up 4 x 8 = 32.
   CHECK(eval_seconds(c, n) == doctest::Approx(5 + 25 + 14.5 + 52 + 32));
+  {
+    // Scene statistics over 3 views: 3 x (4 x 2 + (2 + 2 x 1 + 4) x 0.5 x 0.5) = 3 x 10 = 30.
+    EvalCounts st = n;
+    st.scene_stats_views = 3;
+    CHECK(eval_seconds(c, st) == doctest::Approx(5 + 25 + 14.5 + 52 + 32 + 30));
+  }
   const double base = eval_seconds(c, n);
-  for (int which = 0; which < 5; ++which) {
+  for (int which = 0; which < 6; ++which) {
     CAPTURE(which);
     EvalCounts m = n;
-    int* counts[] = {&m.eval_views, &m.holdout, &m.video_frames, &m.shown, &m.table_frames};
+    int* counts[] = {&m.eval_views, &m.holdout, &m.video_frames, &m.shown, &m.table_frames, &m.scene_stats_views};
     *counts[which] += 1;
     CHECK(eval_seconds(c, m) > base);
   }

@@ -30,6 +30,8 @@
 #include "lib/eval/eval_budget.hpp"
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/map_decoder.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/style/style_image.hpp"
 #include "lib/train/recipes.hpp"
 #include "lib/train/style_trainer.hpp"
@@ -304,6 +306,10 @@ int run_pipeline(int argc, char** argv) {
   eval::EvalCounts counts;
   counts.eval_views = o.eval_views, counts.holdout = o.holdout, counts.video_frames = o.frames;
   counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
+  // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
+  // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).
+  if (model::map_decoder_for(train::style_recipe(train::parse_recipe(o.recipe)).style_decoder).renormalises_relu4())
+    counts.scene_stats_views = model::SceneStyleStats::kDefaultViews;
   const bool by_minutes = budget.iters.empty() && o.stage_minutes.empty();
   double style_minutes = budget.style;
   eval::FrameCost cost;

@@ -171,7 +171,8 @@ void print_style_setup(train::StyleTrainer& trainer) {
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
-            << model::style_decoder_name(cfg.style_decoder) << "\n"
+            << model::style_decoder_name(cfg.style_decoder) << (cfg.decoder_phases ? ", VGG's pool at its 4 grid phases" : "")
+            << "\n"
             << "  " << trainer.styles().train.size() << " training styles, " << trainer.styles().holdout.size()
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"

@@ -26,10 +26,14 @@ struct EvalCounts {
   int video_frames = 60;  // frames of each video
   int shown = 3;          // styles with a video and a consistency row
   int table_frames = 16;  // frames the consistency table scores
+  // Training views whose content each step renders once more for the scene's relu4_1 statistics (the
+  // vgg-adain-relu4 decoder: model::SceneStyleStats), and under each of its styles runs DST and VGG's
+  // tail on; 0 for decoders that read none.
+  int scene_stats_views = 0;
 };
 
 // Predicted seconds of the evaluation steps after the style stage (eval-style, videos, mix sheet,
-// consistency table), from the frame's costs. What a step does beyond frames is counted in frames of
+// consistency table), from the frame's costs, with each step's scene statistics where the decoder reads them. What a step does beyond frames is counted in frames of
 // the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about a style2d, plus a
 // start-up allowance per step (loading weights, the scene, encoding styles). Lego 1/4's 60-minute run
 // (content 0.77 s, style2d 0.12 s) took 221 s for these steps; this predicts 216 s for them (with the

@@ -15,8 +15,9 @@ namespace stylerf::model {
 
 class SceneStyleStats {
  public:
+  static constexpr int kDefaultViews = 6;
   // Renders the style-independent content of `views` training views, evenly spaced (once).
-  SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views = 6);
+  SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views = kDefaultViews);
   // Sets code.scene_mean / scene_std: relu4_1 statistics of the views' maps under the code, pooled over
   // every pixel of every view (biased variance + 1e-5, as nn::channel_stats_forward). No-op for decoders
   // that read no relu4_1 statistics.
