@@ -491,6 +491,7 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   REQUIRE(tied.scene_mean.defined());
   REQUIRE(tied.scene_mean.shape() == host::Shape{1, 512});
   std::vector<double> sum(512, 0.0), sq(512, 0.0);
+  std::vector<float> lo(512, 1e30f), hi(512, -1e30f);
   double count = 0;
   const int n = int(sc.train.size());
   for (int i = 0; i < 3; ++i) {
@@ -499,23 +500,91 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
     const int64_t hw = r41.dim(2) * r41.dim(3);
     const auto x = r41.to_host();
     for (int64_t c = 0; c < 512; ++c)
-      for (int64_t j = 0; j < hw; ++j) sum[size_t(c)] += x[size_t(c * hw + j)], sq[size_t(c)] += double(x[size_t(c * hw + j)]) * x[size_t(c * hw + j)];
+      for (int64_t j = 0; j < hw; ++j) {
+        const float v = x[size_t(c * hw + j)];
+        sum[size_t(c)] += v, sq[size_t(c)] += double(v) * v;
+        lo[size_t(c)] = std::min(lo[size_t(c)], v), hi[size_t(c)] = std::max(hi[size_t(c)], v);
+      }
     count += double(hw);
   }
   const auto got_mean = tied.scene_mean.to_host(), got_std = tied.scene_std.to_host();
+  REQUIRE(tied.scene_lo.defined());
+  CHECK(tied.scene_lo.to_host() == lo);  // the pooled views' range, exactly
+  CHECK(tied.scene_hi.to_host() == hi);
   for (size_t c = 0; c < 512; ++c) {
     const double mu = sum[c] / count, sd = std::sqrt(std::max(0.0, sq[c] / count - mu * mu) + 1e-5);
     CHECK(got_mean[c] == doctest::Approx(mu).epsilon(1e-5).scale(1.0));
     CHECK(got_std[c] == doctest::Approx(sd).epsilon(1e-5).scale(1.0));
   }
+  // A frame is clamped to that range, then re-normalised: against the same done by hand.
   const auto x = testing::random_uniform(256 * 4 * 6, 17, 0.0f, 1.0f);
   const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
+  const Tensor r41 = m.vgg_tail.forward(map);
+  auto clamped = r41.to_host();
+  const int64_t hw41 = r41.dim(2) * r41.dim(3);
+  for (int64_t c = 0; c < 512; ++c)
+    for (int64_t j = 0; j < hw41; ++j) {
+      float& e = clamped[size_t(c * hw41 + j)];
+      e = std::min(std::max(e, lo[size_t(c)]), hi[size_t(c)]);
+    }
   const auto want = m.style_decoder
-                        .forward(nn::adain_between_stats_forward(m.vgg_tail.forward(map), {tied.scene_mean, tied.scene_std},
+                        .forward(nn::adain_between_stats_forward(Tensor::from_host(clamped, r41.shape()),
+                                                                 {tied.scene_mean, tied.scene_std},
                                                                  {tied.deep_mean, tied.deep_std}))
                         .to_host();
   CHECK(m.decode_map(map, &tied, nullptr).to_host() == want);
   CHECK(m.decode_map(map, &tied, nullptr).to_host() != m.decode_map(map, &code, nullptr).to_host());
+
+  // The hard case the range guards against (horns 1/8: a channel zero over the pooled views fired in a novel
+  // view at z = 2799, painted as a dark ball): a channel whose pooled std is the epsilon alone. Unguarded, a
+  // frame where it fires sends (x - mean) / std x the style's std into AdaIN's decoder; clamped, the channel
+  // takes the style's mean, and the picture is the one of a frame where it stayed dead.
+  {
+    style::StyleCode dead = tied;
+    auto mean = tied.scene_mean.to_host(), sd = tied.scene_std.to_host(), l = lo, h = hi;
+    const int64_t c0 = 7;
+    mean[size_t(c0)] = 0.0f, sd[size_t(c0)] = std::sqrt(1e-5f), l[size_t(c0)] = 0.0f, h[size_t(c0)] = 0.0f;
+    dead.scene_mean = Tensor::from_host(mean, {1, 512});
+    dead.scene_std = Tensor::from_host(sd, {1, 512});
+    dead.scene_lo = Tensor::from_host(l, {1, 512});
+    dead.scene_hi = Tensor::from_host(h, {1, 512});
+    // relu4_1 of the map with channel c0 at 0 everywhere, and with it firing at 5: the tail's output is
+    // what decode_map re-normalises, so compare through decode_rows' own path by feeding VGG-tail outputs.
+    auto renorm_decode = [&](std::vector<float> r41v, const style::StyleCode& cd) {
+      const Tensor t = Tensor::from_host(r41v, r41.shape());
+      auto cl = t.to_host();
+      if (cd.scene_lo.defined()) {
+        const auto ll = cd.scene_lo.to_host(), hh = cd.scene_hi.to_host();
+        for (int64_t c = 0; c < 512; ++c)
+          for (int64_t j = 0; j < hw41; ++j) {
+            float& e = cl[size_t(c * hw41 + j)];
+            e = std::min(std::max(e, ll[size_t(c)]), hh[size_t(c)]);
+          }
+      }
+      return m.style_decoder
+          .forward(nn::adain_between_stats_forward(Tensor::from_host(cl, r41.shape()), {cd.scene_mean, cd.scene_std},
+                                                   {cd.deep_mean, cd.deep_std}))
+          .to_host();
+    };
+    auto quiet = r41.to_host(), firing = quiet;
+    for (int64_t j = 0; j < hw41; ++j) quiet[size_t(c0 * hw41 + j)] = 0.0f, firing[size_t(c0 * hw41 + j)] = 5.0f;
+    style::StyleCode unguarded = dead;
+    unguarded.scene_lo = Tensor(), unguarded.scene_hi = Tensor();
+    const auto calm = renorm_decode(quiet, dead), wild = renorm_decode(firing, unguarded), kept = renorm_decode(firing, dead);
+    double worst_wild = 0, worst_kept = 0, scale = 0;
+    for (size_t i = 0; i < calm.size(); ++i) {
+      REQUIRE(std::isfinite(wild[i]));
+      worst_wild = std::max(worst_wild, double(std::abs(wild[i] - calm[i])));
+      worst_kept = std::max(worst_kept, double(std::abs(kept[i] - calm[i])));
+      scale = std::max(scale, double(std::abs(calm[i])));
+    }
+    MESSAGE("a dead channel firing at 5: the picture moves by " << worst_wild / scale << " of its largest value "
+            << "unguarded, " << worst_kept / scale << " clamped");
+    CHECK(worst_wild > 1.0 * scale);
+    CHECK(worst_kept == 0.0);
+    // And decode_map applies the guard itself: a map is decoded the same as its hand-clamped relu4_1.
+    CHECK(m.decode_map(map, &dead, nullptr).to_host() == renorm_decode(r41.to_host(), dead));
+  }
 }
 
 TEST_CASE("rendered warm-start maps hold each ray's mean feature and its opacity, as the field renders them") {

@@ -29,6 +29,24 @@ Tensor even_sides(const Tensor& map) { return map.dim(2) % 2 || map.dim(3) % 2 ?
 
 // Channel statistics [1, C] -> [n, C], the row repeated: with the pool's grid phases relu4_1 is n = 4 batch
 // blocks of one map, each re-normalised to the same statistics. On the host: two rows of 512 floats.
+// x [N, C, H, W] clamped per channel to [lo[c], hi[c]] (both [1, C]). On the host: inference only, once a
+// frame (the scene statistics' guard against channels their views never saw vary).
+Tensor clamp_channels(const Tensor& x, const Tensor& lo, const Tensor& hi) {
+  const int64_t N = x.dim(0), C = x.dim(1), hw = x.dim(2) * x.dim(3);
+  if (lo.numel() != C || hi.numel() != C)
+    throw Error("style model: the scene's relu4_1 range has " + std::to_string(lo.numel()) + " channels, the map " +
+                std::to_string(C));
+  auto v = x.to_host();
+  const auto l = lo.to_host(), h = hi.to_host();
+  for (int64_t n = 0; n < N; ++n)
+    for (int64_t c = 0; c < C; ++c)
+      for (int64_t i = 0; i < hw; ++i) {
+        float& e = v[size_t((n * C + c) * hw + i)];
+        e = std::min(std::max(e, l[size_t(c)]), h[size_t(c)]);
+      }
+  return Tensor::from_host(v, x.shape(), "relu4_1 clamped to the scene's range");
+}
+
 nn::ChannelStats repeat_stats(const nn::ChannelStats& s, int64_t n) {
   if (s.mean.dim(0) == n) return s;
   if (s.mean.dim(0) != 1)
@@ -116,8 +134,11 @@ class VggAdainRelu4MapDecoder : public VggAdainMapDecoder {
     const int64_t n = r41.dim(0);
     const nn::ChannelStats target = repeat_stats({code->deep_mean, code->deep_std}, n);
     const bool scene_stats = !ctx && code->scene_mean.defined() && code->scene_std.defined();
+    // With scene statistics a frame is first clamped to the values the scene's pooled views reached.
+    const bool guard = scene_stats && code->scene_lo.defined() && code->scene_hi.defined();
     Tensor renormed = scene_stats ? nn::adain_between_stats_forward(
-                                        r41, repeat_stats({code->scene_mean, code->scene_std}, n), target)
+                                        guard ? clamp_channels(r41, code->scene_lo, code->scene_hi) : r41,
+                                        repeat_stats({code->scene_mean, code->scene_std}, n), target)
                                   : nn::adain_to_stats_forward(r41, target);
     if (ctx) {
       ctx->relu4 = r41;

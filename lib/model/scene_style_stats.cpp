@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "host/error.hpp"
 #include "lib/model/map_decoder.hpp"
@@ -19,6 +20,7 @@ SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene,
 void SceneStyleStats::attach(style::StyleCode& code) const {
   if (!m_->map_decoder->renormalises_relu4()) return;
   std::vector<double> sum, sq;
+  std::vector<float> lo, hi;
   double count = 0;
   for (const auto& v : views_) {
     const Tensor r41 = m_->relu4_of(v.content, code, v.height, v.width);  // [1, C, h, w]
@@ -26,11 +28,16 @@ void SceneStyleStats::attach(style::StyleCode& code) const {
     const auto x = r41.to_host();
     sum.resize(size_t(C), 0.0);
     sq.resize(size_t(C), 0.0);
+    lo.resize(size_t(C), std::numeric_limits<float>::infinity());
+    hi.resize(size_t(C), -std::numeric_limits<float>::infinity());
     for (int64_t c = 0; c < C; ++c)
       for (int64_t i = 0; i < hw; ++i) {
-        const double val = x[size_t(c * hw + i)];
+        const float v = x[size_t(c * hw + i)];
+        const double val = v;
         sum[size_t(c)] += val;
         sq[size_t(c)] += val * val;
+        lo[size_t(c)] = std::min(lo[size_t(c)], v);
+        hi[size_t(c)] = std::max(hi[size_t(c)], v);
       }
     count += double(hw);
   }
@@ -43,6 +50,8 @@ void SceneStyleStats::attach(style::StyleCode& code) const {
   const int64_t C = int64_t(sum.size());
   code.scene_mean = Tensor::from_host(mean, {1, C}, "scene relu4_1 mean");
   code.scene_std = Tensor::from_host(stdev, {1, C}, "scene relu4_1 std");
+  code.scene_lo = Tensor::from_host(lo, {1, C}, "scene relu4_1 min");
+  code.scene_hi = Tensor::from_host(hi, {1, C}, "scene relu4_1 max");
 }
 
 }  // namespace stylerf::model

@@ -36,6 +36,10 @@ struct StyleCode {
   // re-normalises a frame from these rather than from the frame's own statistics, so every frame of the
   // scene gets the same per-channel map. Undefined for a code not yet tied to a scene.
   Tensor scene_mean, scene_std;
+  // The range of those maps' values per channel, [1, 512] each: a frame's relu4_1 is clamped to it before the
+  // re-normalisation. A channel the pooled views never saw vary has std = sqrt(1e-5); were it to fire in a
+  // novel view, (x - mean) / std would be thousands (horns 1/8: z = 2799, painted as a dark ball).
+  Tensor scene_lo, scene_hi;
 };
 
 class Dst : public nn::Module {
