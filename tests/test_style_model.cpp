@@ -520,18 +520,24 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   const auto x = testing::random_uniform(256 * 4 * 6, 17, 0.0f, 1.0f);
   const Tensor map = Tensor::from_host(x, {1, 256, 4, 6});
   const Tensor r41 = m.vgg_tail.forward(map);
-  auto clamped = r41.to_host();
   const int64_t hw41 = r41.dim(2) * r41.dim(3);
-  for (int64_t c = 0; c < 512; ++c)
-    for (int64_t j = 0; j < hw41; ++j) {
-      float& e = clamped[size_t(c * hw41 + j)];
-      e = std::min(std::max(e, lo[size_t(c)]), hi[size_t(c)]);
+  // relu4_1 values (the tail's output) clamped to the code's scene range where it has one, re-normalised from
+  // its scene statistics, decoded.
+  auto renorm_decode = [&](std::vector<float> r41v, const style::StyleCode& cd) {
+    if (cd.scene_lo.defined()) {
+      const auto ll = cd.scene_lo.to_host(), hh = cd.scene_hi.to_host();
+      for (int64_t c = 0; c < 512; ++c)
+        for (int64_t j = 0; j < hw41; ++j) {
+          float& e = r41v[size_t(c * hw41 + j)];
+          e = std::min(std::max(e, ll[size_t(c)]), hh[size_t(c)]);
+        }
     }
-  const auto want = m.style_decoder
-                        .forward(nn::adain_between_stats_forward(Tensor::from_host(clamped, r41.shape()),
-                                                                 {tied.scene_mean, tied.scene_std},
-                                                                 {tied.deep_mean, tied.deep_std}))
-                        .to_host();
+    return m.style_decoder
+        .forward(nn::adain_between_stats_forward(Tensor::from_host(r41v, r41.shape()), {cd.scene_mean, cd.scene_std},
+                                                 {cd.deep_mean, cd.deep_std}))
+        .to_host();
+  };
+  const auto want = renorm_decode(r41.to_host(), tied);
   CHECK(m.decode_map(map, &tied, nullptr).to_host() == want);
   CHECK(m.decode_map(map, &tied, nullptr).to_host() != m.decode_map(map, &code, nullptr).to_host());
 
@@ -548,24 +554,6 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
     dead.scene_std = Tensor::from_host(sd, {1, 512});
     dead.scene_lo = Tensor::from_host(l, {1, 512});
     dead.scene_hi = Tensor::from_host(h, {1, 512});
-    // relu4_1 of the map with channel c0 at 0 everywhere, and with it firing at 5: the tail's output is
-    // what decode_map re-normalises, so compare through decode_rows' own path by feeding VGG-tail outputs.
-    auto renorm_decode = [&](std::vector<float> r41v, const style::StyleCode& cd) {
-      const Tensor t = Tensor::from_host(r41v, r41.shape());
-      auto cl = t.to_host();
-      if (cd.scene_lo.defined()) {
-        const auto ll = cd.scene_lo.to_host(), hh = cd.scene_hi.to_host();
-        for (int64_t c = 0; c < 512; ++c)
-          for (int64_t j = 0; j < hw41; ++j) {
-            float& e = cl[size_t(c * hw41 + j)];
-            e = std::min(std::max(e, ll[size_t(c)]), hh[size_t(c)]);
-          }
-      }
-      return m.style_decoder
-          .forward(nn::adain_between_stats_forward(Tensor::from_host(cl, r41.shape()), {cd.scene_mean, cd.scene_std},
-                                                   {cd.deep_mean, cd.deep_std}))
-          .to_host();
-    };
     auto quiet = r41.to_host(), firing = quiet;
     for (int64_t j = 0; j < hw41; ++j) quiet[size_t(c0 * hw41 + j)] = 0.0f, firing[size_t(c0 * hw41 + j)] = 5.0f;
     style::StyleCode unguarded = dead;
