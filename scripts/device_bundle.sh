@@ -2,9 +2,9 @@
 # Packs what scripts/device_check.sh needs on a GPU machine that has no build tools, no -dev packages and no
 # network: the built stylerf binary and the CTest executables (with CTestTestfile.cmake and the source and
 # build paths they were built at), the shared libraries such a machine lacks (the ICD loader, CLBlast,
-# OpenEXR, Boost, OpenBLAS), CLBlast's tuners, the layouts of the pretrained weights (the benches time
-# stand-ins of the same shapes there; 80 MB of VGG-19 does not fit) and a lego subset for a full-resolution
-# density run.
+# OpenEXR, Boost, OpenBLAS), CLBlast's tuners, the pretrained VGG-19 up to conv4_1 and AdaIN's decoder (all
+# of the 80 MB VGG-19 file does not fit; the layouts of both files too, for stand-ins where they are not
+# carried) and a lego subset for a full-resolution density run.
 #
 #   bash scripts/device_bundle.sh BUILD_DIR DEST        e.g. bash scripts/device_bundle.sh build .devcarry
 #
@@ -100,6 +100,48 @@ for name in ("vgg_normalised.safetensors", "adain_decoder.safetensors"):
 json.dump(layouts, open(out, "w"))
 print("weights layouts: %s" % ", ".join(sorted(layouts)) if layouts else "weights layouts: none")
 EOF
+
+# 4b. The real weights the code reads, as far as they fit: AdaIN's VGG-19 up to conv4_1 (StyleRF reads no deeper
+#     layer: 14 MB of its 80) and AdaIN's decoder (14 MB). With them the tests that need the pretrained weights
+#     run on the device too (the LPIPS networks, 69 MB, still do not fit: those tests are counted apart).
+python3 - "$WDIR" "$STAGE/weights" <<'PYEOF'
+import hashlib, json, os, struct, sys
+wdir, out = sys.argv[1], sys.argv[2]
+# AdaIN's vgg_normalised indices: the input 1x1 conv (0) and the convs up to conv4_1 (29).
+keep = {"vgg_normalised.safetensors": lambda k: int(k.split(".")[0]) <= 29, "adain_decoder.safetensors": lambda k: True}
+manifest = {"note": "carried by device_bundle.sh: vgg_normalised trimmed to conv4_1", "files": {}}
+for name, wanted in keep.items():
+    p = os.path.join(wdir, name)
+    if not os.path.exists(p):
+        print("weights: %s absent here, not carried" % p)
+        continue
+    with open(p, "rb") as f:
+        n = struct.unpack("<Q", f.read(8))[0]
+        header = json.loads(f.read(n))
+        base = 8 + n
+        tensors = sorted(((k, v) for k, v in header.items() if k != "__metadata__" and wanted(k)),
+                         key=lambda kv: kv[1]["data_offsets"][0])
+        hdr = {"__metadata__": header["__metadata__"]} if "__metadata__" in header else {}
+        blobs, off = [], 0
+        for k, v in tensors:
+            a, b = v["data_offsets"]
+            f.seek(base + a)
+            data = f.read(b - a)
+            hdr[k] = dict(v, data_offsets=[off, off + len(data)])
+            blobs.append(data)
+            off += len(data)
+    h = json.dumps(hdr).encode()
+    h += b" " * (-len(h) % 8)
+    os.makedirs(out, exist_ok=True)
+    body = struct.pack("<Q", len(h)) + h + b"".join(blobs)
+    with open(os.path.join(out, name), "wb") as f:
+        f.write(body)
+    manifest["files"][name] = {"sha256": hashlib.sha256(body).hexdigest()}
+    print("weights: %s, %d of %d tensors, %.1f MB" % (name, len(tensors), len(header) - ("__metadata__" in header), len(body) / 1e6))
+if manifest["files"]:
+    json.dump(manifest, open(os.path.join(out, "manifest.json"), "w"), indent=1)
+PYEOF
+[[ -d "$STAGE/weights" ]] && tar -C "$STAGE" -cf "$DEST/weights.tar" weights   # floats: compression gains little
 
 # 5. A lego subset: TRAIN_VIEWS of the train views and TEST_VIEWS of the test views, evenly spread.
 python3 - "$SCENE" "$STAGE/lego" "$TRAIN_VIEWS" "$TEST_VIEWS" <<'EOF'

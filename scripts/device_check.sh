@@ -72,7 +72,7 @@ note() { echo "$1=$2" >> "$WORK/meta.env"; }   # facts for the JSON
 say "device_check: $(date -u +%Y-%m-%dT%H:%M:%SZ) on $(uname -n); device $DEVICE; quick $QUICK; work $WORK"
 
 # --- where the binaries, libraries and scene are -------------------------------------------------------------
-SCENE="" ICD="" COMMIT=""
+SCENE="" ICD="" COMMIT="" CARRIED_WEIGHTS=""
 if [[ -n "$BUNDLE" ]]; then
   BUNDLE=$(cd "$BUNDLE" && pwd -P) || { say "device_check: no bundle at $BUNDLE"; exit 2; }
   [[ -f "$BUNDLE/bundle.env" ]] || { say "device_check: $BUNDLE/bundle.env is missing: not a device_bundle.sh folder"; exit 2; }
@@ -85,6 +85,10 @@ if [[ -n "$BUNDLE" ]]; then
   tar -C "$U" -xJf "$BUNDLE/libs.tar.xz" || say "device_check: cannot unpack libs.tar.xz"
   [[ -f "$BUNDLE/tools.tar.xz" ]] && tar -C "$U" -xJf "$BUNDLE/tools.tar.xz"
   [[ -f "$BUNDLE/lego.tar" ]] && tar -C "$U" -xf "$BUNDLE/lego.tar" && SCENE=$U/lego
+  # The carried weights (VGG-19 to conv4_1, AdaIN's decoder), where the machine has none of its own.
+  if [[ -f "$BUNDLE/weights.tar" && ! -f "${STYLERF_WEIGHTS:-$HOME/.cache/stylerf/weights}/vgg_normalised.safetensors" ]]; then
+    tar -C "$U" -xf "$BUNDLE/weights.tar" && export STYLERF_WEIGHTS=$U/weights && CARRIED_WEIGHTS=1
+  fi
   BUILD=$U/build
   export LD_LIBRARY_PATH=$U/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
   [[ -d "$U/tools/bin" ]] && export PATH=$U/tools/bin:$PATH
@@ -155,7 +159,10 @@ fi
 # --- weights: the benches time stand-ins of the real shapes where the real files are absent -----------------
 REAL_W=${STYLERF_WEIGHTS:-$HOME/.cache/stylerf/weights}
 BENCH_W=$REAL_W
-if [[ -f "$REAL_W/vgg_normalised.safetensors" ]]; then
+if [[ -n "${CARRIED_WEIGHTS:-}" ]]; then
+  note weights carried
+  say "weights: $REAL_W (carried: the real VGG-19 to conv4_1 and AdaIN's decoder; no LPIPS networks)"
+elif [[ -f "$REAL_W/vgg_normalised.safetensors" ]]; then
   note weights real
   say "weights: $REAL_W (real)"
 elif [[ -n "$BUNDLE" && -s "$BUNDLE/weights_layout.json" ]]; then
