@@ -19,6 +19,9 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
     EvalCounts st = n;
     st.scene_stats_views = 3;
     CHECK(eval_seconds(c, st) == doctest::Approx(5 + 25 + 14.5 + 52 + 32 + 30));
+    // Content measured at 2x2 rays a block: the statistics' views render at one ray, a quarter of it:
+    // 3 x (4 x 0.5 + 8 x 0.25) = 12, the rest as rendered at 2x2.
+    CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(5 + 25 + 14.5 + 52 + 32 + 12));
   }
   const double base = eval_seconds(c, n);
   for (int which = 0; which < 6; ++which) {

@@ -211,7 +211,21 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
                 " frames/s); delete " + (out / "probe").string() + " to measure again");
   const double frame = 1.0 / fps;
   c.style2d = std::max(frame - c.content, 0.1 * frame);
+  const int n = train::style_recipe(train::parse_recipe(o.recipe)).inference_supersample;  // the probe's rays
+  c.rays_per_block = n * n;
   return c;
+}
+
+// The test views a render step wrote (its metrics.json lists them), or `fallback` when it cannot tell:
+// eval-style scores at most that many, whatever --eval-views asks (fern has 3).
+int views_rendered(const std::string& metrics, int fallback) {
+  try {
+    std::ifstream in(metrics);
+    const auto views = nlohmann::json::parse(in).at("views");
+    return views.is_array() && !views.empty() ? int(views.size()) : fallback;
+  } catch (const std::exception&) {
+    return fallback;
+  }
 }
 
 // Under --minutes: the style stage's minutes and the evaluation's counts, from the seconds spent so far
@@ -304,7 +318,8 @@ int run_pipeline(int argc, char** argv) {
             args(o, "render", "--ckpt", f_ck, "--views", "test", "-o", (out / "features_test").string()),
             (out / "features_test/metrics.json").string(), f.key).seconds;
   eval::EvalCounts counts;
-  counts.eval_views = o.eval_views, counts.holdout = o.holdout, counts.video_frames = o.frames;
+  counts.eval_views = std::min(o.eval_views, views_rendered((out / "features_test/metrics.json").string(), o.eval_views));
+  counts.holdout = o.holdout, counts.video_frames = o.frames;
   counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
   // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
   // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).
@@ -321,6 +336,8 @@ int run_pipeline(int argc, char** argv) {
     style_minutes = plan.style_minutes;
     plan_json = {{"frame_content_s", cost.content},
                  {"frame_style_s", cost.style2d},
+                 {"frame_rays_per_block", cost.rays_per_block},
+                 {"eval_views", counts.eval_views},
                  {"predicted_eval_s", plan.predicted_eval_s},
                  {"style_minutes", style_minutes},
                  {"cuts", plan.cuts}};

@@ -21,10 +21,11 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
   const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
   const double table = n.table_frames * k + n.shown * (2.0 * n.table_frames * s + 2.0 * pairs * 2.0 * s) +
                        n.table_frames * s + pairs * 2.0 * s;
-  // Scene statistics: each of the 4 steps renders its views' content; per style (eval-style's held-out
+  // Scene statistics: each of the 4 steps renders its views' content at one ray a block; per style (eval-style's held-out
   // ones, the videos', the mix sheet's 4 corners, the table's) DST and the tail on each view, counted as
   // half a style2d (no decoder, no losses).
-  const double stats = n.scene_stats_views * (4.0 * k + (n.holdout + 2.0 * n.shown + 4.0) * 0.5 * s);
+  const double stats_k = k / std::max(1, c.rays_per_block);
+  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + 4.0) * 0.5 * s);
   return style_eval + videos + mix + table + stats + 4 * kStartupPerStep;
 }
 
