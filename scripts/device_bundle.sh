@@ -82,31 +82,16 @@ else
   echo "tuners: none installed here (clblast-utils); stylerf tune would run its own kernel's search only"
 fi
 
-# 4. The layouts (safetensors headers) of the weights the benches load: the check writes stand-ins of the
-#    same names and shapes where the real files are absent, for timing only.
+# 4. The real weights the code reads, as far as they fit: AdaIN's VGG-19 up to conv4_1 (StyleRF reads no deeper
+#    layer: 14 MB of its 80) and AdaIN's decoder (14 MB). With them the tests that need the pretrained weights
+#    run on the device too (the LPIPS networks, 69 MB, still do not fit: those tests are counted apart). Also
+#    both files' layouts (safetensors headers): the check writes stand-ins of the same names and shapes
+#    where no weights are carried, for timing only.
 WDIR=${STYLERF_WEIGHTS:-$HOME/.cache/stylerf/weights}
-python3 - "$WDIR" "$DEST/weights_layout.json" <<'EOF'
-import json, os, struct, sys
-wdir, out = sys.argv[1], sys.argv[2]
-layouts = {}
-for name in ("vgg_normalised.safetensors", "adain_decoder.safetensors"):
-    p = os.path.join(wdir, name)
-    if not os.path.exists(p):
-        print("weights layout: %s absent here, not carried" % p)
-        continue
-    with open(p, "rb") as f:
-        n = struct.unpack("<Q", f.read(8))[0]
-        layouts[name] = json.loads(f.read(n))
-json.dump(layouts, open(out, "w"))
-print("weights layouts: %s" % ", ".join(sorted(layouts)) if layouts else "weights layouts: none")
-EOF
-
-# 4b. The real weights the code reads, as far as they fit: AdaIN's VGG-19 up to conv4_1 (StyleRF reads no deeper
-#     layer: 14 MB of its 80) and AdaIN's decoder (14 MB). With them the tests that need the pretrained weights
-#     run on the device too (the LPIPS networks, 69 MB, still do not fit: those tests are counted apart).
-python3 - "$WDIR" "$STAGE/weights" <<'PYEOF'
+python3 - "$WDIR" "$STAGE/weights" "$DEST/weights_layout.json" <<'PYEOF'
 import hashlib, json, os, struct, sys
-wdir, out = sys.argv[1], sys.argv[2]
+wdir, out, layout_out = sys.argv[1], sys.argv[2], sys.argv[3]
+layouts = {}
 # AdaIN's vgg_normalised indices: the input 1x1 conv (0) and the convs up to conv4_1 (29).
 keep = {"vgg_normalised.safetensors": lambda k: int(k.split(".")[0]) <= 29, "adain_decoder.safetensors": lambda k: True}
 manifest = {"note": "carried by device_bundle.sh: vgg_normalised trimmed to conv4_1", "files": {}}
@@ -118,6 +103,7 @@ for name, wanted in keep.items():
     with open(p, "rb") as f:
         n = struct.unpack("<Q", f.read(8))[0]
         header = json.loads(f.read(n))
+        layouts[name] = header
         base = 8 + n
         tensors = sorted(((k, v) for k, v in header.items() if k != "__metadata__" and wanted(k)),
                          key=lambda kv: kv[1]["data_offsets"][0])
@@ -140,6 +126,8 @@ for name, wanted in keep.items():
     print("weights: %s, %d of %d tensors, %.1f MB" % (name, len(tensors), len(header) - ("__metadata__" in header), len(body) / 1e6))
 if manifest["files"]:
     json.dump(manifest, open(os.path.join(out, "manifest.json"), "w"), indent=1)
+json.dump(layouts, open(layout_out, "w"))
+print("weights layouts: %s" % ", ".join(sorted(layouts)) if layouts else "weights layouts: none")
 PYEOF
 [[ -d "$STAGE/weights" ]] && tar -C "$STAGE" -cf "$DEST/weights.tar" weights   # floats: compression gains little
 
