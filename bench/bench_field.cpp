@@ -243,9 +243,6 @@ int bench_field(const BenchOptions& opt) {
     Tensor dw = Tensor::full({N}, 1e-3f), da = Tensor::full({R}, 1.0f);
     ms = timed("weights bwd (dw -> dsigma)", false, [&] { render::weights_backward(s, sigma, dw, da, Tensor()); });
     add("weights bwd (dw -> dsigma)", ms, double(N), "Msmp/s", N * 2 * (4.0 + 4 + 4 + 4) + N * 4.0);
-    // The consistency metric's median depth: two passes over w, one over t up to the crossing (<= all).
-    ms = timed("depth median (w -> t)", false, [&] { render::depth_quantile(s, wt.w, 0.5f); });
-    add("depth median (w -> t)", ms, double(N), "Msmp/s", N * (4.0 + 4 + 4) + R * 12.0);
     render::Kept k;
     ms = timed("keep_by_weight", false, [&] { k = render::keep_by_weight(s, wt.w, 1e-4f); });
     add("keep_by_weight", ms, double(N), "Msmp/s", N * 4.0 * 2 + k.count * 4.0);

@@ -72,37 +72,6 @@ kernel void weights_backward(global const float* sigma, global const float* delt
   }
 }
 
-// ---- a ray's depth quantile (inference only: a selection, it has no gradient) -------------------------------
-// The t where the ray's cumulative weight reaches q x its opacity, with the weight of sample k spread evenly
-// over (t_{k-1}, t_k] (the first sample's at t_0), so the depth moves continuously as weights change. A ray
-// with opacity <= 1e-6 has no surface: 0, as the expected depth reports an empty ray. The median (q = 0.5)
-// is where the consistency metric finds a surface on soft geometry, where the expected depth is a mean over
-// a spread of partly transparent samples and neighbouring views disagree about it.
-kernel void depth_quantile(global const float* weights, global const float* tvals, global const int* offsets,
-                           global const int* counts, int R, float q, global float* out) {
-  const int r = get_global_id(0);
-  if (r >= R) return;
-  const int off = offsets[r], cnt = counts[r];
-  float acc = 0.0f;
-  for (int k = off; k < off + cnt; ++k) acc += weights[k];
-  if (!(acc > 1e-6f)) {
-    out[r] = 0.0f;
-    return;
-  }
-  const float target = q * acc;
-  float cum = 0.0f, t = tvals[off + cnt - 1];
-  for (int k = off; k < off + cnt; ++k) {
-    const float w = weights[k];
-    if (cum + w >= target && w > 0.0f) {
-      const float t0 = k > off ? tvals[k - 1] : tvals[k];
-      t = t0 + clamp((target - cum) / w, 0.0f, 1.0f) * (tvals[k] - t0);
-      break;
-    }
-    cum += w;
-  }
-  out[r] = t;
-}
-
 // ---- op 2: weighted sum of C-channel values over kept samples ---------------------------------------------
 // VW (a build option) is the vector width over channels: 16, 8, 4 or 1; the host picks the largest that
 // divides C. One work-item handles one ray (or one kept sample) and VW consecutive channels.

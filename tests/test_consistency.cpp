@@ -328,27 +328,4 @@ TEST_CASE("the geometry renderer: opacity and depth of a trained density grid wi
   const auto huge = model::render_geometry(geo, scene, cam, 1 << 30);
   CHECK(small.acc == v.acc);
   CHECK(huge.depth == v.depth);
-
-  // The median depth (--surface median): the same opacity; on the covered pixels inside the ray range, and
-  // where a ray turns opaque on one surface it agrees with the expected depth.
-  const auto m = model::render_geometry(geo, scene, cam, 512, model::SurfaceDepth::Median);
-  CHECK(m.acc == v.acc);
-  CHECK(testing::all_finite(m.depth));
-  int agree = 0, opaque = 0;
-  for (size_t i = 0; i < m.acc.size(); ++i) {
-    if (m.acc[i] > 0.5f) {
-      CHECK(m.depth[i] > scene.near);
-      CHECK(m.depth[i] < scene.far);
-    }
-    if (m.acc[i] > 0.99f) {
-      ++opaque;
-      agree += std::abs(m.depth[i] - v.depth[i]) < 0.05f * v.depth[i];
-    }
-    if (!(m.acc[i] > 1e-6f)) CHECK(m.depth[i] == 0.0f);
-  }
-  MESSAGE("median depth within 5% of the expected depth on " << agree << " of " << opaque << " opaque pixels");
-  CHECK(agree >= 0.9 * opaque);
-  CHECK(model::render_geometry(geo, scene, cam, 97, model::SurfaceDepth::Median).depth == m.depth);
-  CHECK(model::parse_surface_depth("median") == model::SurfaceDepth::Median);
-  testing::expect_error([] { model::parse_surface_depth("mean"); }, "expected or median");
 }

@@ -4,7 +4,6 @@
 // misses the box, an empty ray list, NDC-like rays starting at the near plane (near = 0).
 #include <doctest/doctest.h>
 
-#include <algorithm>
 #include <cfloat>
 #include <cmath>
 #include <cstring>
@@ -440,95 +439,6 @@ TEST_CASE("compositing hard cases: sigma 0, sigma 1e6 first, delta 0, huge sigma
   CHECK(eo.value.numel() == 0);
   auto eg = composite_ops_backward(e, {}, Tensor({0}), Tensor({0, 3}), tbg, Tensor({0, 3}), Tensor(), Tensor());
   CHECK(eg.dsigma.numel() == 0);
-}
-
-namespace {
-// The weight quantile of each ray in double (render::depth_quantile): sample k's weight spread over
-// (t_{k-1}, t_k], the first sample's at t_0; 0 for a ray of opacity <= 1e-6.
-std::vector<double> ref_depth_quantile(const std::vector<double>& w, const std::vector<float>& t,
-                                       const std::vector<int>& counts, double q) {
-  std::vector<double> out;
-  int off = 0;
-  for (int cnt : counts) {
-    double acc = 0;
-    for (int k = off; k < off + cnt; ++k) acc += w[k];
-    double d = 0;
-    if (acc > 1e-6) {
-      const double target = q * acc;
-      double cum = 0;
-      d = t[off + cnt - 1];
-      for (int k = off; k < off + cnt; ++k) {
-        if (cum + w[k] >= target && w[k] > 0) {
-          const double t0 = k > off ? t[k - 1] : t[k];
-          d = t0 + std::clamp((target - cum) / w[k], 0.0, 1.0) * (t[k] - t0);
-          break;
-        }
-        cum += w[k];
-      }
-    }
-    out.push_back(d);
-    off += cnt;
-  }
-  return out;
-}
-}  // namespace
-
-TEST_CASE("depth quantile: matches the double reference at several q, on the weights compositing makes") {
-  const std::vector<int> counts = {5, 0, 1, 12, 3, 40};
-  int S = 0;
-  for (int c : counts) S += c;
-  std::vector<float> t;
-  for (int c : counts) {  // increasing along each ray, uneven steps
-    auto steps = testing::random_uniform(c, 11 + c, 0.01f, 0.2f);
-    float x = 0.5f;
-    for (float st : steps) t.push_back(x += st);
-  }
-  const auto sigma = testing::random_uniform(S, 12, 0.0f, 6.0f);
-  Samples s = make_samples(counts, t, testing::random_uniform(S, 13, 0.01f, 0.2f));
-  const auto w = render::weights_forward(s, Tensor::from_host(sigma, {S}));
-  const auto wd = testing::to_double(w.w.to_host());
-  for (float q : {0.5f, 0.1f, 0.9f, 0.999f}) {
-    CAPTURE(q);
-    check_close(render::depth_quantile(s, w.w, q).to_host(), ref_depth_quantile(wd, t, counts, q), 1e-5, 1e-6,
-                "depth quantile");
-  }
-  CHECK_THROWS_AS(render::depth_quantile(s, w.w, 0.0f), host::Error);
-  CHECK_THROWS_AS(render::depth_quantile(s, w.w, 1.0f), host::Error);
-}
-
-TEST_CASE("depth quantile hard cases: one opaque sample, a surface before a faint spread, empty and missing rays") {
-  // ray 0: all weight in sample 2; ray 1: a surface (0.6 at t = 2) before 0.3 spread evenly over t in [3.2, 5];
-  // ray 2: no opacity; ray 3: missed the box; ray 4: all weight in the first sample.
-  const std::vector<int> counts = {4, 12, 3, 0, 3};
-  std::vector<float> t = {1.0f, 1.5f, 2.0f, 2.5f};
-  std::vector<double> w = {0, 0, 0.8, 0};
-  t.insert(t.end(), {1.8f, 2.0f});
-  w.insert(w.end(), {0.0, 0.6});
-  for (int i = 0; i < 10; ++i) {
-    t.push_back(3.2f + 0.2f * i);
-    w.push_back(0.03);
-  }
-  for (float x : {1.0f, 2.0f, 3.0f}) {
-    t.push_back(x);
-    w.push_back(0.0);
-  }
-  for (float x : {4.0f, 4.1f, 4.2f}) t.push_back(x);
-  w.insert(w.end(), {0.9, 0, 0});
-  Samples s = make_samples(counts, t, std::vector<float>(t.size(), 0.1f));
-  Tensor tw = Tensor::from_host(std::vector<float>(w.begin(), w.end()), {int64_t(w.size())});
-  const auto d = render::depth_quantile(s, tw, 0.5f).to_host();
-  REQUIRE(d.size() == 5);
-  CHECK(testing::all_finite(d));
-  CHECK(d[0] == doctest::Approx(1.75).epsilon(1e-6));  // halfway into (1.5, 2.0]
-  // The expected depth (0.6 x 2 + 0.3 x 4.1) / 0.9 = 2.7 lies between the two; the median is on the surface.
-  CHECK(d[1] == doctest::Approx(1.8 + 0.75 * 0.2).epsilon(1e-6));  // 0.45 of the surface's 0.6, into (1.8, 2.0]
-  CHECK(d[2] == 0.0f);
-  CHECK(d[3] == 0.0f);
-  CHECK(d[4] == doctest::Approx(4.0).epsilon(1e-6));
-  // No samples at all: every ray 0.
-  Samples e = make_samples({0, 0, 0}, {}, {});
-  const auto de = render::depth_quantile(e, Tensor({0}), 0.5f).to_host();
-  CHECK(de == std::vector<float>(3, 0.0f));
 }
 
 TEST_CASE("dropping samples below a weight threshold keeps the rest in order; gather/scatter round trip") {

@@ -63,7 +63,7 @@ std::vector<stylerf::io::Image> unstylised_frames(const model::DensityModel& den
 }
 
 int run_consistency(int argc, char** argv) {
-  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg", surface = "expected";
+  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg";
   cli::PathOptions p;
   bool no_lpips = false;
   po::options_description desc("stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [options]");
@@ -75,7 +75,6 @@ int run_consistency(int argc, char** argv) {
       "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
-      "surface", po::value(&surface)->default_value(surface), "the depth a pixel is warped by: expected (sum w t / opacity) | median (of the ray's weights: one surface where soft geometry spreads them)")(
       "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
       "lpips-net", po::value(&lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")("json", po::value(&json_path), "write the scores here")(
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
@@ -100,7 +99,6 @@ int run_consistency(int argc, char** argv) {
     const std::string why = stylerf::io::image_unreadable_reason(style_path);
     if (!why.empty()) throw Error("--style " + style_path + ": " + why);
   }
-  p.surface = stylerf::model::parse_surface_depth(surface);
   cli::check_path_options(p);
   const eval::LpipsNet net = eval::parse_lpips_net(lpips_net);
 
@@ -151,7 +149,6 @@ int run_consistency(int argc, char** argv) {
                           {"path_frames", p.path_frames},
                           {"size", {path.cams.front().width, path.cams.front().height}},
                           {"depth_tolerance", p.depth_tolerance},
-                          {"surface", stylerf::model::surface_depth_name(p.surface)},
                           {"lpips", lpips ? lpips_net + " (v0.1), masked: see lib/eval/consistency.hpp" : "not measured"},
                           {"score", score.to_json()},
                           {"seconds", {{"geometry", path.seconds}, {"frames", render_s}, {"scoring", score_s},

@@ -150,7 +150,7 @@ void markdown_rows(std::ostream& md, const std::vector<MethodRows>& methods) {
 // All of eval table's options, as parsed.
 struct TableArgs {
   std::vector<std::string> groups, style_args;
-  std::string out, device, lpips_net = "vgg", surface = "expected";
+  std::string out, device, lpips_net = "vgg";
   PathOptions p;
   int max_styles = 5, fps = 8;
   bool no_lpips = false;
@@ -169,7 +169,6 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "path-frames", po::value(&a.p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&a.p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&a.p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
-      "surface", po::value(&a.surface)->default_value(a.surface), "the depth a pixel is warped by: expected (sum w t / opacity) | median (of the ray's weights: one surface where soft geometry spreads them)")(
       "no-lpips", po::bool_switch(&a.no_lpips), "RMSE only")(
       "lpips-net", po::value(&a.lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")(
       "fps", po::value(&a.fps)->default_value(8), "side-by-side video frame rate")(
@@ -185,7 +184,6 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
     std::cout << desc;
     return vm.count("help") ? 0 : 2;
   }
-  a.p.surface = model::parse_surface_depth(a.surface);
   return -1;
 }
 
@@ -407,8 +405,7 @@ std::string table_markdown(const TableArgs& a, const std::vector<SceneResult>& r
   md << "# Consistency (StyleRF Table 1 protocol, by the scenes' own geometry)\n\n"
      << "First " << p.frames << " frames of each scene's default path of " << p.path_frames
      << " frames; frame t warped into t-1 (short) and t-7 (long) by frame t's rendered depth; occlusion tolerance "
-     << p.depth_tolerance << " (relative), each pixel at its ray's " << model::surface_depth_name(p.surface)
-     << " depth; background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
+     << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
      << (lpips ? a.lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
      << ". StyleRF content: "
      << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n, averaged)")
@@ -453,7 +450,6 @@ int run_eval_table(int argc, char** argv) {
   nlohmann::json doc = {{"frames", a.p.frames},
                         {"path_frames", a.p.path_frames},
                         {"depth_tolerance", a.p.depth_tolerance},
-                        {"surface", model::surface_depth_name(a.p.surface)},
                         {"supersample", a.p.supersample},
                         {"lpips", lpips ? a.lpips_net : std::string("none")},
                         {"seconds", total},

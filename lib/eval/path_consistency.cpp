@@ -15,7 +15,7 @@ PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const 
   // The geometry records whether the scene has a background: the scene here is loaded without its images,
   // so its own effects cannot tell (they come from the images' alpha).
   opt.warp.mask_background = g.has_background;
-  out.warps = path_warps(render_path_geometry(g, scene, out.cams, p.chunk, p.surface), RaySpace::of(scene), opt);
+  out.warps = path_warps(render_path_geometry(g, scene, out.cams, p.chunk), RaySpace::of(scene), opt);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -8,7 +8,6 @@
 #include "lib/eval/consistency.hpp"
 #include "lib/eval/lpips.hpp"
 #include "lib/model/geometry.hpp"
-#include "lib/model/opacity_head.hpp"
 #include "lib/scene/scene.hpp"
 
 namespace stylerf::eval {
@@ -17,7 +16,6 @@ struct PathOptions {
   int frames = 16, path_frames = 120, size = 0, chunk = 8192;
   int supersample = 0;  // StyleRF content rays per block and axis (render_camera_content); 0: each checkpoint's
   float depth_tolerance = 0.03f;
-  model::SurfaceDepth surface = model::SurfaceDepth::Expected;  // the depth each pixel is warped by
 };
 
 struct PathSetup {

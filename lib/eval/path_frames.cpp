@@ -23,11 +23,10 @@ std::vector<scene::Camera> path_cameras(const scene::Scene& scene, int frames, i
 }
 
 std::vector<FrameGeometry> render_path_geometry(const model::Geometry& g, const scene::Scene& scene,
-                                                const std::vector<scene::Camera>& cams, int chunk,
-                                                model::SurfaceDepth surface) {
+                                                const std::vector<scene::Camera>& cams, int chunk) {
   std::vector<FrameGeometry> out;
   for (const auto& cam : cams) {
-    auto v = model::render_geometry(g, scene, cam, chunk, surface);
+    auto v = model::render_geometry(g, scene, cam, chunk);
     out.push_back({cam, std::move(v.depth), std::move(v.acc)});
   }
   return out;

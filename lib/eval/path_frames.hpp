@@ -12,7 +12,6 @@
 #include "lib/eval/warp.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/density_model.hpp"
-#include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/style/adain.hpp"
 
@@ -23,8 +22,7 @@ namespace stylerf::eval {
 std::vector<scene::Camera> path_cameras(const scene::Scene& scene, int frames, int path_frames, int size);
 
 std::vector<FrameGeometry> render_path_geometry(const model::Geometry& g, const scene::Scene& scene,
-                                                const std::vector<scene::Camera>& cams, int chunk = 8192,
-                                                model::SurfaceDepth surface = model::SurfaceDepth::Expected);
+                                                const std::vector<scene::Camera>& cams, int chunk = 8192);
 
 std::vector<io::Image> rgb_frames(const model::DensityModel& m, const scene::Scene& scene,
                                   const std::vector<scene::Camera>& cams, int chunk = 8192);

@@ -12,18 +12,9 @@ void OpacityHead::backward(const Context&, const Tensor&) {
   throw host::Error("OpacityHead: inference only (it has no parameters to train)");
 }
 
-const char* surface_depth_name(SurfaceDepth s) { return s == SurfaceDepth::Median ? "median" : "expected"; }
-
-SurfaceDepth parse_surface_depth(const std::string& name) {
-  if (name == "expected") return SurfaceDepth::Expected;
-  if (name == "median") return SurfaceDepth::Median;
-  throw host::SettingError("surface", "must be expected or median (got '" + name + "')");
-}
-
-ViewValues render_geometry(const Geometry& g, const scene::Scene& scene, const scene::Camera& cam, int chunk,
-                           SurfaceDepth surface) {
+ViewValues render_geometry(const Geometry& g, const scene::Scene& scene, const scene::Camera& cam, int chunk) {
   const OpacityHead head;
-  return render_camera(g, head, scene, cam, Tensor(), chunk, surface == SurfaceDepth::Median ? 0.5f : 0.0f);
+  return render_camera(g, head, scene, cam, Tensor(), chunk);
 }
 
 }  // namespace stylerf::model

@@ -2,8 +2,6 @@
 // depth come from the scene's own weights without any appearance model. The consistency metric
 // (lib/eval/consistency.hpp) warps every method's frames with this one geometry, whatever the method.
 #pragma once
-#include <string>
-
 #include "lib/model/ray_pipeline.hpp"
 
 namespace stylerf::model {
@@ -17,16 +15,9 @@ class OpacityHead : public SampleHead {
   void collect_params(std::vector<nn::Param*>&) override {}
 };
 
-// Which depth stands for a pixel's surface: the expected depth (sum w t / acc) or the median of the ray's
-// weights (render::depth_quantile at 0.5), which stays on one surface where soft geometry spreads a ray's
-// weight over several.
-enum class SurfaceDepth { Expected, Median };
-const char* surface_depth_name(SurfaceDepth s);
-SurfaceDepth parse_surface_depth(const std::string& name);  // "expected" | "median", else a SettingError
-
-// A whole camera's opacity and depth (ray space; 0 where the opacity is ~0). The value channel holds the
-// kept opacity.
+// A whole camera's opacity and depth (ray space, divided by the opacity; 0 where it is ~0). The value
+// channel holds the kept opacity.
 ViewValues render_geometry(const Geometry& g, const scene::Scene& scene, const scene::Camera& cam,
-                           int chunk = 8192, SurfaceDepth surface = SurfaceDepth::Expected);
+                           int chunk = 8192);
 
 }  // namespace stylerf::model

@@ -13,14 +13,12 @@ using host::Error;
 
 // Rays with no samples at all (every ray missed the box, or all its voxels are empty): value 0 plus the
 // background, acc 0, depth 0.
-static RayResult empty_result(int64_t R, int C, const RayOptions& opt) {
-  const Tensor& background = opt.background;
+static RayResult empty_result(int64_t R, int C, const Tensor& background) {
   RayResult out;
   out.value = Tensor::zeros({R, C}, "rendered values");
   out.acc = Tensor::zeros({R}, "rendered acc");
   out.kept_acc = Tensor::zeros({R}, "rendered kept acc");
   out.depth = Tensor::zeros({R}, "rendered depth");
-  if (opt.depth_quantile > 0) out.depth_quantile = Tensor::zeros({R}, "rendered depth quantile");
   if (background.defined() && R > 0) render::background_forward(out.value, out.acc, background);
   return out;
 }
@@ -41,7 +39,7 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
     ctx->samples = s;
     ctx->background = opt.background;
   }
-  if (s.count == 0) return empty_result(R, C, opt);
+  if (s.count == 0) return empty_result(R, C, opt.background);
 
   Tensor sigma = s.sigma.defined() ? s.sigma : field::density_forward(g.density, s.positions, g.act);
   render::Weights w = render::weights_forward(s, sigma);
@@ -54,7 +52,6 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
   RayResult out;
   out.acc = w.acc;
   out.depth = w.depth;
-  if (opt.depth_quantile > 0) out.depth_quantile = render::depth_quantile(s, w.w, opt.depth_quantile);
   out.samples = s.count;
   out.kept = k.count;
   Tensor kept_w, values;
@@ -115,10 +112,9 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
 }
 
 ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
-                         const scene::Camera& cam, const Tensor& background, int chunk, float depth_quantile) {
+                         const scene::Camera& cam, const Tensor& background, int chunk) {
   RayOptions opt;
   opt.background = background;
-  opt.depth_quantile = depth_quantile;
   return render_camera(
       g, head.channels(),
       [&](const Tensor& o, const Tensor& d) { return render_rays(g, head, o, d, opt, nullptr); }, scene, cam,
@@ -155,13 +151,11 @@ ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& re
     if (out.value.ndim() != 2 || out.value.dim(0) != R || out.value.dim(1) != C)
       throw Error("render_camera: a chunk of " + std::to_string(R) + " rays rendered to shape " +
                   host::shape_str(out.value.shape()) + ", expected [" + std::to_string(R) + ", " + std::to_string(C) + "]");
-    const bool quantile = out.depth_quantile.defined();
-    const auto val = out.value.to_host(), acc = out.acc.to_host();
-    const auto depth = quantile ? out.depth_quantile.to_host() : out.depth.to_host();
+    const auto val = out.value.to_host(), acc = out.acc.to_host(), depth = out.depth.to_host();
     std::copy(val.begin(), val.end(), v.value.begin() + int64_t(C) * b);
     for (int64_t i = 0; i < R; ++i) {
       v.acc[size_t(b + i)] = acc[size_t(i)];
-      v.depth[size_t(b + i)] = quantile ? depth[size_t(i)] : acc[size_t(i)] > 1e-6f ? depth[size_t(i)] / acc[size_t(i)] : 0.0f;
+      v.depth[size_t(b + i)] = acc[size_t(i)] > 1e-6f ? depth[size_t(i)] / acc[size_t(i)] : 0.0f;
     }
   }
   return v;

@@ -27,7 +27,6 @@ struct RayOptions {
   bool jitter = false;  // training: random offset of each ray's first sample
   uint32_t seed = 0;
   Tensor background;    // [C] composited behind the rays, or undefined (none)
-  float depth_quantile = 0;  // > 0: RayResult::depth_quantile too (render::depth_quantile; inference only)
 };
 
 struct RayResult {
@@ -35,7 +34,6 @@ struct RayResult {
   Tensor acc;       // [R] opacity over all samples
   Tensor kept_acc;  // [R] opacity over the kept samples (what the values were composited with)
   Tensor depth;     // [R] sum w t over all samples (not divided by acc)
-  Tensor depth_quantile;  // [R] where RayOptions::depth_quantile > 0: that quantile of the ray's weights, else undefined
   int64_t samples = 0, kept = 0;
 };
 
@@ -66,8 +64,7 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
                           const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc = Tensor());
 
 // A whole camera in chunks of rays (bounded memory): interleaved values [H*W*C], acc and depth [H*W]
-// (depth divided by acc where acc > 1e-6, else 0; or, where the renderer gives RayResult::depth_quantile,
-// that). A chunk holds at most kMaxSamplesPerCall / max_samples
+// (depth divided by acc where acc > 1e-6, else 0). A chunk holds at most kMaxSamplesPerCall / max_samples
 // rays, whatever `chunk` says.
 constexpr int64_t kMaxSamplesPerCall = int64_t(1) << 21;
 // The rays of one renderer call asked `chunk`, bounded so that every ray keeping all of its samples stays
@@ -78,8 +75,7 @@ struct ViewValues {
   std::vector<float> value, acc, depth;
 };
 ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,
-                         const scene::Camera& cam, const Tensor& background, int chunk = 8192,
-                         float depth_quantile = 0);
+                         const scene::Camera& cam, const Tensor& background, int chunk = 8192);
 // The same loop for a model that renders rays its own way (C channels per ray): render(origins, dirs).
 using RenderRaysFn = std::function<RayResult(const Tensor& origins, const Tensor& dirs)>;
 ViewValues render_camera(const Geometry& g, int channels, const RenderRaysFn& render, const scene::Scene& scene,

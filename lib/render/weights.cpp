@@ -42,15 +42,4 @@ Tensor weights_backward(const Samples& s, const Tensor& sigma, const Tensor& dw,
   return dsigma;
 }
 
-Tensor depth_quantile(const Samples& s, const Tensor& w, float q) {
-  const int R = static_cast<int>(check_ray_lists(s.ray_offset, s.ray_count, "depth_quantile"));
-  host::expect_shape(w, {s.count}, host::DType::F32, "depth_quantile", "w");
-  if (!(q > 0.0f && q < 1.0f)) throw host::Error("depth_quantile: q must be in (0, 1), got " + std::to_string(q));
-  if (s.count == 0) return Tensor::zeros({R}, "depth quantile");  // every ray empty (and no buffer to read)
-  Tensor out({R}, "depth quantile");
-  launch_with_local("composite", "depth_quantile", "", {size_t(R)}, {kGroup}, w, s.t, s.ray_offset, s.ray_count, R,
-                    q, out);
-  return out;
-}
-
 }  // namespace stylerf::render

@@ -20,10 +20,4 @@ Weights weights_forward(const Samples& s, const Tensor& sigma);
 Tensor weights_backward(const Samples& s, const Tensor& sigma, const Tensor& dw, const Tensor& dacc,
                         const Tensor& ddepth);
 
-// Per ray [R]: the t where the cumulative weight reaches q x the ray's opacity (q in (0, 1): at 1 it would be
-// the last sample of any weight, which float rounding of the sums decides), the weight of
-// sample k spread over (t_{k-1}, t_k]; 0 for a ray of opacity <= 1e-6 (kernels/composite.cl, depth_quantile).
-// Inference only: a selection, with no gradient (nothing trains through it).
-Tensor depth_quantile(const Samples& s, const Tensor& w, float q);
-
 }  // namespace stylerf::render
