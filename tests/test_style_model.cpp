@@ -720,6 +720,43 @@ TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr
   CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).lr_decay_ratio == 0.25f);
 }
 
+TEST_CASE("under a time budget the warm start ends at its share of the minutes; the config keeps the steps it took") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(6);
+  cfg.warm_start = 4;
+  cfg.warm_share = 0.5f;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  t.set_schedule_progress(0.1);
+  CHECK(t.step().warm);
+  t.set_schedule_progress(0.49);
+  CHECK(t.step().warm);
+  t.set_schedule_progress(0.5);  // the share is spent with 2 of the 4 steps taken
+  CHECK_FALSE(t.step().warm);
+  CHECK(t.config().warm_start == 2);
+  t.set_schedule_progress(0.2);  // a resumed run's clock restarts: the steps taken decide from here
+  CHECK_FALSE(t.step().warm);
+  CHECK(t.model().first_nonfinite().empty());
+  CHECK(train::StyleTrainConfig::from_json(t.config().to_json()).warm_share == 0.5f);
+  auto old = small_config(1).to_json();
+  old.erase("warm_share");  // written before the share existed: only the step count ended the warm start
+  CHECK(train::StyleTrainConfig::from_json(old).warm_share == 1.0f);
+  for (float bad : {0.0f, 1.5f, std::nanf("")}) {
+    auto c = small_config(1);
+    c.warm_share = bad;
+    CHECK_THROWS_WITH_AS(c.validate(), doctest::Contains("must be in (0, 1]"), host::Error);
+  }
+  {
+    // Without a budget (iterations) the share never applies.
+    auto c = small_config(3);
+    c.warm_start = 2;
+    c.warm_share = 0.01f;
+    train::StyleTrainer u(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, c, nullptr);
+    CHECK(u.step().warm);
+    CHECK(u.step().warm);
+    CHECK_FALSE(u.step().warm);
+  }
+}
+
 TEST_CASE("after a decoder warm-up the stylizer's lr decays from lr_stylizer at its first step") {
   // A warm-up step at progress 0.5, then the stylizer's first step (also at 0.5: its decay starts there)
   // moves by the full lr_stylizer; a step at 0.75, half-way through the stylizer's part of the run, by

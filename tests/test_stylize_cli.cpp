@@ -153,6 +153,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
                             out + "' ";
   expect(train + "--lr-decay 0", "--lr-decay must be in (0, 1]");
   expect(train + "--lr-decay 1.5", "--lr-decay must be in (0, 1]");
+  expect(train + "--warm-share 0", "--warm-share must be in (0, 1]");
   expect(train + "--decoder-warm -1", "--decoder-warm must be >= 0, got -1");
   expect(train + "--eval-every -1", "--log-every, --eval-every");
   expect(train + "--warm-maps photos", "--warm-maps must be vgg or rendered, got 'photos'");

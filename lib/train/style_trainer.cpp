@@ -31,7 +31,7 @@ using nlohmann::json;
 // ---- config and style sets --------------------------------------------------------------------------------
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
-      warm_start, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed
+      warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -46,7 +46,7 @@ json StyleTrainConfig::to_json() const {
 StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
-  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}};
+  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -74,6 +74,8 @@ void StyleTrainConfig::validate() const {
   if (!(lr_decay_ratio > 0 && lr_decay_ratio <= 1))
     throw SettingError("lr_decay_ratio", "must be in (0, 1], got " + std::to_string(lr_decay_ratio));
   if (warm_start < 0) throw SettingError("warm_start", "must be >= 0, got " + std::to_string(warm_start));
+  if (!(warm_share > 0 && warm_share <= 1))
+    throw SettingError("warm_share", "must be in (0, 1], got " + std::to_string(warm_share));
   if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
   if (running_init_patches < 0)
     throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
@@ -371,7 +373,13 @@ StyleStepStats StyleTrainer::step() {
   } else {
     style::Dst::StyleContext sctx;
     const style::StyleCode code = model_.style_code(taps, &sctx);
-    const bool warm = k <= cfg_.decoder_warm + cfg_.warm_start;
+    bool warm = k <= cfg_.decoder_warm + cfg_.warm_start;
+    if (warm && schedule_progress_ >= cfg_.warm_share) {
+      // The warm start's share of the minutes is spent: it ends here, and the config (hence the checkpoint)
+      // records the steps it took, so a resumed run goes on with rendered steps.
+      cfg_.warm_start = k - 1 - cfg_.decoder_warm;
+      warm = false;
+    }
     if (!warm && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
       rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
       targets_ = features::FeatureTargets{};

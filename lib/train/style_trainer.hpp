@@ -20,7 +20,8 @@
 //  - warm_start > 0: the next steps are 2D steps on a map per training view (no rendering), then rendered
 //    steps fine-tune. warm_maps picks the maps (lib/train/warm_maps.hpp): stage 2's cached relu3_1 targets
 //    (each target pixel a "point" of weight 1) or the feature field rendered once per view. Fast profile
-//    only (the maps are at relu3_1's resolution, the fast profile's map resolution);
+//    only (the maps are at relu3_1's resolution, the fast profile's map resolution). Under --minutes it
+//    ends early once warm_share of the minutes is spent, and warm_start then records the steps it took;
 //  - style_decoder VggAdain (off by default): the maps are drawn by VGG's frozen relu3_1 -> relu4_1 and
 //    AdaIN's pretrained decoder (fine-tuned at lr_decoder) instead of stage 2's decoder, which has drawn
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
@@ -60,6 +61,10 @@ struct StyleTrainConfig {
   StyleLossWeights weights;
   int decoder_warm = 0;         // steps before all others that train the decoder alone to invert VGG of style crops
   int warm_start = 0;           // 2D steps next (fast profile)
+  // Under a time budget the warm start also ends once this fraction of the run's minutes is spent (1: only
+  // its step count ends it). Its steps cost a third of a rendered step, but the rendered steps that follow
+  // are what the test views are scored on; a fixed count would fill a short run with 2D steps alone.
+  float warm_share = 1.0f;
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
