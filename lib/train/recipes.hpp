@@ -18,7 +18,7 @@ Recipe parse_recipe(const std::string& name);
 const char* recipe_name(Recipe r);
 
 // Stage 3's settings. Fast (fast profile only): the vgg-adain decoder (VGG's tail, AdaIN's decoder), 1600 2D warm-start steps on
-// rendered maps, the stylizer at 1e-3 and the decoder at 1e-5 decaying to 0.1x, style images at 256 (the
+// rendered maps (or 65% of a --minutes budget if sooner), the stylizer at 1e-3 and the decoder at 1e-5 decaying to 0.1x, style images at 256 (the
 // scale inference reads them), and inference at 3 x 3 rays per feature block. Paper: StyleTrainConfig's
 // defaults, which are the paper's.
 StyleTrainConfig style_recipe(Recipe r);
