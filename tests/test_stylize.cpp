@@ -11,7 +11,8 @@
 //    a text file named .png is an error naming the file; a style folder skips it;
 //  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image;
 //  - supersampled content: the mean of the n x n sub-ray renders (c, opacities, depth, region mask), one
-//    ray per block centre at n = 1, and out-of-range n refused;
+//    ray per block centre at n = 1, and out-of-range n refused; refined only where blocks_to_refine finds
+//    an edge (a step, an opacity change; not a flat map or a linear ramp), the centre ray elsewhere;
 //  - a path's content rendered once and shared by two styles (eval table) gives each style the very
 //    frames it gets rendered alone.
 #include <doctest/doctest.h>
@@ -24,6 +25,7 @@
 #include "host/error.hpp"
 #include "lib/eval/path_frames.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/style/style_encoder.hpp"
@@ -237,7 +239,7 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
   const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
   for (int n : {1, 2, 3}) {
     CAPTURE(n);
-    const auto cc = m.render_camera_content(sc, cam, 333, &everything, n);  // chunks cut across rows
+    const auto cc = m.render_camera_content(sc, cam, 333, &everything, n, 0.0f);  // chunks cut across rows (every block)
     const auto ref = reference(n);
     CHECK(worst_rel(cc.content.c.to_host(), ref[0]) < 1e-6);
     CHECK(worst_rel(cc.content.kept_acc.to_host(), ref[1]) < 1e-6);
@@ -251,13 +253,90 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
   // Sub-rays see different things: at n = 2 the map is not the centre rays' map (else the test above
   // would pass for a supersampling that ignored its offsets).
   const auto one = m.render_camera_content(sc, cam, 4096, nullptr, 1).content.acc.to_host();
-  const auto two = m.render_camera_content(sc, cam, 4096, nullptr, 2).content.acc.to_host();
+  const auto two = m.render_camera_content(sc, cam, 4096, nullptr, 2, 0.0f).content.acc.to_host();
   double moved = 0;
   for (size_t i = 0; i < one.size(); ++i) moved = std::max(moved, double(std::abs(one[i] - two[i])));
   CHECK(moved > 1e-3);
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, -1); }, "supersample must be in 1..8");
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 0); }, "supersample must be in 1..8");
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 9); }, "supersample must be in 1..8");
+}
+
+TEST_CASE("blocks to refine: the blocks on either side of an edge, nothing on flat or gently sloping maps") {
+  // A map of w x h blocks, 3 channels; channel 2 is constant (never triggers, no division by a zero spread).
+  auto map = [](int w, int h, auto value) {
+    std::vector<float> c(size_t(w) * h * 3), a(size_t(w) * h, 0.5f);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        for (int k = 0; k < 3; ++k) c[(size_t(y) * w + x) * 3 + k] = k == 2 ? 7.0f : value(x, y, k);
+    return std::make_pair(c, a);
+  };
+  const int w = 64, h = 9;
+  auto count = [](const std::vector<uint8_t>& r) { return std::count(r.begin(), r.end(), uint8_t(1)); };
+  {  // flat: nothing; contrast 0: everything (the exact average)
+    const auto [c, a] = map(w, h, [](int, int, int) { return 1.0f; });
+    CHECK(count(model::blocks_to_refine(c, 3, a, w, h, model::kRefineContrast)) == 0);
+    CHECK(count(model::blocks_to_refine(c, 3, a, w, h, 0.0f)) == w * h);
+  }
+  {  // a gentle ramp (neighbours 1 apart, spread ~18.5): a linear map's centre is its block mean
+    const auto [c, a] = map(w, h, [](int x, int, int k) { return float(x) * (k + 1); });
+    CHECK(count(model::blocks_to_refine(c, 3, a, w, h, model::kRefineContrast)) == 0);
+  }
+  {  // a step in channel 0 between columns 40 and 41: exactly those two columns, every row
+    const auto [c, a] = map(w, h, [](int x, int, int k) { return k == 0 ? (x > 40 ? 3.0f : 0.0f) : 0.01f * x; });
+    const auto r = model::blocks_to_refine(c, 3, a, w, h, model::kRefineContrast);
+    CHECK(count(r) == 2 * h);
+    for (int y = 0; y < h; ++y) CHECK((r[size_t(y) * w + 40] && r[size_t(y) * w + 41]));
+  }
+  {  // an opacity step alone (a silhouette over a flat colour): refined by the opacity, one block each side
+    auto [c, a] = map(w, h, [](int, int, int) { return 1.0f; });
+    a[size_t(4) * w + 10] = 1.0f;  // one block: itself and its 8 neighbours
+    const auto r = model::blocks_to_refine(c, 3, a, w, h, 0.3f);
+    CHECK(count(r) == 9);
+    CHECK(r[size_t(3) * w + 9] == 1);
+    CHECK(r[size_t(5) * w + 11] == 1);
+    CHECK(r[size_t(4) * w + 12] == 0);
+  }
+  testing::expect_error([] { model::blocks_to_refine(std::vector<float>(10), 3, std::vector<float>(4), 2, 2, 0.1f); },
+                        "does not match");
+}
+
+TEST_CASE("refined supersampling: the n x n mean where blocks_to_refine says, the centre ray elsewhere") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  const auto centre = m.render_camera_content(sc, cam, 4096, nullptr, 1);
+  const auto c1 = centre.content.c.to_host(), a1 = centre.content.acc.to_host(), k1 = centre.content.kept_acc.to_host();
+  const size_t blocks = size_t(centre.width) * centre.height;
+  for (int n : {2, 3}) {
+    CAPTURE(n);
+    const auto all = m.render_camera_content(sc, cam, 4096, nullptr, n, 0.0f);
+    CHECK(all.refined == int64_t(blocks));
+    // A contrast nothing reaches: the centre rays' map exactly, whatever n.
+    const auto none = m.render_camera_content(sc, cam, 4096, nullptr, n, 1e30f);
+    CHECK(none.refined == 0);
+    CHECK(none.content.c.to_host() == c1);
+    CHECK(none.content.acc.to_host() == a1);
+    // In between: each block is one or the other, as the test on the centre map decides.
+    const float contrast = 0.3f;
+    const auto want = model::blocks_to_refine(c1, 32, a1, centre.width, centre.height, contrast);
+    const auto some = m.render_camera_content(sc, cam, 333, nullptr, n, contrast);  // chunks cut across rows
+    const int64_t refined = std::count(want.begin(), want.end(), uint8_t(1));
+    CHECK(some.refined == refined);
+    CHECK(refined > 0);
+    CHECK(refined < int64_t(blocks));
+    const auto cs = some.content.c.to_host(), ca = all.content.c.to_host(), ks = some.content.kept_acc.to_host(),
+               ka = all.content.kept_acc.to_host();
+    int bad = 0;
+    for (size_t b = 0; b < blocks; ++b) {
+      const auto& c_ref = want[b] ? ca : c1;
+      const float k_ref = want[b] ? ka[b] : k1[b];
+      if (std::abs(ks[b] - k_ref) > 1e-5f * (1 + std::abs(k_ref))) ++bad;
+      for (size_t e = 0; e < 32; ++e)
+        if (std::abs(cs[b * 32 + e] - c_ref[b * 32 + e]) > 1e-5f * (1 + std::abs(c_ref[b * 32 + e]))) ++bad;
+    }
+    CHECK(bad == 0);
+  }
 }
 
 TEST_CASE("pixel opacity rendered near silhouettes only equals one ray a pixel everywhere") {

@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/eval_setup.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
@@ -48,7 +49,7 @@ std::vector<stylerf::io::Image> stylised_frames(const model::StyleModel& m, cons
   stylerf::style::StyleCode code = enc.encode(style_path).code;
   stylerf::model::SceneStyleStats(m, scene).attach(code);
   return eval::stylerf_frames(m, scene, cams, code, m.features.geo.has_background, p.chunk,
-                              p.supersample > 0 ? p.supersample : m.inference_supersample);
+                              p.supersample > 0 ? p.supersample : m.inference_supersample, p.refine_contrast);
 }
 
 // The density checkpoint's RGB path, or (with a style image) per-frame 2D AdaIN of it.
@@ -82,6 +83,7 @@ int run_consistency(int argc, char** argv) {
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", po::value(&p.supersample)->default_value(0),
       "stylerf: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "refine-contrast", stylerf::cli::refine_contrast_value(&p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

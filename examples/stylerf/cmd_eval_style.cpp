@@ -9,8 +9,10 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/train/style_eval.hpp"
 #include "lib/train/style_trainer.hpp"
@@ -25,6 +27,7 @@ int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
   int views = 5, supersample = 0;
+  float refine_contrast = stylerf::model::kRefineContrast;
   po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
@@ -34,6 +37,7 @@ int run_eval_style(int argc, char** argv) {
       "supersample", po::value(&supersample)->default_value(0),
       "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
       "render); 0: the checkpoint's recipe's")(
+      "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -44,6 +48,7 @@ int run_eval_style(int argc, char** argv) {
   }
   if (views < 0) throw Error("--views must be >= 0");
   stylerf::cli::check_int_range("--supersample", supersample, 0, stylerf::model::kMaxSupersample);
+  stylerf::cli::check_refine_contrast(refine_contrast);
   if (!images.empty()) std::filesystem::create_directories(images);
   stylerf::cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "style");
@@ -61,6 +66,7 @@ int run_eval_style(int argc, char** argv) {
   train::StyleEvalOptions opt;
   opt.views = views;
   opt.supersample = supersample > 0 ? supersample : model.inference_supersample;
+  opt.refine_contrast = refine_contrast;
   opt.image_dir = images;
   opt.log = &std::cout;
   const auto rows = train::evaluate_styles(model, vgg, adain, scene, styles, opt);
@@ -88,6 +94,8 @@ int run_eval_style(int argc, char** argv) {
                      {"style_ratio", r.ours_style / r.adain_style}});
     const nlohmann::json doc = {{"checkpoint", ckpt},
                                 {"views", views},
+                                {"supersample", opt.supersample},
+                                {"refine_contrast", opt.supersample > 1 ? refine_contrast : 0.0f},
                                 {"styles", per},
                                 {"style_loss_ratio", (os / k) / (as / k)},
                                 {"content_loss_ratio", (oc / k) / (ac / k)}};

@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/eval_setup.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "host/error.hpp"
@@ -176,6 +177,7 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", po::value(&a.p.supersample)->default_value(0),
       "StyleRF: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "refine-contrast", stylerf::cli::refine_contrast_value(&a.p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -271,7 +273,8 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
   for (const auto& m : models) {
     const auto t = Clock::now();
     contents.push_back(eval::content_frames(*m, w.scene, w.path.cams, w.p.chunk,
-                                            w.p.supersample > 0 ? w.p.supersample : m->inference_supersample));
+                                            w.p.supersample > 0 ? w.p.supersample : m->inference_supersample,
+                                            w.p.refine_contrast));
     std::cout << "  content of " << w.path.cams.size() << " frames rendered once for all styles ("
               << fmt(seconds_since(t), 1) << " s)" << std::endl;
   }
@@ -411,6 +414,10 @@ std::string table_markdown(const TableArgs& a, const std::vector<SceneResult>& r
      << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n, averaged)")
          : std::to_string(p.supersample) + "x" + std::to_string(p.supersample) +
                (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)"))
+     << (p.supersample == 1 ? std::string()
+         : p.refine_contrast > 0 ? ", in the blocks whose centre differs from a neighbour's by more than " +
+                                       fmt(p.refine_contrast, 2) + " (the centre ray elsewhere)"
+                                 : std::string(", in every block"))
      << ". Means over styles and frame pairs. Plot colours: ";
   for (size_t i = 0; i < (results.empty() ? 0 : results.front().methods.size()); ++i)
     md << (i ? ", " : "") << results.front().methods[i].name << " " << eval::plot_colour_name(int(i));
@@ -451,6 +458,7 @@ int run_eval_table(int argc, char** argv) {
                         {"path_frames", a.p.path_frames},
                         {"depth_tolerance", a.p.depth_tolerance},
                         {"supersample", a.p.supersample},
+                        {"refine_contrast", a.p.refine_contrast},
                         {"lpips", lpips ? a.lpips_net : std::string("none")},
                         {"seconds", total},
                         {"scenes", nlohmann::json::array()}};

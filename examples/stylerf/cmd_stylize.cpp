@@ -20,6 +20,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
 #include "host/error.hpp"
@@ -27,6 +28,7 @@
 #include "lib/io/checkpoint.hpp"
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/scene/camera_path.hpp"
@@ -151,6 +153,7 @@ struct StylizeArgs {
   std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid, region, inside, outside, cache;
   std::vector<std::string> style_args;
   int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 0;
+  float refine_contrast = model::kRefineContrast;
   bool no_losses = false, decoded_background = false;
   bool test() const { return views == "test"; }
 };
@@ -181,6 +184,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "supersample", po::value(&a.supersample)->default_value(0),
       "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
       "render); 0: the checkpoint's recipe's")(
+      "refine-contrast", stylerf::cli::refine_contrast_value(&a.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -208,6 +212,7 @@ StyleChoice check_stylize_args(const StylizeArgs& a) {
   if (a.size < 0 || a.size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
   if (a.chunk < 1) throw Error("--chunk must be >= 1");
   stylerf::cli::check_int_range("--supersample", a.supersample, 0, model::kMaxSupersample);
+  stylerf::cli::check_refine_contrast(a.refine_contrast);
   if (a.fps < 1 || a.fps > 240) throw Error("--fps must be in [1, 240]");
   if (a.out.empty()) throw Error("-o DIR is required");
   StyleChoice c;
@@ -297,6 +302,7 @@ std::vector<Job> make_jobs(const StylizeArgs& a, const StyleChoice& c, const std
 struct RenderTiming {
   double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
   int frames = 0;
+  int64_t blocks = 0, refined = 0;  // feature-map blocks rendered, and those given n x n rays
   double fps_after() const { return frames > 1 ? (frames - 1) / std::max(1e-9, frame_time_after) : 0.0; }
 };
 
@@ -317,7 +323,9 @@ nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::
   for (size_t vi = 0; vi < cams.size(); ++vi) {
     const auto& cam = cams[vi];
     const auto tc = Clock::now();
-    const auto cc = w.m.render_camera_content(w.scene, cam, a.chunk, w.region, a.supersample);
+    const auto cc = w.m.render_camera_content(w.scene, cam, a.chunk, w.region, a.supersample, a.refine_contrast);
+    t.blocks += int64_t(cc.width) * cc.height;
+    t.refined += cc.refined;
     t.content_s += seconds_since(tc);
     const std::string stem = test ? "test_" : "frame_";
     const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
@@ -377,6 +385,9 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
         {"frames", t.frames},
         {"frames_per_s_after_first", t.fps_after()},
         {"content_render_s_per_view", t.content_s / double(cams.size())},
+        {"supersample", a.supersample},
+        {"refine_contrast", a.refine_contrast},
+        {"refined_block_share", t.blocks > 0 ? double(t.refined) / double(t.blocks) : 0.0},
         {"losses_s", t.loss_s},
         {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
                  "excluded from frames/s"}}},
@@ -389,6 +400,11 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
   stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(), doc.dump(2) + "\n");
   std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
             << t.first_frame_s << " s; then " << t.fps_after() << " frames/s (" << t.frames << " frames)\n";
+  if (a.supersample > 1)
+    std::cout << "content: " << a.supersample << "x" << a.supersample << " rays in "
+              << (t.blocks > 0 ? 100.0 * double(t.refined) / double(t.blocks) : 0.0)
+              << "% of the blocks (--refine-contrast " << a.refine_contrast << "), " << t.content_s / double(cams.size())
+              << " s a view\n";
   if (w.losses) std::cout << w.losses->summary();
   std::cout << "-> " << a.out << "/metrics.json\n";
 }
@@ -442,7 +458,7 @@ int run_stylize(int argc, char** argv) {
   const double encode_s = seconds_since(t_work);
   if (!choice.grid.empty()) {
     const auto& cam = cams.front();
-    const auto cc = m.render_camera_content(scene, cam, a.chunk, nullptr, a.supersample);
+    const auto cc = m.render_camera_content(scene, cam, a.chunk, nullptr, a.supersample, a.refine_contrast);
     const double closest = mix_grid(m, scene_stats, cc, codes, cam.width, cam.height, !a.decoded_background,
                                     (fs::path(a.out) / "mix_grid.png").string());
     stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(),

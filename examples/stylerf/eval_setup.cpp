@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
 #include "lib/eval/path_frames.hpp"
 #include "lib/model/style_model.hpp"
@@ -37,6 +38,7 @@ void check_path_options(const PathOptions& p) {
   if (!(p.depth_tolerance > 0 && p.depth_tolerance < 1)) throw Error("--depth-tol must be in (0, 1)");
   if (p.chunk < 1) throw Error("--chunk must be >= 1");
   check_int_range("--supersample", p.supersample, 0, model::kMaxSupersample);
+  check_refine_contrast(p.refine_contrast);
 }
 
 std::string score_line(const eval::ConsistencyScore& s) {

@@ -7,6 +7,7 @@
 
 #include "lib/eval/consistency.hpp"
 #include "lib/eval/lpips.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/model/geometry.hpp"
 #include "lib/scene/scene.hpp"
 
@@ -15,6 +16,8 @@ namespace stylerf::eval {
 struct PathOptions {
   int frames = 16, path_frames = 120, size = 0, chunk = 8192;
   int supersample = 0;  // StyleRF content rays per block and axis (render_camera_content); 0: each checkpoint's
+  // Blocks refined to those rays only where the map has edges (render_camera_content); 0: every block.
+  float refine_contrast = model::kRefineContrast;
   float depth_tolerance = 0.03f;
 };
 

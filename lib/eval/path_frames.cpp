@@ -82,10 +82,10 @@ std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<
 
 std::vector<model::StyleModel::CameraContent> content_frames(const model::StyleModel& m, const scene::Scene& scene,
                                                               const std::vector<scene::Camera>& cams, int chunk,
-                                                              int supersample) {
+                                                              int supersample, float refine_contrast) {
   std::vector<model::StyleModel::CameraContent> out;
   out.reserve(cams.size());
-  for (const auto& cam : cams) out.push_back(m.render_camera_content(scene, cam, chunk, nullptr, supersample));
+  for (const auto& cam : cams) out.push_back(m.render_camera_content(scene, cam, chunk, nullptr, supersample, refine_contrast));
   return out;
 }
 
@@ -108,10 +108,12 @@ std::vector<io::Image> stylerf_frames(const model::StyleModel& m,
 
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
-                                      bool over_background, int chunk, int supersample) {
+                                      bool over_background, int chunk, int supersample,
+                                      float refine_contrast) {
   std::vector<io::Image> out;
   for (const auto& cam : cams) {
-    const std::vector<model::StyleModel::CameraContent> one{m.render_camera_content(scene, cam, chunk, nullptr, supersample)};
+    const std::vector<model::StyleModel::CameraContent> one{m.render_camera_content(scene, cam, chunk, nullptr, supersample,
+                                                                                             refine_contrast)};
     out.push_back(stylerf_frames(m, one, {cam}, code, over_background).front());
   }
   return out;

@@ -40,10 +40,11 @@ std::vector<io::Image> adain_frames(style::AdainModel& adain, const std::vector<
 // The style-independent part of StyleRF's frames (SICT's output, opacity, depth): rendered once per
 // camera and shared by every style scored on the same frames, since it is most of a frame's cost (fern
 // at 1008x756 with 3x3 rays a block: ~35 of 40 s). supersample: content rays per feature-map block and
-// axis (StyleModel::render_camera_content).
+// axis, refined where the map has edges (StyleModel::render_camera_content).
 std::vector<model::StyleModel::CameraContent> content_frames(const model::StyleModel& m, const scene::Scene& scene,
                                                               const std::vector<scene::Camera>& cams,
-                                                              int chunk = 4096, int supersample = 1);
+                                                              int chunk = 4096, int supersample = 1,
+                                                              float refine_contrast = model::kRefineContrast);
 
 // The frames of one style from content_frames' contents of the same cameras. over_background: composite
 // over the scene's background by the rendered opacity (as `stylize` does).
@@ -55,7 +56,8 @@ std::vector<io::Image> stylerf_frames(const model::StyleModel& m,
 // Both of the above for one style.
 std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::Scene& scene,
                                       const std::vector<scene::Camera>& cams, const style::StyleCode& code,
-                                      bool over_background, int chunk = 4096, int supersample = 1);
+                                      bool over_background, int chunk = 4096, int supersample = 1,
+                                      float refine_contrast = model::kRefineContrast);
 
 // Interleaved [h][w][3] -> planar image (no clamping).
 io::Image planar_image(const std::vector<float>& interleaved, int width, int height);

@@ -5,6 +5,7 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/model/map_decoder.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/nn/layout.hpp"
@@ -184,7 +185,8 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
 }
 
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
-                                                            int chunk, const RegionHead* region, int supersample) const {
+                                                            int chunk, const RegionHead* region, int supersample,
+                                                            float refine_contrast) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
@@ -200,53 +202,87 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   CameraContent out;
   out.width = w;
   out.height = h;
-  for (int sy = 0; sy < supersample; ++sy)
-    for (int sx = 0; sx < supersample; ++sx) {
-      const float fx = (sx + 0.5f) / float(supersample), fy = (sy + 0.5f) / float(supersample);
-      const scene::Rays rays = block_rays(scene, cam, stride(), w, h, fx, fy);
-      for (int64_t b = 0; b < n; b += chunk) {
-        const int64_t R = std::min<int64_t>(chunk, n - b);
-        std::vector<float> o(rays.origins.begin() + 3 * b, rays.origins.begin() + 3 * (b + R));
-        std::vector<float> d(rays.directions.begin() + 3 * b, rays.directions.begin() + 3 * (b + R));
-        const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
-        const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
-        const Content part = render_content(origins, dirs, false, 0, nullptr);
-        const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
-        const auto pd = part.depth.to_host();
-        for (int64_t i = 0; i < R * E; ++i) c[size_t(b * E + i)] += pc[size_t(i)];
-        for (int64_t r = 0; r < R; ++r) {
-          kept_acc[size_t(b + r)] += pk[size_t(r)];
-          acc[size_t(b + r)] += pa[size_t(r)];
-          acc_lo[size_t(b + r)] = std::min(acc_lo[size_t(b + r)], pa[size_t(r)]);
-          acc_hi[size_t(b + r)] = std::max(acc_hi[size_t(b + r)], pa[size_t(r)]);
-          depth[size_t(b + r)] += pd[size_t(r)];
+  // Renders the blocks `which` (all when empty) at sub-position (fx, fy) of each block and adds into the sums.
+  auto add_rays = [&](float fx, float fy, const std::vector<int64_t>& which) {
+    const scene::Rays rays = block_rays(scene, cam, stride(), w, h, fx, fy);
+    const int64_t count = which.empty() ? n : int64_t(which.size());
+    for (int64_t b = 0; b < count; b += chunk) {
+      const int64_t R = std::min<int64_t>(chunk, count - b);
+      auto block = [&](int64_t r) { return which.empty() ? b + r : which[size_t(b + r)]; };
+      std::vector<float> o(size_t(3 * R)), d(size_t(3 * R));
+      for (int64_t r = 0; r < R; ++r)
+        for (int j = 0; j < 3; ++j) {
+          o[size_t(3 * r + j)] = rays.origins[size_t(3 * block(r) + j)];
+          d[size_t(3 * r + j)] = rays.directions[size_t(3 * block(r) + j)];
         }
-        out.content.samples += part.samples;
-        out.content.kept += part.kept;
-        if (region) {
-          // The same rays, the same kept samples (no jitter), the indicator as the value.
-          const auto in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
-          for (int64_t r = 0; r < R; ++r) inside[size_t(b + r)] += in[size_t(r)];
-        }
+      const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
+      const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
+      const Content part = render_content(origins, dirs, false, 0, nullptr);
+      const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+      const auto pd = part.depth.to_host();
+      for (int64_t r = 0; r < R; ++r) {
+        const size_t i = size_t(block(r));
+        for (int e = 0; e < E; ++e) c[i * E + size_t(e)] += pc[size_t(r * E + e)];
+        kept_acc[i] += pk[size_t(r)];
+        acc[i] += pa[size_t(r)];
+        acc_lo[i] = std::min(acc_lo[i], pa[size_t(r)]);
+        acc_hi[i] = std::max(acc_hi[i], pa[size_t(r)]);
+        depth[i] += pd[size_t(r)];
+      }
+      out.content.samples += part.samples;
+      out.content.kept += part.kept;
+      if (region) {
+        // The same rays, the same kept samples (no jitter), the indicator as the value.
+        const auto in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+        for (int64_t r = 0; r < R; ++r) inside[size_t(block(r))] += in[size_t(r)];
       }
     }
-  const double inv = 1.0 / (double(supersample) * supersample);
-  auto mean_of = [&](const std::vector<double>& sum) {
+  };
+  // Every block's centre first. Then the blocks whose centre differs from a neighbour's (blocks_to_refine)
+  // get the other sub-rays: elsewhere the n x n average equals the centre up to the map's curvature. For
+  // odd n the centre is the middle sub-ray and is kept; for even n it is not one of them and is replaced.
+  add_rays(0.5f, 0.5f, {});
+  std::vector<double> rays_in(size_t(n), 1.0);  // sub-rays summed per block
+  if (supersample > 1) {
+    std::vector<float> c0(c.begin(), c.end()), a0(acc.begin(), acc.end());
+    const std::vector<uint8_t> refine = blocks_to_refine(c0, E, a0, w, h, refine_contrast);
+    std::vector<int64_t> which;
+    for (int64_t b = 0; b < n; ++b)
+      if (refine[size_t(b)]) which.push_back(b);
+    out.refined = int64_t(which.size());
+    const bool odd = supersample % 2 == 1;
+    if (!odd)
+      for (int64_t b : which) {
+        std::fill(c.begin() + b * E, c.begin() + (b + 1) * E, 0.0);
+        kept_acc[size_t(b)] = acc[size_t(b)] = depth[size_t(b)] = 0.0;
+        acc_lo[size_t(b)] = 1.0f;
+        acc_hi[size_t(b)] = 0.0f;
+        if (region) inside[size_t(b)] = 0.0;
+      }
+    if (!which.empty())
+      for (int sy = 0; sy < supersample; ++sy)
+        for (int sx = 0; sx < supersample; ++sx) {
+          if (odd && sx == supersample / 2 && sy == supersample / 2) continue;  // the centre, rendered above
+          add_rays((sx + 0.5f) / float(supersample), (sy + 0.5f) / float(supersample), which);
+        }
+    for (int64_t b : which) rays_in[size_t(b)] = double(supersample) * supersample;
+  }
+  auto mean_of = [&](const std::vector<double>& sum, int per_block) {
     std::vector<float> m(sum.size());
-    for (size_t i = 0; i < sum.size(); ++i) m[i] = float(sum[i] * inv);
+    for (size_t i = 0; i < sum.size(); ++i) m[i] = float(sum[i] / rays_in[i / size_t(per_block)]);
     return m;
   };
   if (region) {
     out.region_mask.assign(static_cast<size_t>(n), 0.0f);
     for (int64_t r = 0; r < n; ++r) {
-      const double k = kept_acc[size_t(r)] * inv;  // mean kept weight; 1e-6 as for one ray
+      const double k = kept_acc[size_t(r)] / rays_in[size_t(r)];  // mean kept weight; 1e-6 as for one ray
       out.region_mask[size_t(r)] = k > 1e-6 ? float(std::clamp(inside[size_t(r)] / kept_acc[size_t(r)], 0.0, 1.0)) : 0.0f;
     }
   }
-  out.content.c = Tensor::from_host(mean_of(c), {n, E}, "camera content");
-  out.content.kept_acc = Tensor::from_host(mean_of(kept_acc), {n}, "camera kept opacity");
-  out.content.acc = Tensor::from_host(mean_of(acc), {n}, "camera opacity");
-  out.content.depth = Tensor::from_host(mean_of(depth), {n}, "camera depth");
+  out.content.c = Tensor::from_host(mean_of(c, E), {n, E}, "camera content");
+  out.content.kept_acc = Tensor::from_host(mean_of(kept_acc, 1), {n}, "camera kept opacity");
+  out.content.acc = Tensor::from_host(mean_of(acc, 1), {n}, "camera opacity");
+  out.content.depth = Tensor::from_host(mean_of(depth, 1), {n}, "camera depth");
   if (features.geo.has_background && stride() > 1)
     out.pixel_acc = pixel_opacity(scene, cam, w, h, acc_lo, acc_hi, std::max(chunk, 8192));
   return out;

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "lib/io/checkpoint.hpp"
+#include "lib/model/block_refine.hpp"
 #include "lib/model/feature_model.hpp"
 #include "lib/model/region.hpp"
 #include "lib/nn/vgg.hpp"
@@ -154,6 +155,8 @@ class StyleModel : public nn::Module {
     // over_background cuts silhouettes at the image's resolution rather than the map's blocks. Rendered
     // only in blocks near a silhouette (pixel_opacity): elsewhere 0 or 1.
     std::vector<float> pixel_acc;
+    // Blocks given their n x n sub-rays (supersample > 1; the others kept their centre ray).
+    int64_t refined = 0;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
   // supersample n > 1: n x n rays per block, spread evenly over it, and their content averaged (c, w_r,
@@ -164,8 +167,11 @@ class StyleModel : public nn::Module {
   // each sub-ray's map would have been before the decoder. Costs up to n^2 x the content render; matters
   // for the fast profile, whose one ray per block stands for 16 pixels (docs/results.md: what n = 2 buys on the
   // consistency table and costs a frame).
+  // refine_contrast: only the blocks whose centre ray differs from a neighbour's by more than this get the
+  // n x n sub-rays; the others keep their centre (block_refine.hpp; 0: every block, the exact average).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
-                                      const RegionHead* region = nullptr, int supersample = 1) const;
+                                      const RegionHead* region = nullptr, int supersample = 1,
+                                      float refine_contrast = kRefineContrast) const;
   // CameraContent::pixel_acc for a map of w x h blocks whose sub-rays' opacity ranged over
   // [acc_lo, acc_hi] per block: rendered one ray a pixel only near silhouettes (see the definition).
   std::vector<float> pixel_opacity(const scene::Scene& scene, const scene::Camera& cam, int w, int h,

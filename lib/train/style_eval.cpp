@@ -54,7 +54,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
     const scene::View& v = scene.test[size_t(int64_t(vi) * n / count)];
     if (v.rgb.empty()) throw Error("evaluate styles: test view " + v.image_path + " has no image loaded");
     const int W = v.camera.width, H = v.camera.height, We = W / 8 * 8, He = H / 8 * 8;
-    const auto cc = m.render_camera_content(scene, v.camera, 4096, nullptr, opt.supersample);
+    const auto cc = m.render_camera_content(scene, v.camera, 4096, nullptr, opt.supersample, opt.refine_contrast);
     const Tensor truth = planar_crop(v.rgb, W, He, We);
     const nn::VggFeatures ft = vgg.forward(truth, 4, false);
     OpacityMask mask;

@@ -28,6 +28,7 @@ struct StyleEvalOptions {
   int views = 5;            // test views, evenly spaced (0: all)
   std::string image_dir;    // non-empty: writes <style>_view<i>.png (truth | ours | AdaIN) for the first view
   int supersample = 1;      // content rays per block and axis (StyleModel::render_camera_content)
+  float refine_contrast = model::kRefineContrast;  // those rays only where the map has edges; 0: every block
   std::ostream* log = nullptr;
 };
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
