@@ -12,8 +12,8 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
-#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/eval_setup.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/path_frames.hpp"

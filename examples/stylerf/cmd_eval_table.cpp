@@ -20,9 +20,9 @@
 #include <sstream>
 
 #include "examples/stylerf/commands.hpp"
-#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/eval_setup.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/path_frames.hpp"

@@ -20,8 +20,8 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
-#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"

@@ -85,7 +85,8 @@ std::vector<model::StyleModel::CameraContent> content_frames(const model::StyleM
                                                               int supersample, float refine_contrast) {
   std::vector<model::StyleModel::CameraContent> out;
   out.reserve(cams.size());
-  for (const auto& cam : cams) out.push_back(m.render_camera_content(scene, cam, chunk, nullptr, supersample, refine_contrast));
+  for (const auto& cam : cams)
+    out.push_back(m.render_camera_content(scene, cam, chunk, nullptr, supersample, refine_contrast));
   return out;
 }
 
@@ -112,8 +113,8 @@ std::vector<io::Image> stylerf_frames(const model::StyleModel& m, const scene::S
                                       float refine_contrast) {
   std::vector<io::Image> out;
   for (const auto& cam : cams) {
-    const std::vector<model::StyleModel::CameraContent> one{m.render_camera_content(scene, cam, chunk, nullptr, supersample,
-                                                                                             refine_contrast)};
+    const std::vector<model::StyleModel::CameraContent> one{
+        m.render_camera_content(scene, cam, chunk, nullptr, supersample, refine_contrast)};
     out.push_back(stylerf_frames(m, one, {cam}, code, over_background).front());
   }
   return out;
