@@ -264,6 +264,20 @@ int bench_field(const BenchOptions& opt) {
       ms = timed(bwd, false, [&] { render::composite_values_backward(layout, kw, vals, dout, Tensor()); });
       add(bwd, ms, K, "Msmp/s", K * (4.0 + 3 * 4.0 * C + 8) + R * 4.0 * C);
     }
+    // The grouped renderer's merge: each entry's row read through an index (here the kept list reversed,
+    // at the field components' 72 channels), against the same sum over rows gathered first.
+    {
+      const int C = 72;
+      std::vector<int32_t> rev(size_t(k.count));
+      for (int64_t i = 0; i < k.count; ++i) rev[size_t(i)] = int32_t(k.count - 1 - i);
+      Tensor rows = Tensor::from_host(rev, {k.count}), vals = Tensor::full({k.count, C}, 0.5f);
+      const std::string fwd = "values fwd indexed C=72";
+      ms = timed(fwd, false, [&] { render::composite_values_forward(layout, kw, vals, rows); });
+      add(fwd, ms, K, "Msmp/s", K * (8.0 + 4.0 * C) + R * 4.0 * (C + 1));
+      const std::string gfwd = "gather + values fwd C=72";
+      ms = timed(gfwd, false, [&] { render::composite_values_forward(layout, kw, render::gather_rows(vals, rows, k.count)); });
+      add(gfwd, ms, K, "Msmp/s", K * (8.0 + 3 * 4.0 * C) + R * 4.0 * (C + 1));
+    }
   }
 
   // ---- deferred shading's per-ray ops (lib/render/deferred.hpp), at the appearance features' 72 channels ----

@@ -117,6 +117,26 @@ kernel void values_forward(global const float* w, global const float* vals, glob
   if (ch == 0) acc_out[r] = acc;
 }
 
+// The same sum with entry k's value row vals[rows[k]] (a gather fused into the sum: the grouped
+// renderer's weighted mean of each merged point's members, lib/model/ray_pipeline.cpp; inference only).
+kernel void values_forward_indexed(global const float* w, global const float* vals, global const int* rows,
+                                   global const int* offsets, global const int* counts, int R, int C,
+                                   global float* out, global float* acc_out) {
+  const int r = get_global_id(0), ch = get_global_id(1);
+  const int chunks = C / VW;
+  if (r >= R || ch >= chunks) return;
+  const int off = offsets[r], cnt = counts[r];
+  VT s = (VT)(0.0f);
+  float acc = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float wk = w[k];
+    s = fma((VT)(wk), VLOAD(ch, vals + (long)rows[k] * C), s);
+    acc += wk;
+  }
+  VSTORE(s, ch, out + (long)r * C);
+  if (ch == 0) acc_out[r] = acc;
+}
+
 // dvals[k, chunk] = w[k] * dout[ray[k], chunk].
 kernel void values_backward_dvalues(global const float* w, global const int* ray_of, int K, int C,
                                     global const float* dout, global float* dvals) {

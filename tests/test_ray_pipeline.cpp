@@ -281,3 +281,124 @@ TEST_CASE("early termination: the render backward is exact for the samples kept 
   testing::check_close(cut.value.to_host(), testing::to_double(full.value.to_host()), 0, 1e-4, "colour with/without");
   check_model_fd(m, o, d, testing::to_double(testing::random_normal(7 * 3, 23)));
 }
+
+namespace {
+
+// Heads for the grouped renderer: the sample's position as its attributes, and a shading of them done on
+// the host in double (any function will do; the renderer only moves rows around it).
+class PositionHead : public model::SampleHead {
+ public:
+  int channels() const override { return 3; }
+  Tensor forward(const Tensor& pos, const Tensor&, std::unique_ptr<Context>*) const override { return pos.clone(); }
+  void backward(const Context&, const Tensor&) override {}
+  void collect_params(std::vector<nn::Param*>&) override {}
+};
+
+using HostShade = std::function<std::vector<double>(const std::vector<double>& x)>;  // 3 -> 2 channels
+Tensor shade_rows(const Tensor& x, const HostShade& f) {
+  const auto v = x.to_host();
+  std::vector<float> out;
+  for (size_t i = 0; i < v.size(); i += 3)
+    for (double y : f({v[i], v[i + 1], v[i + 2]})) out.push_back(float(y));
+  return Tensor::from_host(out, {x.dim(0), 2});
+}
+
+// The per-sample order: shade each kept sample, composite per ray (what the groups approximate).
+class ShadedHead : public model::SampleHead {
+ public:
+  explicit ShadedHead(HostShade f) : f_(std::move(f)) {}
+  int channels() const override { return 2; }
+  Tensor forward(const Tensor& pos, const Tensor&, std::unique_ptr<Context>*) const override { return shade_rows(pos, f_); }
+  void backward(const Context&, const Tensor&) override {}
+  void collect_params(std::vector<nn::Param*>&) override {}
+
+ private:
+  HostShade f_;
+};
+
+// Rays [R, 3] repeated `times` times each, consecutively.
+Tensor repeat_rows(const Tensor& x, int times) {
+  const auto v = x.to_host();
+  std::vector<float> out;
+  for (size_t i = 0; i < v.size(); i += 3)
+    for (int k = 0; k < times; ++k) out.insert(out.end(), v.begin() + i, v.begin() + i + 3);
+  return Tensor::from_host(out, {x.dim(0) * times, 3});
+}
+
+}  // namespace
+
+TEST_CASE("grouped rays: geometry per sub-ray, the shade once per depth step; exact for linear shades") {
+  model::Geometry g = small_geometry();
+  g.weight_threshold = 1e-3f;
+  Tensor o, d;
+  make_rays(o, d);  // 7 rays, the last one missing the box
+  const PositionHead position;
+  const HostShade linear = [](const std::vector<double>& x) {
+    return std::vector<double>{2 * x[0] - x[1] + 0.5, x[2] + 3 * x[1]};
+  };
+  const HostShade curved = [](const std::vector<double>& x) {
+    return std::vector<double>{std::exp(2 * x[0]) * x[1], std::sin(3 * x[2]) + x[0] * x[0]};
+  };
+  auto shade_fn = [](const HostShade& f) { return model::ShadeFn([f](const Tensor& x) { return shade_rows(x, f); }); };
+  auto per_ray = [&](const Tensor& oo, const Tensor& dd, const HostShade& f) {
+    return model::render_rays(g, ShadedHead(f), oo, dd, {}, nullptr);
+  };
+  auto as_double = [](const Tensor& t) { return testing::to_double(t.to_host()); };
+
+  // One ray a group: render_rays exactly, whatever the shade.
+  for (const HostShade* f : {&linear, &curved}) {
+    const auto got = model::render_ray_groups(g, position, shade_fn(*f), 2, o, d, 1);
+    const auto want = per_ray(o, d, *f);
+    testing::check_close(got.value.to_host(), as_double(want.value), 1e-6, 1e-7, "group of 1: values");
+    CHECK(got.kept_acc.to_host() == want.kept_acc.to_host());
+    CHECK(got.acc.to_host() == want.acc.to_host());
+    CHECK(got.depth.to_host() == want.depth.to_host());
+    CHECK(got.merged == got.kept);
+  }
+  // A group of 4 copies of each ray: every step merges 4 identical samples into the ray's own sample.
+  {
+    const auto got = model::render_ray_groups(g, position, shade_fn(curved), 2, repeat_rows(o, 4), repeat_rows(d, 4), 4);
+    const auto want = per_ray(o, d, curved);
+    CHECK(got.value.shape() == host::Shape{7, 2});
+    CHECK(got.merged * 4 == got.kept);
+    testing::check_close(got.value.to_host(), as_double(want.value), 1e-5, 1e-6, "identical sub-rays: values");
+    testing::check_close(got.kept_acc.to_host(), as_double(want.kept_acc), 1e-5, 1e-7, "identical sub-rays: kept acc");
+  }
+  // Distinct rays in groups of 3 (rays 0-2, 3-5): opacity and depth stay per sub-ray; the kept opacity and
+  // a linear shade are exactly the groups' means of the per-ray renders; a curved shade is not (the test
+  // rays do share steps), but stays close.
+  const auto oh = o.to_host(), dh = d.to_host();
+  const Tensor o6 = Tensor::from_host(std::vector<float>(oh.begin(), oh.begin() + 18), {6, 3});
+  const Tensor d6 = Tensor::from_host(std::vector<float>(dh.begin(), dh.begin() + 18), {6, 3});
+  auto group_mean = [](const Tensor& t, int C) {
+    const auto v = t.to_host();
+    std::vector<double> m(size_t(2 * C), 0.0);
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < C; ++c) m[size_t((r / 3) * C + c)] += v[size_t(r * C + c)] / 3.0;
+    return m;
+  };
+  const auto lin = model::render_ray_groups(g, position, shade_fn(linear), 2, o6, d6, 3);
+  const auto lin_rays = per_ray(o6, d6, linear);
+  CHECK(lin.merged < lin.kept);
+  testing::check_close(lin.value.to_host(), group_mean(lin_rays.value, 2), 1e-5, 1e-6, "linear shade: group means");
+  testing::check_close(lin.kept_acc.to_host(), group_mean(lin_rays.kept_acc, 1), 1e-5, 1e-7, "kept acc: group means");
+  CHECK(lin.acc.to_host() == lin_rays.acc.to_host());
+  CHECK(lin.depth.to_host() == lin_rays.depth.to_host());
+  const auto cur = model::render_ray_groups(g, position, shade_fn(curved), 2, o6, d6, 3);
+  const auto cur_mean = group_mean(per_ray(o6, d6, curved).value, 2);
+  double worst = 0, differs = 0;
+  const auto cv = cur.value.to_host();
+  for (size_t i = 0; i < cv.size(); ++i) {
+    worst = std::max(worst, std::abs(cv[i] - cur_mean[i]) / (1 + std::abs(cur_mean[i])));
+    differs = std::max(differs, std::abs(cv[i] - cur_mean[i]));
+  }
+  CHECK(differs > 1e-4);
+  CHECK(worst < 0.5);
+  // Rays that all miss: zeros, no samples; a ray count that is not whole groups: a clear error.
+  const Tensor miss_o = Tensor::from_host({5, 5, 5, 5, 5, 5}, {2, 3}), miss_d = Tensor::from_host({0, 0, 1, 0, 0, 1}, {2, 3});
+  const auto none = model::render_ray_groups(g, position, shade_fn(linear), 2, miss_o, miss_d, 2);
+  CHECK(none.samples == 0);
+  CHECK(none.value.to_host() == std::vector<float>{0.0f, 0.0f});
+  CHECK(none.acc.to_host() == std::vector<float>{0.0f, 0.0f});
+  testing::expect_error([&] { model::render_ray_groups(g, position, shade_fn(linear), 2, o, d, 2); }, "whole groups");
+}

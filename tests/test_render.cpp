@@ -18,6 +18,7 @@
 #include "lib/render/weights.hpp"
 #include "lib/render/ray_march.hpp"
 #include "lib/render/scan.hpp"
+#include "lib/render/step_merge.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -538,6 +539,84 @@ TEST_CASE("weighted sum over kept samples: every vector width, forward vs double
     for (size_t i = 0; i < probe.size(); ++i) got.push_back(dv[probe[i]]), want_v.push_back(fd_v[i]);
     check_close(got, want_v, 1e-4, 1e-5, "dvalues");
   }
+}
+
+TEST_CASE("weighted sum over indexed rows: the double reference and the gathered sum, every vector width") {
+  const std::vector<int> counts = {3, 0, 1, 7, 2};
+  int K = 0;
+  for (int c : counts) K += c;
+  std::vector<int32_t> off;
+  render::exclusive_scan(counts, off);
+  Samples s = make_samples(counts, std::vector<float>(K, 1.0f), std::vector<float>(K, 0.1f));
+  const render::KeptLayout layout = all_kept(s, counts);
+  const int N = 19;  // value rows: more than entries, some read twice, some never
+  std::vector<int32_t> rows(K);
+  for (int k = 0; k < K; ++k) rows[k] = (7 * k + 3) % N;
+  rows[4] = rows[2];
+  for (int C : {256, 72, 20, 7}) {  // vector widths 16, 8, 4, 1
+    CAPTURE(C);
+    const auto w = testing::random_uniform(K, 31, 0.0f, 1.0f);
+    const auto v = testing::random_normal(size_t(N) * C, 32);
+    std::vector<double> want(counts.size() * C, 0.0), acc(counts.size(), 0.0);
+    for (size_t r = 0; r < counts.size(); ++r)
+      for (int k = off[r]; k < off[r] + counts[r]; ++k) {
+        acc[r] += w[k];
+        for (int c = 0; c < C; ++c) want[r * C + c] += double(w[k]) * v[size_t(rows[k]) * C + c];
+      }
+    const Tensor tw = Tensor::from_host(w, {K}), tv = Tensor::from_host(v, {N, C}), tr = Tensor::from_host(rows, {K});
+    const auto out = render::composite_values_forward(layout, tw, tv, tr);
+    check_close(out.value.to_host(), want, 1e-5, 1e-6, "indexed values");
+    check_close(out.acc.to_host(), acc, 1e-6, 1e-7, "indexed acc");
+    // The same sums, in the same order, as gathering the rows first.
+    const auto gathered = render::composite_values_forward(layout, tw, render::gather_rows(tv, tr, K));
+    CHECK(out.value.to_host() == gathered.value.to_host());
+  }
+  testing::expect_error(
+      [&] { render::composite_values_forward(layout, Tensor::zeros({K}), Tensor::zeros({N, 8}), Tensor::zeros({K})); },
+      "dtype");
+  testing::expect_error([&] {
+    render::composite_values_forward(layout, Tensor::zeros({K}), Tensor::zeros({N, 8}),
+                                     Tensor::from_host(std::vector<int32_t>(K - 1, 0), {K - 1}));
+  }, "rows");
+}
+
+TEST_CASE("merging a group's kept samples step by step") {
+  // Two groups of two rays, step 0.1. Group 0: ray 0 at steps 1, 2, 3; ray 1 at 2, 3, 4 (its t off the
+  // grid by 0.3 of a step: rounded to the nearest). Group 1: ray 2 keeps nothing, ray 3 keeps steps 5
+  // (weight 0) and 6.
+  const std::vector<int32_t> ray = {0, 0, 0, 1, 1, 1, 3, 3};
+  const std::vector<float> t = {0.1f, 0.2f, 0.3f, 0.23f, 0.33f, 0.43f, 0.5f, 0.6f};
+  const std::vector<float> w = {0.2f, 0.3f, 0.1f, 0.1f, 0.0f, 0.4f, 0.0f, 0.5f};
+  const render::StepMerge m = render::merge_group_steps(ray, t, w, 4, 2, 0.1f);
+  CHECK(m.group_offset == std::vector<int32_t>{0, 4});
+  CHECK(m.group_count == std::vector<int32_t>{4, 2});
+  CHECK(m.point_count == std::vector<int32_t>{1, 2, 2, 1, 1, 1});
+  CHECK(m.point_offset == std::vector<int32_t>{0, 1, 3, 5, 6, 7});
+  CHECK(m.order == std::vector<int32_t>{0, 1, 3, 2, 4, 5, 6, 7});
+  const std::vector<float> pw = {0.1f, 0.2f, 0.05f, 0.2f, 0.0f, 0.25f};
+  for (size_t i = 0; i < pw.size(); ++i) CHECK(m.point_weight[i] == doctest::Approx(pw[i]).epsilon(1e-6));
+  // Shares: w / the point's sum; a point of zero weight shares equally (its mean stays defined).
+  const std::vector<float> share = {1.0f, 0.75f, 0.25f, 1.0f, 0.0f, 1.0f, 1.0f, 1.0f};
+  for (size_t i = 0; i < share.size(); ++i) CHECK(m.share[i] == doctest::Approx(share[i]).epsilon(1e-6));
+  // The summed point weights are the group's mean kept opacity.
+  CHECK(m.point_weight[0] + m.point_weight[1] + m.point_weight[2] + m.point_weight[3] ==
+        doctest::Approx((0.6 + 0.5) / 2).epsilon(1e-6));
+  // One ray a group: each sample its own point, share 1, weight w.
+  const render::StepMerge one = render::merge_group_steps(ray, t, w, 4, 1, 0.1f);
+  CHECK(one.points() == 8);
+  CHECK(one.group_count == std::vector<int32_t>{3, 3, 0, 2});
+  for (size_t i = 0; i < w.size(); ++i) CHECK(one.point_weight[i] == w[i]);
+  // Nothing kept.
+  const render::StepMerge none = render::merge_group_steps({}, {}, {}, 6, 3, 0.1f);
+  CHECK(none.points() == 0);
+  CHECK(none.group_count == std::vector<int32_t>{0, 0});
+  // Bad lists: clear errors.
+  testing::expect_error([&] { render::merge_group_steps(ray, t, w, 3, 2, 0.1f); }, "not whole groups");
+  testing::expect_error([&] { render::merge_group_steps(ray, t, w, 2, 2, 0.1f); }, "outside the 2 rays");
+  testing::expect_error([&] { render::merge_group_steps(ray, t, w, 4, 2, 0.0f); }, "step");
+  testing::expect_error([&] { render::merge_group_steps(ray, t, {0.1f}, 4, 2, 0.1f); }, "weights");
+  testing::expect_error([&] { render::merge_group_steps({0, 0}, {0.2f, 0.1f}, {1, 1}, 2, 2, 0.1f); }, "out of order");
+  testing::expect_error([&] { render::merge_group_steps({1, 0}, {0.1f, 0.2f}, {1, 1}, 2, 2, 0.1f); }, "out of order");
 }
 
 TEST_CASE("weighted sum over kept samples: no kept samples, a ray of zero weights, shape errors") {

@@ -262,6 +262,45 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 9); }, "supersample must be in 1..8");
 }
 
+TEST_CASE("supersampled content shaded per depth step: the same geometry, SICT on merged samples") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
+  const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
+  constexpr float kNever = 1e30f, kAlways = 0.0f;
+  for (int n : {2, 3}) {
+    CAPTURE(n);
+    const auto exact = m.render_camera_content(sc, cam, 333, &everything, n, 0.0f, kNever);
+    const auto merged = m.render_camera_content(sc, cam, 333, &everything, n, 0.0f, kAlways);
+    CHECK_FALSE(exact.merged);
+    CHECK(merged.merged);
+    CHECK(merged.refined == exact.refined);
+    // Geometry per sub-ray either way: opacity, depth, kept opacity and the region's share agree.
+    auto worst = [](const std::vector<float>& a, const std::vector<float>& b) {
+      double x = a.size() == b.size() ? 0 : 1e9;
+      for (size_t i = 0; i < a.size() && i < b.size(); ++i) x = std::max(x, double(std::abs(a[i] - b[i])));
+      return x;
+    };
+    CHECK(worst(merged.content.acc.to_host(), exact.content.acc.to_host()) < 1e-6);
+    CHECK(worst(merged.content.depth.to_host(), exact.content.depth.to_host()) < 1e-5);
+    CHECK(worst(merged.content.kept_acc.to_host(), exact.content.kept_acc.to_host()) < 1e-5);
+    CHECK(worst(merged.region_mask, exact.region_mask) < 1e-4);
+    CHECK(merged.pixel_acc == exact.pixel_acc);
+    // SICT's output: the shade of the merged features, close to the mean of the sub-rays' shades (on
+    // this scene's smooth features) but not the same numbers.
+    const auto cm = merged.content.c.to_host(), ce = exact.content.c.to_host();
+    double scale = 0;
+    for (float v : ce) scale = std::max(scale, double(std::abs(v)));
+    CHECK(worst(cm, ce) < 0.1 * scale);
+    CHECK(worst(cm, ce) > 0.0);
+  }
+  // The default decides by the centre rays' kept samples: this small scene keeps few, so the exact average.
+  const auto centres = m.render_camera_content(sc, cam, 4096, nullptr, 1);
+  CHECK(centres.content.kept < int64_t(model::kMergeKeptPerRay) * centres.width * centres.height);
+  CHECK_FALSE(m.render_camera_content(sc, cam, 4096, nullptr, 3, 0.0f).merged);
+}
+
 TEST_CASE("blocks to refine: the blocks on either side of an edge, nothing on flat or gently sloping maps") {
   // A map of w x h blocks, 3 channels; channel 2 is constant (never triggers, no division by a zero spread).
   auto map = [](int w, int h, auto value) {

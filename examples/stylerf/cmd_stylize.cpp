@@ -303,6 +303,7 @@ struct RenderTiming {
   double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
   int frames = 0;
   int64_t blocks = 0, refined = 0;  // feature-map blocks rendered, and those given n x n rays
+  int merged_views = 0;             // views whose refined blocks were shaded per depth step
   double fps_after() const { return frames > 1 ? (frames - 1) / std::max(1e-9, frame_time_after) : 0.0; }
 };
 
@@ -326,6 +327,7 @@ nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::
     const auto cc = w.m.render_camera_content(w.scene, cam, a.chunk, w.region, a.supersample, a.refine_contrast);
     t.blocks += int64_t(cc.width) * cc.height;
     t.refined += cc.refined;
+    t.merged_views += cc.merged ? 1 : 0;
     t.content_s += seconds_since(tc);
     const std::string stem = test ? "test_" : "frame_";
     const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
@@ -388,6 +390,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
         {"supersample", a.supersample},
         {"refine_contrast", a.refine_contrast},
         {"refined_block_share", t.blocks > 0 ? double(t.refined) / double(t.blocks) : 0.0},
+        {"merged_views", t.merged_views},
         {"losses_s", t.loss_s},
         {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
                  "excluded from frames/s"}}},
@@ -403,8 +406,9 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
   if (a.supersample > 1)
     std::cout << "content: " << a.supersample << "x" << a.supersample << " rays in "
               << (t.blocks > 0 ? 100.0 * double(t.refined) / double(t.blocks) : 0.0)
-              << "% of the blocks (--refine-contrast " << a.refine_contrast << "), " << t.content_s / double(cams.size())
-              << " s a view\n";
+              << "% of the blocks (--refine-contrast " << a.refine_contrast << ")"
+              << (t.merged_views > 0 ? ", shaded once per depth step of a block (many samples a ray)" : "") << ", "
+              << t.content_s / double(cams.size()) << " s a view\n";
   if (w.losses) std::cout << w.losses->summary();
   std::cout << "-> " << a.out << "/metrics.json\n";
 }

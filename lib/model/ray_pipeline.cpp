@@ -5,6 +5,7 @@
 #include "host/error.hpp"
 #include "lib/field/vm_grid.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/render/step_merge.hpp"
 #include "lib/scene/rays.hpp"
 
 namespace stylerf::model {
@@ -109,6 +110,71 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
   }
   Tensor dsigma = render::weights_backward(s, ctx.sigma, dw_full, dacc, Tensor());
   field::density_backward(g.density, s.positions, ctx.sigma, dsigma, *ddensity, g.act);
+}
+
+GroupResult render_ray_groups(const Geometry& g, const SampleHead& attributes, const ShadeFn& shade, int channels,
+                              const Tensor& origins, const Tensor& dirs, int group) {
+  const int64_t R = origins.dim(0);
+  if (group < 1 || R % group != 0)
+    throw Error("render_ray_groups: " + std::to_string(R) + " rays are not whole groups of " + std::to_string(group));
+  const int64_t B = R / group;
+  const int C = channels;
+  render::DensityMarch ert;
+  ert.grid = &g.density;
+  ert.act = g.act;
+  ert.ert_threshold = g.ert_threshold;
+  const render::MarchConfig mc = g.march_config(false, 0);
+  render::Samples s = render::march(origins, dirs, mc, g.active_mask(), g.ert_threshold > 0.0f ? &ert : nullptr);
+  GroupResult out;
+  out.value = Tensor::zeros({B, C}, "group values");
+  out.kept_acc = Tensor::zeros({B}, "group kept acc");
+  if (s.count == 0) {
+    out.acc = Tensor::zeros({R}, "rendered acc");
+    out.depth = Tensor::zeros({R}, "rendered depth");
+    return out;
+  }
+  Tensor sigma = s.sigma.defined() ? s.sigma : field::density_forward(g.density, s.positions, g.act);
+  render::Weights w = render::weights_forward(s, sigma);
+  render::Kept k = render::keep_by_weight(s, w.w, g.weight_threshold);
+  out.acc = w.acc;
+  out.depth = w.depth;
+  out.samples = s.count;
+  out.kept = k.count;
+  if (k.count == 0) return out;
+  const Tensor ray_index = render::gather_rows(s.ray_index, k.index, k.count);
+  const Tensor kept_w = render::gather_rows(w.w, k.index, k.count);
+  const Tensor kept_t = render::gather_rows(s.t, k.index, k.count);
+  const Tensor pos = render::gather_rows(s.positions, k.index, k.count);
+  Tensor view_dirs;
+  if (attributes.wants_view_dirs()) view_dirs = render::gather_rows(dirs, ray_index, k.count);
+  const Tensor attr = attributes.forward(pos, view_dirs, nullptr);  // [K, A]
+  const render::StepMerge m = render::merge_group_steps(ray_index.to_host_i32(), kept_t.to_host(), kept_w.to_host(), R,
+                                                        group, mc.step);
+  const int64_t M = m.points();
+  out.merged = M;
+  // The merged attributes: the weighted mean of each point's members (a composite over `order` with the
+  // shares as weights, reading the members' rows in place).
+  const int64_t K = k.count;
+  const Tensor order = Tensor::from_host(m.order, {K}, "merge order");
+  render::KeptLayout members;
+  members.count = K;
+  members.ray_offset = Tensor::from_host(m.point_offset, {M}, "merged point offsets");
+  members.ray_count = Tensor::from_host(m.point_count, {M}, "merged point counts");
+  const Tensor merged_attr =
+      render::composite_values_forward(members, Tensor::from_host(m.share, {K}, "merge shares"), attr, order).value;
+  const Tensor values = shade(merged_attr);
+  if (values.ndim() != 2 || values.dim(0) != M || values.dim(1) != C)
+    throw Error("render_ray_groups: shade returned shape " + host::shape_str(values.shape()) + ", expected [" +
+                std::to_string(M) + ", " + std::to_string(C) + "]");
+  render::KeptLayout points;
+  points.count = M;
+  points.ray_offset = Tensor::from_host(m.group_offset, {B}, "group offsets");
+  points.ray_count = Tensor::from_host(m.group_count, {B}, "group counts");
+  render::CompositedValues cv =
+      render::composite_values_forward(points, Tensor::from_host(m.point_weight, {M}, "merged weights"), values);
+  out.value = cv.value;
+  out.kept_acc = cv.acc;
+  return out;
 }
 
 ViewValues render_camera(const Geometry& g, const SampleHead& head, const scene::Scene& scene,

@@ -186,7 +186,7 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
 
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
                                                             int chunk, const RegionHead* region, int supersample,
-                                                            float refine_contrast) const {
+                                                            float refine_contrast, float merge_kept_per_ray) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
@@ -238,9 +238,59 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
       }
     }
   };
+  // The blocks `which` as groups of their n x n sub-rays (render_ray_groups): the geometry per sub-ray, SICT
+  // once per depth step of the block on the weight-averaged field components of the sub-rays' samples there.
+  auto add_groups = [&](const std::vector<int64_t>& which) {
+    const int G = supersample * supersample;
+    std::vector<scene::Rays> sub;  // per sub-position, the rays of every block
+    for (int sy = 0; sy < supersample; ++sy)
+      for (int sx = 0; sx < supersample; ++sx)
+        sub.push_back(block_rays(scene, cam, stride(), w, h, (sx + 0.5f) / float(supersample),
+                                 (sy + 0.5f) / float(supersample)));
+    const ShadeFn shade = [&](const Tensor& comps) {
+      return sict.forward_factored(comps, features.field.basis.value, false, nullptr);
+    };
+    const int64_t per_call = std::max<int64_t>(1, chunk / G);  // blocks a call
+    const int64_t count = int64_t(which.size());
+    for (int64_t b = 0; b < count; b += per_call) {
+      const int64_t B = std::min<int64_t>(per_call, count - b);
+      std::vector<float> o(size_t(3 * B * G)), d(size_t(3 * B * G));
+      for (int64_t r = 0; r < B; ++r)
+        for (int q = 0; q < G; ++q)
+          for (int j = 0; j < 3; ++j) {
+            const size_t from = size_t(3 * which[size_t(b + r)] + j), to = size_t(3 * (r * G + q) + j);
+            o[to] = sub[size_t(q)].origins[from];
+            d[to] = sub[size_t(q)].directions[from];
+          }
+      const Tensor origins = Tensor::from_host(o, {B * G, 3}, "render origins");
+      const Tensor dirs = Tensor::from_host(d, {B * G, 3}, "render directions");
+      const GroupResult part = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, G);
+      const auto pc = part.value.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+      const auto pd = part.depth.to_host();
+      std::vector<float> in;
+      if (region) in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+      for (int64_t r = 0; r < B; ++r) {
+        const size_t i = size_t(which[size_t(b + r)]);
+        // The group's value is already its sub-rays' mean; the sums here are divided by G at the end.
+        for (int e = 0; e < E; ++e) c[i * E + size_t(e)] += double(G) * pc[size_t(r * E + e)];
+        kept_acc[i] += double(G) * pk[size_t(r)];
+        for (int q = 0; q < G; ++q) {
+          const size_t ray = size_t(r * G + q);
+          acc[i] += pa[ray];
+          acc_lo[i] = std::min(acc_lo[i], pa[ray]);
+          acc_hi[i] = std::max(acc_hi[i], pa[ray]);
+          depth[i] += pd[ray];
+          if (region) inside[i] += in[ray];
+        }
+      }
+      out.content.samples += part.samples;
+      out.content.kept += part.kept;
+    }
+  };
   // Every block's centre first. Then the blocks whose centre differs from a neighbour's (blocks_to_refine)
   // get the other sub-rays: elsewhere the n x n average equals the centre up to the map's curvature. For
-  // odd n the centre is the middle sub-ray and is kept; for even n it is not one of them and is replaced.
+  // odd n the centre is the middle sub-ray and is kept (unless the block is merged); for even n it is not
+  // one of them and is replaced.
   add_rays(0.5f, 0.5f, {});
   std::vector<double> rays_in(size_t(n), 1.0);  // sub-rays summed per block
   if (supersample > 1) {
@@ -250,8 +300,13 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
     for (int64_t b = 0; b < n; ++b)
       if (refine[size_t(b)]) which.push_back(b);
     out.refined = int64_t(which.size());
-    const bool odd = supersample % 2 == 1;
-    if (!odd)
+    // Shading merged per depth step where SICT on every sub-ray sample is what costs (many kept samples a
+    // ray: soft forward-facing geometry); on crisp surfaces the merge saves nothing (docs/results.md).
+    const double kept_per_ray = double(out.content.kept) / double(std::max<int64_t>(1, n));
+    out.merged = !which.empty() && kept_per_ray >= double(merge_kept_per_ray);
+    // A merged block is rendered again as one group of all its sub-rays, centre included.
+    const bool keep_centre = supersample % 2 == 1 && !out.merged;
+    if (!keep_centre)
       for (int64_t b : which) {
         std::fill(c.begin() + b * E, c.begin() + (b + 1) * E, 0.0);
         kept_acc[size_t(b)] = acc[size_t(b)] = depth[size_t(b)] = 0.0;
@@ -259,12 +314,15 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         acc_hi[size_t(b)] = 0.0f;
         if (region) inside[size_t(b)] = 0.0;
       }
-    if (!which.empty())
+    if (out.merged) {
+      add_groups(which);
+    } else if (!which.empty()) {
       for (int sy = 0; sy < supersample; ++sy)
         for (int sx = 0; sx < supersample; ++sx) {
-          if (odd && sx == supersample / 2 && sy == supersample / 2) continue;  // the centre, rendered above
+          if (keep_centre && sx == supersample / 2 && sy == supersample / 2) continue;  // rendered above
           add_rays((sx + 0.5f) / float(supersample), (sy + 0.5f) / float(supersample), which);
         }
+    }
     for (int64_t b : which) rays_in[size_t(b)] = double(supersample) * supersample;
   }
   auto mean_of = [&](const std::vector<double>& sum, int per_block) {

@@ -58,6 +58,28 @@ CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, 
   return out;
 }
 
+CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values,
+                                          const Tensor& rows) {
+  const char* op = "composite_values_forward (indexed)";
+  host::expect_shape(w, {l.count}, host::DType::F32, op, "weights");
+  host::expect_shape(rows, {l.count}, host::DType::I32, op, "rows");
+  host::expect_dtype(values, host::DType::F32, op, "values");
+  if (values.ndim() != 2 || values.dim(1) < 1)
+    throw Error(std::string(op) + ": values have shape " + host::shape_str(values.shape()) + ", expected [N, C]");
+  const int C = static_cast<int>(values.dim(1));
+  const int R = static_cast<int>(check_ray_lists(l.ray_offset, l.ray_count, op));
+  const int vw = vector_width(C);
+  CompositedValues out;
+  out.value = Tensor({R, C}, "composited values");
+  out.acc = Tensor({R}, "accumulated opacity (kept samples)");
+  if (R == 0) return out;
+  const size_t chunks = size_t(C / vw);
+  const size_t rays_per_group = chunks >= 16 ? 4 : 64;
+  launch_with_local("composite", "values_forward_indexed", vw_option(vw), {size_t(R), chunks},
+                    {rays_per_group, chunks}, w, values, rows, l.ray_offset, l.ray_count, R, C, out.value, out.acc);
+  return out;
+}
+
 CompositeValuesGrads composite_values_backward(const KeptLayout& l, const Tensor& w, const Tensor& values,
                                                const Tensor& dvalue, const Tensor& dacc) {
   const int C = check_values(l, w, values, "composite_values_backward");

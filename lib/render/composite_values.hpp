@@ -34,6 +34,12 @@ std::vector<std::string> composite_value_build_options();
 // w [K], values [K, C].
 CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values);
 
+// The same with entry k's value row values[rows[k]] (rows [K] I32, each in [0, values rows)): equal to
+// composite_values_forward(l, w, gather_rows(values, rows, K)) without the gathered copy. Inference only
+// (the grouped renderer's merge, lib/model/ray_pipeline.hpp); the gather-then-sum form has the backward.
+CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values,
+                                          const Tensor& rows);
+
 struct CompositeValuesGrads {
   Tensor dvalues;  // [K, C]
   Tensor dw;       // [K]
