@@ -384,6 +384,11 @@ TEST_CASE("grouped rays: geometry per sub-ray, the shade once per depth step; ex
   testing::check_close(lin.kept_acc.to_host(), group_mean(lin_rays.kept_acc, 1), 1e-5, 1e-7, "kept acc: group means");
   CHECK(lin.acc.to_host() == lin_rays.acc.to_host());
   CHECK(lin.depth.to_host() == lin_rays.depth.to_host());
+  // Slabs of 3 steps merge more (samples of one ray too) and stay exact for a linear shade.
+  const auto slab = model::render_ray_groups(g, position, shade_fn(linear), 2, o6, d6, 3, 3);
+  CHECK(slab.merged < lin.merged);
+  testing::check_close(slab.value.to_host(), group_mean(lin_rays.value, 2), 1e-5, 1e-6, "3-step slabs: group means");
+  testing::check_close(slab.kept_acc.to_host(), group_mean(lin_rays.kept_acc, 1), 1e-5, 1e-7, "3-step slabs: kept acc");
   const auto cur = model::render_ray_groups(g, position, shade_fn(curved), 2, o6, d6, 3);
   const auto cur_mean = group_mean(per_ray(o6, d6, curved).value, 2);
   double worst = 0, differs = 0;
@@ -401,4 +406,5 @@ TEST_CASE("grouped rays: geometry per sub-ray, the shade once per depth step; ex
   CHECK(none.value.to_host() == std::vector<float>{0.0f, 0.0f});
   CHECK(none.acc.to_host() == std::vector<float>{0.0f, 0.0f});
   testing::expect_error([&] { model::render_ray_groups(g, position, shade_fn(linear), 2, o, d, 2); }, "whole groups");
+  testing::expect_error([&] { model::render_ray_groups(g, position, shade_fn(linear), 2, o, d, 1, 0); }, "steps_per_point");
 }

@@ -113,10 +113,12 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
 }
 
 GroupResult render_ray_groups(const Geometry& g, const SampleHead& attributes, const ShadeFn& shade, int channels,
-                              const Tensor& origins, const Tensor& dirs, int group) {
+                              const Tensor& origins, const Tensor& dirs, int group, int steps_per_point) {
   const int64_t R = origins.dim(0);
   if (group < 1 || R % group != 0)
     throw Error("render_ray_groups: " + std::to_string(R) + " rays are not whole groups of " + std::to_string(group));
+  if (steps_per_point < 1)
+    throw Error("render_ray_groups: steps_per_point must be >= 1, got " + std::to_string(steps_per_point));
   const int64_t B = R / group;
   const int C = channels;
   render::DensityMarch ert;
@@ -149,7 +151,7 @@ GroupResult render_ray_groups(const Geometry& g, const SampleHead& attributes, c
   if (attributes.wants_view_dirs()) view_dirs = render::gather_rows(dirs, ray_index, k.count);
   const Tensor attr = attributes.forward(pos, view_dirs, nullptr);  // [K, A]
   const render::StepMerge m = render::merge_group_steps(ray_index.to_host_i32(), kept_t.to_host(), kept_w.to_host(), R,
-                                                        group, mc.step);
+                                                        group, mc.step * float(steps_per_point));
   const int64_t M = m.points();
   out.merged = M;
   // The merged attributes: the weighted mean of each point's members (a composite over `order` with the

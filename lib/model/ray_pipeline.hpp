@@ -65,12 +65,13 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
 
 // Rays in groups of `group` consecutive rays (the sub-rays of one footprint, e.g. a feature-map block),
 // each group rendered as one ray the way multisample anti-aliasing splits coverage from shading: the
-// geometry per sub-ray (march, weights, the kept samples), the value once per depth step of the group. The
-// `attributes` head runs on every kept sample; its attributes are merged per step across the group
-// (lib/render/step_merge.hpp: weight-averaged, the merged weight summed over the group's size); `shade`
-// maps merged attributes [M, A] to values [M, C], which are composited per group. For a shade linear in the
-// attributes this is exactly the mean of the sub-rays' composites; for a nonlinear one (SICT) it costs one
-// shade per merged point instead of one per sub-ray sample.
+// geometry per sub-ray (march, weights, the kept samples), the value once per depth slab of the group
+// (steps_per_point march steps deep). The `attributes` head runs on every kept sample; its attributes are
+// merged per slab across the group (lib/render/step_merge.hpp: weight-averaged, the merged weight summed
+// over the group's size); `shade` maps merged attributes [M, A] to values [M, C], which are composited per
+// group. For a shade linear in the attributes this is exactly the mean of the sub-rays' composites,
+// whatever the slab; for a nonlinear one (SICT) it costs one shade per merged point instead of one per
+// sub-ray sample.
 using ShadeFn = std::function<Tensor(const Tensor& attributes)>;
 struct GroupResult {
   Tensor value;     // [R / group, C]
@@ -81,7 +82,7 @@ struct GroupResult {
 };
 // No background and no jitter (inference). origins, dirs [R, 3] with R a multiple of group.
 GroupResult render_ray_groups(const Geometry& g, const SampleHead& attributes, const ShadeFn& shade, int channels,
-                              const Tensor& origins, const Tensor& dirs, int group);
+                              const Tensor& origins, const Tensor& dirs, int group, int steps_per_point = 1);
 
 // A whole camera in chunks of rays (bounded memory): interleaved values [H*W*C], acc and depth [H*W]
 // (depth divided by acc where acc > 1e-6, else 0). A chunk holds at most kMaxSamplesPerCall / max_samples

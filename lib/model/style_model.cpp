@@ -240,13 +240,15 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   };
   // The blocks `which` as groups of their n x n sub-rays (render_ray_groups): the geometry per sub-ray, SICT
   // once per depth step of the block on the weight-averaged field components of the sub-rays' samples there.
-  auto add_groups = [&](const std::vector<int64_t>& which) {
-    const int G = supersample * supersample;
+  // skip_centre: odd n, whose centre sub-ray the first pass rendered already (kept as it is).
+  auto add_groups = [&](const std::vector<int64_t>& which, bool skip_centre) {
     std::vector<scene::Rays> sub;  // per sub-position, the rays of every block
     for (int sy = 0; sy < supersample; ++sy)
       for (int sx = 0; sx < supersample; ++sx)
-        sub.push_back(block_rays(scene, cam, stride(), w, h, (sx + 0.5f) / float(supersample),
-                                 (sy + 0.5f) / float(supersample)));
+        if (!(skip_centre && sx == supersample / 2 && sy == supersample / 2))
+          sub.push_back(block_rays(scene, cam, stride(), w, h, (sx + 0.5f) / float(supersample),
+                                   (sy + 0.5f) / float(supersample)));
+    const int G = int(sub.size());
     const ShadeFn shade = [&](const Tensor& comps) {
       return sict.forward_factored(comps, features.field.basis.value, false, nullptr);
     };
@@ -264,14 +266,14 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
           }
       const Tensor origins = Tensor::from_host(o, {B * G, 3}, "render origins");
       const Tensor dirs = Tensor::from_host(d, {B * G, 3}, "render directions");
-      const GroupResult part = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, G);
+      const GroupResult part = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, G, kMergeSteps);
       const auto pc = part.value.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
       const auto pd = part.depth.to_host();
       std::vector<float> in;
       if (region) in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
       for (int64_t r = 0; r < B; ++r) {
         const size_t i = size_t(which[size_t(b + r)]);
-        // The group's value is already its sub-rays' mean; the sums here are divided by G at the end.
+        // The group's value is already its G sub-rays' mean; the sums here are divided by n^2 at the end.
         for (int e = 0; e < E; ++e) c[i * E + size_t(e)] += double(G) * pc[size_t(r * E + e)];
         kept_acc[i] += double(G) * pk[size_t(r)];
         for (int q = 0; q < G; ++q) {
@@ -289,8 +291,8 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   };
   // Every block's centre first. Then the blocks whose centre differs from a neighbour's (blocks_to_refine)
   // get the other sub-rays: elsewhere the n x n average equals the centre up to the map's curvature. For
-  // odd n the centre is the middle sub-ray and is kept (unless the block is merged); for even n it is not
-  // one of them and is replaced.
+  // odd n the centre is the middle sub-ray and is kept (a merged block: the others form its group); for
+  // even n it is not one of them and is replaced.
   add_rays(0.5f, 0.5f, {});
   std::vector<double> rays_in(size_t(n), 1.0);  // sub-rays summed per block
   if (supersample > 1) {
@@ -304,8 +306,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
     // ray: soft forward-facing geometry); on crisp surfaces the merge saves nothing (docs/results.md).
     const double kept_per_ray = double(out.content.kept) / double(std::max<int64_t>(1, n));
     out.merged = !which.empty() && kept_per_ray >= double(merge_kept_per_ray);
-    // A merged block is rendered again as one group of all its sub-rays, centre included.
-    const bool keep_centre = supersample % 2 == 1 && !out.merged;
+    const bool keep_centre = supersample % 2 == 1;
     if (!keep_centre)
       for (int64_t b : which) {
         std::fill(c.begin() + b * E, c.begin() + (b + 1) * E, 0.0);
@@ -315,7 +316,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         if (region) inside[size_t(b)] = 0.0;
       }
     if (out.merged) {
-      add_groups(which);
+      add_groups(which, keep_centre);
     } else if (!which.empty()) {
       for (int sy = 0; sy < supersample; ++sy)
         for (int sx = 0; sx < supersample; ++sx) {

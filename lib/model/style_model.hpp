@@ -31,6 +31,10 @@ constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render
 // the centre rays keep at least this many samples a ray on average: fern 1/8 keeps ~180 (content 1.42x
 // faster, the same style loss and consistency), lego ~6 (the merge costs more than it saves).
 constexpr float kMergeKeptPerRay = 16.0f;
+// ... and merges the samples of kMergeSteps march steps (a slab of 2 voxels at TensoRF's half-voxel step)
+// into one shade: fern 1/8's content a view 7.5 s at 1 step, 6.2 at 2, 5.6 at 4, 5.6 at 8; frames 0.13,
+// 0.34, 1.09 of 255 from 1 step's (docs/results.md).
+constexpr int kMergeSteps = 4;
 
 // The decoder that draws stylised maps (train-style --style-decoder):
 //  - Stage2 ("stage2"): stage 2's decoder, fine-tuned: the paper's. It has seen one scene's photographs,
@@ -176,10 +180,11 @@ class StyleModel : public nn::Module {
   // refine_contrast: only the blocks whose centre ray differs from a neighbour's by more than this get the
   // n x n sub-rays; the others keep their centre (block_refine.hpp; 0: every block, the exact average).
   // merge_kept_per_ray: when the centre rays keep at least this many samples a ray on average, a refined
-  // block is rendered as one group of its sub-rays (render_ray_groups): opacity, depth and kept opacity
-  // exactly as above, SICT once per depth step on the sub-rays' weight-averaged field components there
-  // instead of on every sub-ray's samples (an approximation of the average: exact where the features
-  // agree across the block at each depth). 0: always; infinity: never (the exact average).
+  // block's sub-rays other than the centre ray already rendered are one group (render_ray_groups): opacity,
+  // depth and kept opacity exactly as above, SICT once per depth slab of kMergeSteps march steps on the
+  // sub-rays' weight-averaged field components there instead of on every sub-ray sample (an approximation
+  // of the average: exact where the features agree across the slab). 0: always; infinity: never (the exact
+  // average).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
                                       const RegionHead* region = nullptr, int supersample = 1,
                                       float refine_contrast = kRefineContrast,
