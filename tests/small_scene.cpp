@@ -1,6 +1,8 @@
 #include "tests/small_scene.hpp"
 
+#include <cstdlib>
 #include <string>
+#include <system_error>
 #include <unistd.h>
 
 #include "lib/io/checkpoint.hpp"
@@ -14,14 +16,25 @@ namespace stylerf::testing {
 
 namespace fs = std::filesystem;
 
+// Removed when the test process exits (each run wrote a few hundred MB of scenes and checkpoints that
+// piled up in /tmp); STYLERF_KEEP_TEST_DIRS=1 keeps it for a look after a failure.
+struct WorkDir {
+  fs::path path;
+  ~WorkDir() {
+    const char* keep = std::getenv("STYLERF_KEEP_TEST_DIRS");
+    std::error_code ec;
+    if (!(keep && std::string(keep) == "1")) fs::remove_all(path, ec);
+  }
+};
+
 fs::path small_work_dir() {
-  static fs::path dir = [] {
+  static WorkDir dir{[] {
     fs::path d = fs::temp_directory_path() / ("stylerf_test_small_" + std::to_string(::getpid()));
     fs::remove_all(d);
     fs::create_directories(d);
     return d;
-  }();
-  return dir;
+  }()};
+  return dir.path;
 }
 
 const scene::Scene& small_scene() {
