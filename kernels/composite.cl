@@ -99,9 +99,11 @@ kernel void weights_backward(global const float* sigma, global const float* delt
 #define VSUM8(v) (((v).s0 + (v).s1) + ((v).s2 + (v).s3) + ((v).s4 + (v).s5) + ((v).s6 + (v).s7))
 #endif
 
-// out[r, chunk] = sum_{k in ray r} w[k] * vals[k, chunk]; chunk 0 also writes acc[r] = sum w[k].
-kernel void values_forward(global const float* w, global const float* vals, global const int* offsets,
-                           global const int* counts, int R, int C, global float* out, global float* acc_out) {
+// out[r, chunk] = sum_{k in ray r} w[k] * vals[row_k, chunk], row_k = rows[k] when indexed, else k; chunk 0
+// also writes acc[r] = sum w[k].
+inline void weighted_row_sum(global const float* w, global const float* vals, global const int* rows, int indexed,
+                             global const int* offsets, global const int* counts, int R, int C, global float* out,
+                             global float* acc_out) {
   const int r = get_global_id(0), ch = get_global_id(1);
   const int chunks = C / VW;
   if (r >= R || ch >= chunks) return;
@@ -110,11 +112,17 @@ kernel void values_forward(global const float* w, global const float* vals, glob
   float acc = 0.0f;
   for (int k = off; k < off + cnt; ++k) {
     const float wk = w[k];
-    s = fma((VT)(wk), VLOAD(ch, vals + (long)k * C), s);
+    const long row = indexed ? rows[k] : k;
+    s = fma((VT)(wk), VLOAD(ch, vals + row * C), s);
     acc += wk;
   }
   VSTORE(s, ch, out + (long)r * C);
   if (ch == 0) acc_out[r] = acc;
+}
+
+kernel void values_forward(global const float* w, global const float* vals, global const int* offsets,
+                           global const int* counts, int R, int C, global float* out, global float* acc_out) {
+  weighted_row_sum(w, vals, offsets, 0, offsets, counts, R, C, out, acc_out);
 }
 
 // The same sum with entry k's value row vals[rows[k]] (a gather fused into the sum: the grouped
@@ -122,19 +130,7 @@ kernel void values_forward(global const float* w, global const float* vals, glob
 kernel void values_forward_indexed(global const float* w, global const float* vals, global const int* rows,
                                    global const int* offsets, global const int* counts, int R, int C,
                                    global float* out, global float* acc_out) {
-  const int r = get_global_id(0), ch = get_global_id(1);
-  const int chunks = C / VW;
-  if (r >= R || ch >= chunks) return;
-  const int off = offsets[r], cnt = counts[r];
-  VT s = (VT)(0.0f);
-  float acc = 0.0f;
-  for (int k = off; k < off + cnt; ++k) {
-    const float wk = w[k];
-    s = fma((VT)(wk), VLOAD(ch, vals + (long)rows[k] * C), s);
-    acc += wk;
-  }
-  VSTORE(s, ch, out + (long)r * C);
-  if (ch == 0) acc_out[r] = acc;
+  weighted_row_sum(w, vals, rows, 1, offsets, counts, R, C, out, acc_out);
 }
 
 // dvals[k, chunk] = w[k] * dout[ray[k], chunk].

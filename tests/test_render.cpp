@@ -487,15 +487,29 @@ TEST_CASE("dropping samples below a weight threshold keeps the rest in order; ga
   }
 }
 
-TEST_CASE("weighted sum over kept samples: every vector width, forward vs double reference, backward vs FD") {
-  const std::vector<int> counts = {3, 0, 1, 7, 2};  // an empty ray, a ray of one sample
-  const int R = int(counts.size());
+namespace {
+// The kept list of the weighted-sum tests: five rays, one of them empty, one of one sample.
+struct SumLayout {
+  std::vector<int> counts = {3, 0, 1, 7, 2};
   int K = 0;
-  for (int c : counts) K += c;
   std::vector<int32_t> off;
-  render::exclusive_scan(counts, off);
-  Samples s = make_samples(counts, std::vector<float>(K, 1.0f), std::vector<float>(K, 0.1f));
-  const render::KeptLayout layout = all_kept(s, counts);
+  render::KeptLayout layout;
+};
+SumLayout sum_layout() {
+  SumLayout t;
+  for (int c : t.counts) t.K += c;
+  render::exclusive_scan(t.counts, t.off);
+  t.layout = all_kept(make_samples(t.counts, std::vector<float>(t.K, 1.0f), std::vector<float>(t.K, 0.1f)), t.counts);
+  return t;
+}
+}  // namespace
+
+TEST_CASE("weighted sum over kept samples: every vector width, forward vs double reference, backward vs FD") {
+  const SumLayout sl = sum_layout();
+  const std::vector<int>& counts = sl.counts;
+  const std::vector<int32_t>& off = sl.off;
+  const render::KeptLayout& layout = sl.layout;
+  const int R = int(counts.size()), K = sl.K;
   for (int C : {256, 20, 8, 7, 3}) {  // vector widths 16, 4, 8, 1, 1
     CAPTURE(C);
     const auto w = testing::random_uniform(K, 21, 0.0f, 1.0f);
@@ -542,13 +556,11 @@ TEST_CASE("weighted sum over kept samples: every vector width, forward vs double
 }
 
 TEST_CASE("weighted sum over indexed rows: the double reference and the gathered sum, every vector width") {
-  const std::vector<int> counts = {3, 0, 1, 7, 2};
-  int K = 0;
-  for (int c : counts) K += c;
-  std::vector<int32_t> off;
-  render::exclusive_scan(counts, off);
-  Samples s = make_samples(counts, std::vector<float>(K, 1.0f), std::vector<float>(K, 0.1f));
-  const render::KeptLayout layout = all_kept(s, counts);
+  const SumLayout sl = sum_layout();
+  const std::vector<int>& counts = sl.counts;
+  const std::vector<int32_t>& off = sl.off;
+  const render::KeptLayout& layout = sl.layout;
+  const int K = sl.K;
   const int N = 19;  // value rows: more than entries, some read twice, some never
   std::vector<int32_t> rows(K);
   for (int k = 0; k < K; ++k) rows[k] = (7 * k + 3) % N;

@@ -303,7 +303,7 @@ struct RenderTiming {
   double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
   int frames = 0;
   int64_t blocks = 0, refined = 0;  // feature-map blocks rendered, and those given n x n rays
-  int merged_views = 0;             // views whose refined blocks were shaded per depth step
+  int merged_views = 0;             // views whose refined blocks were shaded per depth slab
   double fps_after() const { return frames > 1 ? (frames - 1) / std::max(1e-9, frame_time_after) : 0.0; }
 };
 
@@ -407,7 +407,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
     std::cout << "content: " << a.supersample << "x" << a.supersample << " rays in "
               << (t.blocks > 0 ? 100.0 * double(t.refined) / double(t.blocks) : 0.0)
               << "% of the blocks (--refine-contrast " << a.refine_contrast << ")"
-              << (t.merged_views > 0 ? ", shaded once per depth step of a block (many samples a ray)" : "") << ", "
+              << (t.merged_views > 0 ? ", shaded once per depth slab of a block (many samples a ray)" : "") << ", "
               << t.content_s / double(cams.size()) << " s a view\n";
   if (w.losses) std::cout << w.losses->summary();
   std::cout << "-> " << a.out << "/metrics.json\n";

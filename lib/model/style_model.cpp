@@ -239,7 +239,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
     }
   };
   // The blocks `which` as groups of their n x n sub-rays (render_ray_groups): the geometry per sub-ray, SICT
-  // once per depth step of the block on the weight-averaged field components of the sub-rays' samples there.
+  // once per depth slab of the block on the weight-averaged field components of the sub-rays' samples there.
   // skip_centre: odd n, whose centre sub-ray the first pass rendered already (kept as it is).
   auto add_groups = [&](const std::vector<int64_t>& which, bool skip_centre) {
     std::vector<scene::Rays> sub;  // per sub-position, the rays of every block
@@ -302,7 +302,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
     for (int64_t b = 0; b < n; ++b)
       if (refine[size_t(b)]) which.push_back(b);
     out.refined = int64_t(which.size());
-    // Shading merged per depth step where SICT on every sub-ray sample is what costs (many kept samples a
+    // Shading merged per depth slab where SICT on every sub-ray sample is what costs (many kept samples a
     // ray: soft forward-facing geometry); on crisp surfaces the merge saves nothing (docs/results.md).
     const double kept_per_ray = double(out.content.kept) / double(std::max<int64_t>(1, n));
     out.merged = !which.empty() && kept_per_ray >= double(merge_kept_per_ray);

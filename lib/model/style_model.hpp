@@ -27,9 +27,10 @@ namespace stylerf::model {
 enum StyleGroup { kGroupStylizer = 0, kGroupStyleDecoder = 1 };
 constexpr float kStyleWeightThreshold = 1e-3f;  // samples below this weight never reach SICT
 constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render_camera_content)
-// render_camera_content shades a refined block's sub-rays merged per depth step (render_ray_groups) when
-// the centre rays keep at least this many samples a ray on average: fern 1/8 keeps ~180 (content 1.42x
-// faster, the same style loss and consistency), lego ~6 (the merge costs more than it saves).
+// render_camera_content shades a refined block's sub-rays merged per depth slab (render_ray_groups) when
+// the centre rays keep at least this many samples a ray on average: fern 1/8 keeps ~180 (content 2.05x
+// faster with kMergeSteps, the same style loss and consistency), lego ~6 (the merge costs more than it
+// saves).
 constexpr float kMergeKeptPerRay = 16.0f;
 // ... and merges the samples of kMergeSteps march steps (a slab of 2 voxels at TensoRF's half-voxel step)
 // into one shade: fern 1/8's content a view 7.5 s at 1 step, 6.2 at 2, 5.6 at 4, 5.6 at 8; frames 0.13,
@@ -165,7 +166,7 @@ class StyleModel : public nn::Module {
     std::vector<float> pixel_acc;
     // Blocks given their n x n sub-rays (supersample > 1; the others kept their centre ray).
     int64_t refined = 0;
-    // Whether those blocks were shaded merged per depth step (merge_kept_per_ray).
+    // Whether those blocks were shaded merged per depth slab (merge_kept_per_ray).
     bool merged = false;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).

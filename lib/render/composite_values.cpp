@@ -42,9 +42,11 @@ static int check_values(const KeptLayout& l, const Tensor& w, const Tensor& valu
   return static_cast<int>(values.dim(1));
 }
 
-CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values) {
-  const int C = check_values(l, w, values, "composite_values_forward");
-  const int R = static_cast<int>(check_ray_lists(l.ray_offset, l.ray_count, "composite_values_forward"));
+// Both forms of the weighted sum: values read in order, or through rows (when given).
+static CompositedValues values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values, const Tensor* rows,
+                                       const char* op) {
+  const int C = static_cast<int>(values.dim(1));
+  const int R = static_cast<int>(check_ray_lists(l.ray_offset, l.ray_count, op));
   const int vw = vector_width(C);
   CompositedValues out;
   out.value = Tensor({R, C}, "composited values");
@@ -53,9 +55,18 @@ CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, 
   // Rays along dimension 0 in groups of 16 rays x all chunks (16 at C = 256): 256 work-items per group.
   const size_t chunks = size_t(C / vw);
   const size_t rays_per_group = chunks >= 16 ? 4 : 64;
-  launch_with_local("composite", "values_forward", vw_option(vw), {size_t(R), chunks}, {rays_per_group, chunks},
-                    w, values, l.ray_offset, l.ray_count, R, C, out.value, out.acc);
+  if (rows)
+    launch_with_local("composite", "values_forward_indexed", vw_option(vw), {size_t(R), chunks},
+                      {rays_per_group, chunks}, w, values, *rows, l.ray_offset, l.ray_count, R, C, out.value, out.acc);
+  else
+    launch_with_local("composite", "values_forward", vw_option(vw), {size_t(R), chunks}, {rays_per_group, chunks},
+                      w, values, l.ray_offset, l.ray_count, R, C, out.value, out.acc);
   return out;
+}
+
+CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values) {
+  check_values(l, w, values, "composite_values_forward");
+  return values_forward(l, w, values, nullptr, "composite_values_forward");
 }
 
 CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, const Tensor& values,
@@ -66,18 +77,7 @@ CompositedValues composite_values_forward(const KeptLayout& l, const Tensor& w, 
   host::expect_dtype(values, host::DType::F32, op, "values");
   if (values.ndim() != 2 || values.dim(1) < 1)
     throw Error(std::string(op) + ": values have shape " + host::shape_str(values.shape()) + ", expected [N, C]");
-  const int C = static_cast<int>(values.dim(1));
-  const int R = static_cast<int>(check_ray_lists(l.ray_offset, l.ray_count, op));
-  const int vw = vector_width(C);
-  CompositedValues out;
-  out.value = Tensor({R, C}, "composited values");
-  out.acc = Tensor({R}, "accumulated opacity (kept samples)");
-  if (R == 0) return out;
-  const size_t chunks = size_t(C / vw);
-  const size_t rays_per_group = chunks >= 16 ? 4 : 64;
-  launch_with_local("composite", "values_forward_indexed", vw_option(vw), {size_t(R), chunks},
-                    {rays_per_group, chunks}, w, values, rows, l.ray_offset, l.ray_count, R, C, out.value, out.acc);
-  return out;
+  return values_forward(l, w, values, &rows, op);
 }
 
 CompositeValuesGrads composite_values_backward(const KeptLayout& l, const Tensor& w, const Tensor& values,

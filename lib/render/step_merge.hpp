@@ -1,14 +1,15 @@
-// Merging the kept samples of a group of rays step by step: the index behind render_ray_groups
+// Merging the kept samples of a group of rays slab by slab: the index behind render_ray_groups
 // (lib/model/ray_pipeline.hpp), multisample anti-aliasing's split for volumes. A group's rays (the sub-rays
 // of one pixel footprint) share their origin's distance scale, and a march places every sample at t = a
-// whole number of steps from where its ray starts, so samples of different sub-rays at the same
-// round(t / step) lie side by side across the footprint at one depth. Each such set becomes one merged
-// point: its attributes the weight-averaged attributes of its members, its weight their summed weight over
-// the group's size. Compositing a value linear in the attributes over the merged points gives exactly the
-// mean over the group of each sub-ray's composite; a nonlinear value is evaluated once per depth step of
-// the footprint instead of once per sub-ray sample.
-// Host code: the inputs are one int and two floats a kept sample (a few MB a call), the outputs index lists
-// that gather_rows and composite_values_forward (tested device ops) turn into the merged attributes.
+// whole number of march steps from where its ray starts, so samples of different sub-rays with the same
+// round(t / step) lie side by side across the footprint in one depth slab (step: the march step, or a
+// multiple of it to merge along each ray too). Each such set becomes one merged point: its attributes the
+// weight-averaged attributes of its members, its weight their summed weight over the group's size.
+// Compositing a value linear in the attributes over the merged points gives exactly the mean over the
+// group of each sub-ray's composite; a nonlinear value is evaluated once per slab of the footprint instead
+// of once per sub-ray sample.
+// Host code: the inputs are one int and two floats a kept sample (a few MB a call); the outputs are index
+// lists that composite_values_forward (its indexed form, a tested device op) turns into merged attributes.
 #pragma once
 #include <cstdint>
 #include <vector>
