@@ -19,6 +19,7 @@
 #include "lib/scene/analytic_scene.hpp"
 #include "lib/scene/camera_path.hpp"
 #include "lib/scene/make_scene.hpp"
+#include "lib/scene/masked_background.hpp"
 #include "lib/scene/rays.hpp"
 #include "lib/scene/scene.hpp"
 #include "tests/testing.hpp"
@@ -428,6 +429,83 @@ TEST_CASE("object capture (cup at 1/4): object-centric, no NDC, centred box, cam
 }
 
 // ------------------------------------------------------------------------------------------------
+// A view of w x h whose border ring (the outer `ring` pixels) is `border` and whose interior is a texture.
+View bordered_view(int w, int h, int ring, std::function<std::array<float, 3>(int, int)> border) {
+  View v;
+  v.camera.width = w;
+  v.camera.height = h;
+  v.rgb.resize(size_t(w) * h * 3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool edge = x < ring || y < ring || x >= w - ring || y >= h - ring;
+      const std::array<float, 3> c = edge ? border(x, y)
+                                          : std::array<float, 3>{float((x * 37 + y * 11) % 97) / 97.0f, float((x * y) % 53) / 53.0f, 0.2f};
+      for (int k = 0; k < 3; ++k) v.rgb[(size_t(y) * w + x) * 3 + k] = c[size_t(k)];
+    }
+  return v;
+}
+
+TEST_CASE("plain backdrop: an object capture on a uniform border gets its colour as background, others do not") {
+  // 100 x 60: the ring looked at is 60 / 50 = 1 pixel wide; the fixtures' borders are 3 wide.
+  auto near_white = [](int x, int y) { return std::array<float, 3>{0.98f + 0.01f * float((x + y) % 3), 0.99f, 0.97f}; };
+  auto busy = [](int x, int y) { return std::array<float, 3>{float((x * 7 + y * 3) % 10) / 10.0f, 0.5f, 0.4f}; };
+  Scene object;
+  object.format = "llff-object";
+  for (int i = 0; i < 4; ++i) object.train.push_back(bordered_view(100, 60, 3, near_white));
+  const BorderColour b = border_colour(object.train);
+  CHECK(b.pixels == 4 * (2 * 100 + 2 * 58));
+  CHECK(b.share == doctest::Approx(1.0));
+  CHECK(b.rgb[1] == doctest::Approx(0.99f));
+
+  Scene masked = object;
+  detect_plain_background(masked);
+  CHECK(masked.effects.background);
+  CHECK(masked.effects.background_rgb[0] == doctest::Approx(0.99f));
+  CHECK(masked.effects.background_rgb[2] == doctest::Approx(0.97f));
+  CHECK(has(masked.describe(), "background colour (0.99, 0.99, 0.97) (plain backdrop)"));
+  CHECK(has(masked.describe(), "100% of the training views' border pixels"));
+
+  Scene forward = object;  // NDC rays never leave the content: no background whatever the border
+  forward.format = "llff-forward";
+  detect_plain_background(forward);
+  CHECK_FALSE(forward.effects.background);
+
+  Scene real = object;  // a real backdrop: its border pixels spread over many colours
+  for (View& v : real.train) v = bordered_view(100, 60, 3, busy);
+  CHECK(border_colour(real.train).share < kUniformBorderShare);
+  detect_plain_background(real);
+  CHECK_FALSE(real.effects.background);
+
+  Scene mostly = object;  // one view in four with a busy border: 75% uniform, below the 95% asked for
+  mostly.train[2] = bordered_view(100, 60, 3, busy);
+  detect_plain_background(mostly);
+  CHECK_FALSE(mostly.effects.background);
+
+  Scene alpha = object;  // a background from alpha is kept as it is
+  alpha.effects.background = true;
+  alpha.effects.background_rgb = {0, 0, 0};
+  detect_plain_background(alpha);
+  CHECK(alpha.effects.background_rgb[0] == 0.0f);
+  CHECK(alpha.effects.background_reason == "images have alpha");
+
+  Scene cameras_only = object;  // nothing to read the border from
+  for (View& v : cameras_only.train) v.rgb.clear();
+  detect_plain_background(cameras_only);
+  CHECK_FALSE(cameras_only.effects.background);
+  CHECK(border_colour(cameras_only.train).pixels == 0);
+}
+
+TEST_CASE("plain backdrop on the real captures: milk_carton (masked to white) on, cup (a room behind it) off") {
+  const std::string root = data_dir();
+  REAL_DATA_OR_RETURN(root, "the real object captures' backgrounds");
+  Scene milk = load_scene(root + "/scenes/llff/milk_carton", quiet(8));
+  CHECK(milk.format == "llff-object");
+  CHECK(milk.effects.background);
+  for (float c : milk.effects.background_rgb) CHECK(c > 0.95f);
+  Scene cup = load_scene(root + "/scenes/llff/cup", quiet(4));
+  CHECK_FALSE(cup.effects.background);
+}
+
 TEST_CASE("bad Blender inputs give errors naming the file") {
   TempDir t("bad_blender");
   auto fresh = [&](const std::string& name) {

@@ -12,6 +12,7 @@
 #include "lib/scene/colmap_loader.hpp"
 #include "lib/scene/colmap_model.hpp"
 #include "lib/scene/llff_loader.hpp"
+#include "lib/scene/masked_background.hpp"
 
 namespace stylerf::scene {
 
@@ -101,7 +102,7 @@ std::string Scene::describe() const {
   }
   if (effects.background) {
     s << (any ? "," : "") << " background colour (" << effects.background_rgb[0] << ", " << effects.background_rgb[1]
-      << ", " << effects.background_rgb[2] << ") (images have alpha)";
+      << ", " << effects.background_rgb[2] << ") (" << effects.background_reason << ")";
     any = true;
   }
   if (effects.view_dependence) {
@@ -145,6 +146,7 @@ Scene load_scene(const std::string& dir, const LoadOptions& opts) {
                 " has none of transforms_train.json (Blender format), poses_bounds.npy (LLFF format), transforms.json "
                 "(nerfstudio) or sparse/0/cameras.bin|txt (COLMAP, with images/)");
   }
+  detect_plain_background(s);
   if (opts.log) *opts.log << s.describe() << std::flush;
   return s;
 }

@@ -37,8 +37,9 @@ struct Camera {
 
 struct SceneEffects {
   bool ndc = false;              // rays in normalised device coordinates (forward-facing LLFF)
-  bool background = false;       // images had alpha and were composited over background_rgb
+  bool background = false;       // rays leaving the content see background_rgb (see background_reason)
   std::array<float, 3> background_rgb{1, 1, 1};
+  std::string background_reason = "images have alpha";  // or a plain backdrop read off the borders
   bool view_dependence = false;  // appearance may depend on the view direction (only when asked for)
 };
 

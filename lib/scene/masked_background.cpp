@@ -1,0 +1,69 @@
+#include "lib/scene/masked_background.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace stylerf::scene {
+
+namespace {
+
+// Appends the border ring of one image ([h][w][3]) to out (interleaved rgb).
+void append_ring(const View& v, std::vector<float>& out) {
+  const int w = v.camera.width, h = v.camera.height;
+  if (w <= 0 || h <= 0 || v.rgb.size() != size_t(w) * h * 3) return;
+  const int b = std::max(1, std::min(w, h) / 50);
+  for (int y = 0; y < h; ++y) {
+    const bool edge_row = y < b || y >= h - b;
+    for (int x = 0; x < w; ++x) {
+      if (!edge_row && x >= b && x < w - b) {
+        x = w - b - 1;  // skip the interior of this row
+        continue;
+      }
+      const float* p = &v.rgb[(size_t(y) * w + x) * 3];
+      out.insert(out.end(), p, p + 3);
+    }
+  }
+}
+
+}  // namespace
+
+BorderColour border_colour(const std::vector<View>& views, float tolerance) {
+  std::vector<float> ring;
+  for (const View& v : views) append_ring(v, ring);
+  BorderColour r;
+  r.pixels = long(ring.size() / 3);
+  if (r.pixels == 0) return r;
+  std::vector<float> channel(size_t(r.pixels));
+  for (int c = 0; c < 3; ++c) {
+    for (long i = 0; i < r.pixels; ++i) channel[size_t(i)] = ring[size_t(i) * 3 + c];
+    auto mid = channel.begin() + r.pixels / 2;
+    std::nth_element(channel.begin(), mid, channel.end());
+    r.rgb[size_t(c)] = *mid;
+  }
+  long same = 0;
+  for (long i = 0; i < r.pixels; ++i) {
+    float d = 0;
+    for (int c = 0; c < 3; ++c) d = std::max(d, std::fabs(ring[size_t(i) * 3 + c] - r.rgb[size_t(c)]));
+    same += d <= tolerance;
+  }
+  r.share = double(same) / double(r.pixels);
+  return r;
+}
+
+void detect_plain_background(Scene& s) {
+  const bool object = s.format.size() > 7 && s.format.compare(s.format.size() - 7, 7, "-object") == 0;
+  if (!object || s.effects.background || s.train.empty() || s.train[0].rgb.empty()) return;
+  const BorderColour b = border_colour(s.train);
+  char text[200];
+  std::snprintf(text, sizeof text, "%.0f%% of the training views' border pixels are (%.3g, %.3g, %.3g)", 100.0 * b.share,
+                b.rgb[0], b.rgb[1], b.rgb[2]);
+  if (b.share < kUniformBorderShare) return;
+  s.effects.background = true;
+  s.effects.background_rgb = b.rgb;
+  s.effects.background_reason = "plain backdrop";
+  s.notes.push_back(std::string("background colour on: ") + text + " (a plain or masked backdrop; rays leaving the box see it)");
+}
+
+}  // namespace stylerf::scene
