@@ -301,6 +301,42 @@ TEST_CASE("supersampled content shaded per depth step: the same geometry, SICT o
   CHECK_FALSE(m.render_camera_content(sc, cam, 4096, nullptr, 3, 0.0f).merged);
 }
 
+TEST_CASE("centre rays shaded per depth slab after a first call that keeps many samples a ray") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  constexpr float kNever = 1e30f, kAlways = 0.0f;
+  constexpr int kChunk = 40;  // several renderer calls (a 12 x 12 map); the first is shaded per sample either way
+  const auto exact = m.render_camera_content(sc, cam, kChunk, nullptr, 1, 0.0f, kNever);
+  const auto slab = m.render_camera_content(sc, cam, kChunk, nullptr, 1, 0.0f, kAlways);
+  CHECK_FALSE(exact.slab_shaded);
+  CHECK(slab.slab_shaded);
+  CHECK(slab.content.kept == exact.content.kept);
+  const auto ae = exact.content.acc.to_host(), as = slab.content.acc.to_host();
+  const auto ke = exact.content.kept_acc.to_host(), ks = slab.content.kept_acc.to_host();
+  const auto de = exact.content.depth.to_host(), ds = slab.content.depth.to_host();
+  const auto ce = exact.content.c.to_host(), cs = slab.content.c.to_host();
+  const int E = int(ce.size() / ae.size());
+  REQUIRE(ae.size() > size_t(kChunk));
+  double scale = 0, first = 0, later = 0, geometry = 0;
+  for (float v : ce) scale = std::max(scale, double(std::abs(v)));
+  for (size_t r = 0; r < ae.size(); ++r) {
+    geometry = std::max({geometry, double(std::abs(ae[r] - as[r])), double(std::abs(ke[r] - ks[r])),
+                         double(std::abs(de[r] - ds[r])) * 1e-1});
+    for (int e = 0; e < E; ++e) {
+      const double d = std::abs(ce[r * E + size_t(e)] - cs[r * E + size_t(e)]);
+      double& worst = r < size_t(kChunk) ? first : later;
+      worst = std::max(worst, d);
+    }
+  }
+  CHECK(geometry < 1e-5);     // the same samples and weights
+  CHECK(first == 0.0);        // the deciding call: every sample shaded, as without merging
+  CHECK(later > 0.0);         // then one shade per slab: not the same numbers...
+  CHECK(later < 0.1 * scale);  // ...but close on this scene's smooth features
+  // The default decides by the first call's kept samples: this small scene keeps few, so every sample.
+  CHECK_FALSE(m.render_camera_content(sc, cam, kChunk, nullptr, 1).slab_shaded);
+}
+
 TEST_CASE("blocks to refine: the blocks on either side of an edge, nothing on flat or gently sloping maps") {
   // A map of w x h blocks, 3 channels; channel 2 is constant (never triggers, no division by a zero spread).
   auto map = [](int w, int h, auto value) {

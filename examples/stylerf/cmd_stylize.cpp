@@ -304,6 +304,7 @@ struct RenderTiming {
   int frames = 0;
   int64_t blocks = 0, refined = 0;  // feature-map blocks rendered, and those given n x n rays
   int merged_views = 0;             // views whose refined blocks were shaded per depth slab
+  int slab_views = 0;               // views whose centre rays were shaded per depth slab
   double fps_after() const { return frames > 1 ? (frames - 1) / std::max(1e-9, frame_time_after) : 0.0; }
 };
 
@@ -328,6 +329,7 @@ nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::
     t.blocks += int64_t(cc.width) * cc.height;
     t.refined += cc.refined;
     t.merged_views += cc.merged ? 1 : 0;
+    t.slab_views += cc.slab_shaded ? 1 : 0;
     t.content_s += seconds_since(tc);
     const std::string stem = test ? "test_" : "frame_";
     const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
@@ -391,6 +393,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
         {"refine_contrast", a.refine_contrast},
         {"refined_block_share", t.blocks > 0 ? double(t.refined) / double(t.blocks) : 0.0},
         {"merged_views", t.merged_views},
+        {"slab_shaded_views", t.slab_views},
         {"losses_s", t.loss_s},
         {"note", "from the start of the work (weights, checkpoint and scene loaded); losses are timed apart and "
                  "excluded from frames/s"}}},
@@ -403,12 +406,16 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
   stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(), doc.dump(2) + "\n");
   std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
             << t.first_frame_s << " s; then " << t.fps_after() << " frames/s (" << t.frames << " frames)\n";
+  std::cout << "content: ";
   if (a.supersample > 1)
-    std::cout << "content: " << a.supersample << "x" << a.supersample << " rays in "
+    std::cout << a.supersample << "x" << a.supersample << " rays in "
               << (t.blocks > 0 ? 100.0 * double(t.refined) / double(t.blocks) : 0.0)
               << "% of the blocks (--refine-contrast " << a.refine_contrast << ")"
-              << (t.merged_views > 0 ? ", shaded once per depth slab of a block (many samples a ray)" : "") << ", "
-              << t.content_s / double(cams.size()) << " s a view\n";
+              << (t.merged_views > 0 ? ", shaded once per depth slab of a block (many samples a ray)" : "") << ", ";
+  else
+    std::cout << "one ray a block, ";
+  if (t.slab_views > 0) std::cout << "centre rays shaded once per depth slab (many samples a ray), ";
+  std::cout << t.content_s / double(cams.size()) << " s a view\n";
   if (w.losses) std::cout << w.losses->summary();
   std::cout << "-> " << a.out << "/metrics.json\n";
 }

@@ -202,6 +202,13 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   CameraContent out;
   out.width = w;
   out.height = h;
+  const ShadeFn shade = [&](const Tensor& comps) {
+    return sict.forward_factored(comps, features.field.basis.value, false, nullptr);
+  };
+  // Whether add_rays shades per depth slab (render_ray_groups of one ray): decided by its first call, whose
+  // rays are shaded per sample; the later calls merge when that call kept >= merge_kept_per_ray samples a
+  // ray. On soft geometry SICT on every kept sample is most of a centre ray's cost.
+  bool first_call = true, slab_rays = false;
   // Renders the blocks `which` (all when empty) at sub-position (fx, fy) of each block and adds into the sums.
   auto add_rays = [&](float fx, float fy, const std::vector<int64_t>& which) {
     const scene::Rays rays = block_rays(scene, cam, stride(), w, h, fx, fy);
@@ -217,7 +224,23 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         }
       const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
       const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
-      const Content part = render_content(origins, dirs, false, 0, nullptr);
+      Content part;
+      if (slab_rays) {
+        const GroupResult g = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps);
+        part.c = g.value;
+        part.kept_acc = g.kept_acc;
+        part.acc = g.acc;
+        part.depth = g.depth;
+        part.samples = g.samples;
+        part.kept = g.kept;
+      } else {
+        part = render_content(origins, dirs, false, 0, nullptr);
+      }
+      if (first_call) {
+        first_call = false;
+        slab_rays = double(part.kept) >= double(merge_kept_per_ray) * double(R);
+        out.slab_shaded = slab_rays;
+      }
       const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
       const auto pd = part.depth.to_host();
       for (int64_t r = 0; r < R; ++r) {
@@ -249,9 +272,6 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
           sub.push_back(block_rays(scene, cam, stride(), w, h, (sx + 0.5f) / float(supersample),
                                    (sy + 0.5f) / float(supersample)));
     const int G = int(sub.size());
-    const ShadeFn shade = [&](const Tensor& comps) {
-      return sict.forward_factored(comps, features.field.basis.value, false, nullptr);
-    };
     const int64_t per_call = std::max<int64_t>(1, chunk / G);  // blocks a call
     const int64_t count = int64_t(which.size());
     for (int64_t b = 0; b < count; b += per_call) {

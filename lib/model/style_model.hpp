@@ -168,6 +168,9 @@ class StyleModel : public nn::Module {
     int64_t refined = 0;
     // Whether those blocks were shaded merged per depth slab (merge_kept_per_ray).
     bool merged = false;
+    // Whether the centre rays after the first renderer call were shaded once per depth slab of their own
+    // samples (merge_kept_per_ray, judged on that first call).
+    bool slab_shaded = false;
   };
   // region: also renders its mask (a second pass over the same rays, with the indicator as the value).
   // supersample n > 1: n x n rays per block, spread evenly over it, and their content averaged (c, w_r,
@@ -184,8 +187,10 @@ class StyleModel : public nn::Module {
   // block's sub-rays other than the centre ray already rendered are one group (render_ray_groups): opacity,
   // depth and kept opacity exactly as above, SICT once per depth slab of kMergeSteps march steps on the
   // sub-rays' weight-averaged field components there instead of on every sub-ray sample (an approximation
-  // of the average: exact where the features agree across the slab). 0: always; infinity: never (the exact
-  // average).
+  // of the average: exact where the features agree across the slab). The centre rays likewise: when the
+  // first renderer call's rays keep at least this many samples a ray, the later calls shade each ray once
+  // per depth slab of its own samples (fern: SICT on every kept sample was most of a centre ray's cost).
+  // 0: always; infinity: never (the exact average, every sample shaded).
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
                                       const RegionHead* region = nullptr, int supersample = 1,
                                       float refine_contrast = kRefineContrast,
