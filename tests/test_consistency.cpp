@@ -7,6 +7,10 @@
 #include <limits>
 
 #include "lib/eval/consistency.hpp"
+#include "lib/eval/path_consistency.hpp"
+#include "lib/eval/path_frames.hpp"
+#include "lib/model/density_model.hpp"
+#include "lib/train/density_trainer.hpp"
 #include "lib/eval/warp.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/scene/analytic_scene.hpp"
@@ -328,4 +332,43 @@ TEST_CASE("the geometry renderer: opacity and depth of a trained density grid wi
   const auto huge = model::render_geometry(geo, scene, cam, 1 << 30);
   CHECK(small.acc == v.acc);
   CHECK(huge.depth == v.depth);
+}
+
+TEST_CASE("the RGB floor's render gives the table its geometry: one march, the same depth, opacity and warps") {
+  const auto& scene = testing::small_scene();
+  auto cfg = train::default_density_config(scene);
+  cfg.model.density_rank = {8, 8, 8};
+  cfg.model.app_rank = {8, 8, 8};
+  cfg.model.hidden = 32;
+  cfg.model.act = field::DensityActivation::Relu;
+  model::DensityModel m = model::DensityModel::create(scene, cfg.model, testing::small_geometry().res(), 7);
+  m.geo = testing::small_geometry();  // the trained density and its mask; the appearance stays untrained
+  eval::PathOptions p;
+  p.frames = 8;
+  p.chunk = 512;
+  const auto cams = eval::path_cameras(scene, p.frames, p.path_frames, p.size);
+  std::vector<FrameGeometry> from_rgb;
+  const auto rgb = eval::rgb_frames(m, scene, cams, p.chunk, &from_rgb);
+  const auto alone = eval::render_path_geometry(m.geo, scene, cams, p.chunk);
+  REQUIRE(rgb.size() == cams.size());
+  REQUIRE(from_rgb.size() == alone.size());
+  int covered = 0;
+  for (size_t i = 0; i < alone.size(); ++i) {
+    CHECK(from_rgb[i].depth == alone[i].depth);
+    CHECK(from_rgb[i].opacity == alone[i].opacity);
+    for (float a : alone[i].opacity) covered += a > 0.5f;
+  }
+  CHECK(covered > 0);
+  const eval::PathSetup a = eval::path_setup(m.geo, scene, p);
+  const eval::PathSetup b = eval::path_setup(from_rgb, m.geo.has_background, scene, p);
+  REQUIRE(a.warps.short_range.warps.size() == b.warps.short_range.warps.size());
+  REQUIRE(a.warps.long_range.warps.size() == b.warps.long_range.warps.size());
+  for (size_t i = 0; i < a.warps.short_range.warps.size(); ++i) {
+    CHECK(a.warps.short_range.warps[i].valid == b.warps.short_range.warps[i].valid);
+    CHECK(a.warps.short_range.warps[i].x == b.warps.short_range.warps[i].x);
+  }
+  CHECK(a.warps.long_range.warps.back().valid == b.warps.long_range.warps.back().valid);
+  // Frames of another path are refused, naming the counts.
+  from_rgb.pop_back();
+  testing::expect_error([&] { eval::path_setup(from_rgb, false, scene, p); }, "7 rendered frames for a path of 8");
 }

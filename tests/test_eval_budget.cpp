@@ -10,18 +10,20 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
   const FrameCost c{2.0, 0.5};
   EvalCounts n;
   n.eval_views = 1, n.holdout = 2, n.video_frames = 10, n.shown = 1, n.table_frames = 8;
-  // eval-style 1 x (2 + 2 x 3 x 0.5) = 5; videos 10 x (2 + 0.5) = 25; mix 2 + 25 x 0.5 = 14.5;
-  // table: pairs 7 + 1 = 8; 8 x 2 + 1 x (2 x 8 x 0.5 + 2 x 8 x 2 x 0.5) + 8 x 0.5 + 8 x 2 x 0.5 = 16 + 24 + 4 + 8
-  // = 52; start-up 4 x 8 = 32.
-  CHECK(eval_seconds(c, n) == doctest::Approx(5 + 25 + 14.5 + 52 + 32));
+  // eval-style 1 x (2 + 2 x 4 x 0.5) = 6; videos 10 x (2 + 0.5) = 25; mix 2 + 25 x 0.5 = 14.5;
+  // table: pairs 7 + 1 = 8; RGB frames unmeasured, so a style2d each: 8 x 0.5 + 8 x 2 x 0.5 + 8 x 2 +
+  // 1 x (2 x 8 x 0.5 + 2 x 8 x 2 x 0.5) = 4 + 8 + 16 + 24 = 52; start-up 4 x 8 = 32.
+  CHECK(eval_seconds(c, n) == doctest::Approx(6 + 25 + 14.5 + 52 + 32));
+  // A measured RGB view of 3 s: the table's 8 frames cost 8 x (3 - 0.5) = 20 more.
+  CHECK(eval_seconds({2.0, 0.5, 1, 3.0}, n) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 20));
   {
-    // Scene statistics over 3 views: 3 x (4 x 2 + (2 + 2 x 1 + 4) x 0.5 x 0.5) = 3 x 10 = 30.
+    // Scene statistics over 3 views: 3 x (4 x 2 + (2 + 2 x 1 + 25) x 0.5 x 0.5) = 3 x 15.25 = 45.75.
     EvalCounts st = n;
     st.scene_stats_views = 3;
-    CHECK(eval_seconds(c, st) == doctest::Approx(5 + 25 + 14.5 + 52 + 32 + 30));
+    CHECK(eval_seconds(c, st) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 45.75));
     // Content measured at 2x2 rays a block: the statistics' views render at one ray, a quarter of it:
-    // 3 x (4 x 0.5 + 8 x 0.25) = 12, the rest as rendered at 2x2.
-    CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(5 + 25 + 14.5 + 52 + 32 + 12));
+    // 3 x (4 x 0.5 + 29 x 0.25) = 27.75, the rest as rendered at 2x2.
+    CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 27.75));
   }
   const double base = eval_seconds(c, n);
   for (int which = 0; which < 6; ++which) {
@@ -33,6 +35,7 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
   }
   CHECK(eval_seconds({4.0, 0.5}, n) > base);  // dearer content
   CHECK(eval_seconds({2.0, 1.0}, n) > base);  // dearer 2D work
+  CHECK(eval_seconds({2.0, 0.5, 1, 9.0}, n) > base);  // dearer RGB views
 }
 
 TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then frames to 8") {

@@ -114,6 +114,7 @@ TEST_CASE("run --minutes: the style stage planned from a measured frame, the sam
   const auto summary = testing::read_json(out / "summary.json");
   REQUIRE(summary.contains("plan"));
   CHECK(summary["plan"]["frame_content_s"].get<double>() > 0);
+  CHECK(summary["plan"]["frame_rgb_s"].get<double>() > 0);  // the density_test render timed its views
   CHECK(summary["plan"]["style_minutes"].get<double>() > 0);
 
   // Resumed: the recorded seconds give the same plan, so the style stage keeps its key and nothing runs.

@@ -363,10 +363,16 @@ SceneResult eval_scene(const TableArgs& a, const TableInputs& in, size_t gi, sty
   const fs::path sdir = fs::path(a.out) / folder;
   fs::create_directories(sdir);
   std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
-  const PathSetup path = path_setup(density.geo, scene, a.p);
-  std::cout << "  geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
-            << path.cams.front().height << ", warps in " << fmt(path.seconds, 1) << " s\n";
-  const auto rgb = eval::rgb_frames(density, scene, path.cams, a.p.chunk);
+  // The RGB floor's frames and the geometry every method is warped by, from one render of the density.
+  const auto t_rgb = Clock::now();
+  std::vector<eval::FrameGeometry> geometry;
+  const auto rgb = eval::rgb_frames(density, scene, eval::path_cameras(scene, a.p.frames, a.p.path_frames, a.p.size),
+                                    a.p.chunk, &geometry);
+  const double rgb_s = seconds_since(t_rgb);
+  const PathSetup path = path_setup(std::move(geometry), density.geo.has_background, scene, a.p);
+  std::cout << "  RGB and geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
+            << path.cams.front().height << " rendered in " << fmt(rgb_s, 1) << " s, warps in " << fmt(path.seconds, 1)
+            << " s" << std::endl;
   MethodRows rgb_rows{"RGB (unstylised floor)", {""}, {eval::score_frames(rgb, path.warps, dist)}};
   std::cout << "  RGB: " << score_line(rgb_rows.scores.back()) << "\n";
   std::vector<io::Image> first_adain, first_stylerf;

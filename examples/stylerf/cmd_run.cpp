@@ -218,6 +218,18 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
   return c;
 }
 
+// The seconds a render step took per view, its own timing in its metrics.json; 0 when it has none (a
+// metrics file of an older build): the planner then counts such a view as a style2d.
+double render_seconds_per_view(const std::string& metrics) {
+  try {
+    std::ifstream in(metrics);
+    const double s = nlohmann::json::parse(in).at("timing").at("render_s_per_view").get<double>();
+    return std::isfinite(s) && s > 0 ? s : 0.0;
+  } catch (const std::exception&) {
+    return 0.0;
+  }
+}
+
 // The test views a render step wrote (its metrics.json lists them), or `fallback` when it cannot tell:
 // eval-style scores at most that many, whatever --eval-views asks (fern has 3).
 int views_rendered(const std::string& metrics, int fallback) {
@@ -260,7 +272,7 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   const double style_train_s = (left - eval_s - style_fixed_s) / (1 + kHeldOutShare);
   plan.style_minutes = std::max(0.25 * nominal_style, style_train_s) / 60.0;
   std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
-            << " s of content + " << c.style2d << " s a style; evaluation predicted " << std::setprecision(1)
+            << " s of content + " << c.style2d << " s a style (an RGB view " << c.rgb << " s); evaluation predicted " << std::setprecision(1)
             << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min of training";
   if (!plan.cuts.empty()) std::cout << " (to fit: " << plan.cuts << ")";
   std::cout << std::endl;
@@ -334,11 +346,13 @@ int run_pipeline(int argc, char** argv) {
   if (by_minutes) {
     double style_fixed_s = 0;
     cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent, style_fixed_s);
+    cost.rgb = render_seconds_per_view((out / "density_test/metrics.json").string());
     const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style, style_fixed_s);
     style_minutes = plan.style_minutes;
     plan_json = {{"frame_content_s", cost.content},
                  {"frame_style_s", cost.style2d},
                  {"frame_rays_per_block", cost.rays_per_block},
+                 {"frame_rgb_s", cost.rgb},
                  {"eval_views", counts.eval_views},
                  {"predicted_eval_s", plan.predicted_eval_s},
                  {"style_minutes", style_minutes},

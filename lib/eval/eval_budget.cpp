@@ -10,22 +10,24 @@ constexpr int kMixCells = 25;
 }  // namespace
 
 double eval_seconds(const FrameCost& c, const EvalCounts& n) {
-  const double k = c.content, s = c.style2d;
-  // eval-style: each view's content once; per style ours, AdaIN's and their losses.
-  const double style_eval = n.eval_views * (k + n.holdout * 3.0 * s);
+  const double k = c.content, s = c.style2d, rgb = c.rgb > 0 ? c.rgb : c.style2d;
+  // eval-style: each view's content once; per style ours, AdaIN's (an encoder and a decoder) and the VGG
+  // losses of both.
+  const double style_eval = n.eval_views * (k + n.holdout * 4.0 * s);
   // videos: each frame's content once, then each shown style.
   const double videos = n.video_frames * (k + n.shown * s);
   const double mix = k + kMixCells * s;
-  // table: the content of its frames once (eval table shares it between styles); per style our frames
-  // and AdaIN's, and LPIPS pairs for both (t-1 and t-7); the RGB floor's frames and pairs.
+  // table: the RGB floor's frames (their render gives the warps too) and their LPIPS pairs (t-1 and t-7);
+  // the content of its frames once (eval table shares it between styles); per style our frames and
+  // AdaIN's, and LPIPS pairs for both.
   const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
-  const double table = n.table_frames * k + n.shown * (2.0 * n.table_frames * s + 2.0 * pairs * 2.0 * s) +
-                       n.table_frames * s + pairs * 2.0 * s;
-  // Scene statistics: each of the 4 steps renders its views' content at one ray a block; per style (eval-style's held-out
-  // ones, the videos', the mix sheet's 4 corners, the table's) DST and the tail on each view, counted as
-  // half a style2d (no decoder, no losses).
+  const double table = n.table_frames * rgb + pairs * 2.0 * s + n.table_frames * k +
+                       n.shown * (2.0 * n.table_frames * s + 2.0 * pairs * 2.0 * s);
+  // Scene statistics: each of the 4 steps renders its views' content at one ray a block; per style (eval-style's
+  // held-out ones, the videos', the mix sheet's 25 cells, the table's) DST and the tail on each view,
+  // counted as half a style2d (no decoder, no losses).
   const double stats_k = k / std::max(1, c.rays_per_block);
-  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + 4.0) * 0.5 * s);
+  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + kMixCells) * 0.5 * s);
   return style_eval + videos + mix + table + stats + 4 * kStartupPerStep;
 }
 

@@ -20,6 +20,10 @@ struct FrameCost {
   // The rays per block `content` was measured at (n x n): the scene statistics render their views at one
   // ray a block, content / rays_per_block (fern 1/8 at 3x3: 1.5 s a view, not 13.9).
   int rays_per_block = 1;
+  // One RGB view of the density stage at the frame's size (the consistency table's floor, whose render
+  // also gives every method's warps); 0: not measured, counted as a style2d. Fern at 1008x756: ~30 s, 14x
+  // its style2d, so counting it as one left 8 minutes of the table out of the plan.
+  double rgb = 0;
 };
 
 // What the evaluation renders.
@@ -36,11 +40,11 @@ struct EvalCounts {
 };
 
 // Predicted seconds of the evaluation steps after the style stage (eval-style, videos, mix sheet,
-// consistency table), from the frame's costs, with each step's scene statistics where the decoder reads them. What a step does beyond frames is counted in frames of
+// consistency table), from the frame's costs, with each step's scene statistics where the decoder reads
+// them (the mix sheet's for each of its 25 cells). What a step does beyond frames is counted in frames of
 // the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about a style2d, plus a
-// start-up allowance per step (loading weights, the scene, encoding styles). Lego 1/4's 60-minute run
-// (content 0.77 s, style2d 0.12 s) took 221 s for these steps; this predicts 216 s for them (with the
-// table rendering content per style, as it then did).
+// start-up allowance per step (loading weights, the scene, encoding styles). Checked against fern
+// 1008x756's 90-minute run (tests/test_eval_budget.cpp): within 15% of each step's measured seconds.
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),

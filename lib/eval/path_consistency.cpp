@@ -2,20 +2,33 @@
 
 #include <chrono>
 
+#include "host/error.hpp"
 #include "lib/eval/path_frames.hpp"
 
 namespace stylerf::eval {
 
 PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p) {
   const auto t0 = std::chrono::steady_clock::now();
+  const auto cams = path_cameras(scene, p.frames, p.path_frames, p.size);
+  PathSetup out = path_setup(render_path_geometry(g, scene, cams, p.chunk), g.has_background, scene, p);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+PathSetup path_setup(std::vector<FrameGeometry> frames, bool has_background, const scene::Scene& scene,
+                     const PathOptions& p) {
+  const auto t0 = std::chrono::steady_clock::now();
   PathSetup out;
   out.cams = path_cameras(scene, p.frames, p.path_frames, p.size);
+  if (frames.size() != out.cams.size())
+    throw host::Error("path_setup: " + std::to_string(frames.size()) + " rendered frames for a path of " +
+                      std::to_string(out.cams.size()));
   ConsistencyOptions opt;
   opt.warp.depth_tolerance = p.depth_tolerance;
   // The geometry records whether the scene has a background: the scene here is loaded without its images,
   // so its own effects cannot tell (they come from the images' alpha).
-  opt.warp.mask_background = g.has_background;
-  out.warps = path_warps(render_path_geometry(g, scene, out.cams, p.chunk), RaySpace::of(scene), opt);
+  opt.warp.mask_background = has_background;
+  out.warps = path_warps(frames, RaySpace::of(scene), opt);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

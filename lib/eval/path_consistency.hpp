@@ -27,6 +27,11 @@ struct PathSetup {
   double seconds = 0;  // rendering the geometry and finding the correspondences
 };
 PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p);
+// The same from the geometry of frames already rendered for path_cameras(scene, p...) (rgb_frames' own:
+// the RGB floor's render marches the same density, so the table need not march it twice: fern at 1008x756,
+// ~21 s a frame). has_background: the geometry's (Geometry::has_background).
+PathSetup path_setup(std::vector<FrameGeometry> frames, bool has_background, const scene::Scene& scene,
+                     const PathOptions& p);
 
 // Masked LPIPS as the consistency metric's distance; null when lpips is null.
 std::unique_ptr<MaskedDistance> lpips_distance(const Lpips* lpips);

@@ -47,13 +47,16 @@ io::Image planar_image(const std::vector<float>& interleaved, int width, int hei
 }
 
 std::vector<io::Image> rgb_frames(const model::DensityModel& m, const scene::Scene& scene,
-                                  const std::vector<scene::Camera>& cams, int chunk) {
+                                  const std::vector<scene::Camera>& cams, int chunk,
+                                  std::vector<FrameGeometry>* geometry) {
   std::vector<io::Image> out;
+  if (geometry) geometry->clear();
   for (const auto& cam : cams) {
     auto v = model::render_view(m, scene, cam, chunk);
     io::Image img = planar_image(v.value, v.width, v.height);
     for (float& x : img.data) x = std::clamp(x, 0.0f, 1.0f);
     out.push_back(std::move(img));
+    if (geometry) geometry->push_back({cam, std::move(v.depth), std::move(v.acc)});
   }
   return out;
 }

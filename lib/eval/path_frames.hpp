@@ -24,8 +24,11 @@ std::vector<scene::Camera> path_cameras(const scene::Scene& scene, int frames, i
 std::vector<FrameGeometry> render_path_geometry(const model::Geometry& g, const scene::Scene& scene,
                                                 const std::vector<scene::Camera>& cams, int chunk = 8192);
 
+// geometry (optional): each frame's opacity and depth from the same render, equal to render_path_geometry's
+// on the model's geometry (the same march and weights; only the value differs).
 std::vector<io::Image> rgb_frames(const model::DensityModel& m, const scene::Scene& scene,
-                                  const std::vector<scene::Camera>& cams, int chunk = 8192);
+                                  const std::vector<scene::Camera>& cams, int chunk = 8192,
+                                  std::vector<FrameGeometry>* geometry = nullptr);
 
 // The style image at the size StyleRF's style codes use (stylize: 256x256), so both methods see the same
 // pixels of the style.

@@ -71,6 +71,21 @@ StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, 
   return m;
 }
 
+namespace {
+// A renderer result (RayResult or GroupResult: the same per-ray fields) as the content the style stage reads.
+template <class Result>
+StyleModel::Content content_of(const Result& r) {
+  StyleModel::Content c;
+  c.c = r.value;
+  c.kept_acc = r.kept_acc;
+  c.acc = r.acc;
+  c.depth = r.depth;
+  c.samples = r.samples;
+  c.kept = r.kept;
+  return c;
+}
+}  // namespace
+
 StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tensor& dirs, bool training,
                                                uint32_t jitter_seed, Context* ctx) const {
   if (training && !ctx) throw Error("style model: a training render needs a context");
@@ -81,14 +96,7 @@ StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tens
   opt.seed = jitter_seed;
   const RayResult r = render_rays(features.geo, *head, origins, dirs, opt, ctx ? &ctx->rays : nullptr);
   if (ctx) ctx->head = std::move(head);
-  Content c;
-  c.c = r.value;
-  c.kept_acc = r.kept_acc;
-  c.acc = r.acc;
-  c.depth = r.depth;
-  c.samples = r.samples;
-  c.kept = r.kept;
-  return c;
+  return content_of(r);
 }
 
 Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode& code, int h, int w,
@@ -226,13 +234,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
       const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
       Content part;
       if (slab_rays) {
-        const GroupResult g = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps);
-        part.c = g.value;
-        part.kept_acc = g.kept_acc;
-        part.acc = g.acc;
-        part.depth = g.depth;
-        part.samples = g.samples;
-        part.kept = g.kept;
+        part = content_of(render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps));
       } else {
         part = render_content(origins, dirs, false, 0, nullptr);
       }
