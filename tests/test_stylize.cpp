@@ -337,6 +337,43 @@ TEST_CASE("centre rays shaded per depth slab after a first call that keeps many 
   CHECK_FALSE(m.render_camera_content(sc, cam, kChunk, nullptr, 1).slab_shaded);
 }
 
+TEST_CASE("inference's march step: NDC scenes a sample a voxel, others as trained; training's step untouched") {
+  model::Geometry g = testing::small_geometry();
+  REQUIRE_FALSE(g.ndc);
+  CHECK(model::StyleModel::default_inference_step_ratio(g) == g.step_ratio);
+  g.ndc = true;
+  CHECK(model::StyleModel::default_inference_step_ratio(g) == 1.0f);
+  g.step_ratio = 2.0f;  // never finer than the trained step
+  CHECK(model::StyleModel::default_inference_step_ratio(g) == 2.0f);
+  const model::Geometry& trained = testing::small_geometry();
+  const model::Geometry coarse = trained.with_step_ratio(2.0f * trained.step_ratio);
+  CHECK(coarse.step == doctest::Approx(2.0 * trained.step).epsilon(1e-5));
+  CHECK(coarse.mask_step == trained.mask_step);  // the mask keeps the step it was built with
+  CHECK(coarse.density.params.same_buffer(trained.density.params));  // shared, not copied
+  testing::expect_error([&] { trained.with_step_ratio(0.0f); }, "step ratio must be positive");
+
+  // On the small scene (not NDC) the default is the trained step; twice as coarse halves the samples and
+  // keeps the opacity and content close, and the model's own (training) geometry is unchanged.
+  model::StyleModel m = small_style_model();
+  CHECK(m.inference_step_ratio == trained.step_ratio);
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  const auto fine = m.render_camera_content(sc, cam);
+  m.inference_step_ratio = 2.0f * trained.step_ratio;
+  const auto half = m.render_camera_content(sc, cam);
+  CHECK(m.features.geo.step == trained.step);
+  CHECK(double(half.content.samples) < 0.6 * double(fine.content.samples));
+  CHECK(double(half.content.samples) > 0.4 * double(fine.content.samples));
+  const auto af = fine.content.acc.to_host(), ah = half.content.acc.to_host();
+  double worst = 0, mean = 0;
+  for (size_t r = 0; r < af.size(); ++r) {
+    worst = std::max(worst, double(std::abs(af[r] - ah[r])));
+    mean += std::abs(af[r] - ah[r]) / double(af.size());
+  }
+  CHECK(worst > 0.0);  // a coarser quadrature: not the same numbers...
+  CHECK(mean < 0.02);  // ...but the same geometry
+}
+
 TEST_CASE("blocks to refine: the blocks on either side of an edge, nothing on flat or gently sloping maps") {
   // A map of w x h blocks, 3 channels; channel 2 is constant (never triggers, no division by a zero spread).
   auto map = [](int w, int h, auto value) {

@@ -29,6 +29,16 @@ void Geometry::update_step() {
   }
 }
 
+Geometry Geometry::with_step_ratio(float ratio) const {
+  if (!(ratio > 0.0f) || !std::isfinite(ratio))
+    throw host::Error("geometry: the step ratio must be positive, got " + std::to_string(ratio));
+  Geometry g = *this;
+  g.step_ratio = ratio;
+  g.update_step();
+  g.mask_step = mask_step;
+  return g;
+}
+
 render::MarchConfig Geometry::march_config(bool jitter, uint32_t seed) const {
   render::MarchConfig mc;
   mc.box_lo = box_lo;

@@ -53,6 +53,9 @@ struct Geometry {
   std::array<float, 3> box_size() const;
   // Recomputes step / max_samples from the grid resolution and the box (TensoRF's update_stepSize).
   void update_step();
+  // A copy (the grids and the mask shared, not copied) whose march samples every `ratio` voxel sides; the
+  // mask keeps the step it was built with.
+  Geometry with_step_ratio(float ratio) const;
   render::MarchConfig march_config(bool jitter, uint32_t seed) const;
   const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels.defined()) ? &mask : nullptr; }
   Tensor background_tensor() const;  // [3], undefined when the scene has no background

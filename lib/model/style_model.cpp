@@ -62,6 +62,7 @@ StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, 
   m.map_decoder = &d;
   d.init(m);
   m.features = std::move(features);
+  m.inference_step_ratio = default_inference_step_ratio(m.features.geo);
   // Samples with weight below 1e-3 are dropped before SICT (the authors' style stage): fewer points, and
   // SICT's batch statistics describe the visible surface rather than the faint haze around it.
   m.features.geo.weight_threshold = std::max(m.features.geo.weight_threshold, kStyleWeightThreshold);
@@ -199,6 +200,9 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
                 std::to_string(supersample));
+  // The march at inference's step (inference_step_ratio); the grids are shared, not copied.
+  const Geometry geo = features.geo.with_step_ratio(inference_step_ratio);
+  const SictHead centre_head(features.field, const_cast<style::Sict&>(sict), false);
   const scene::Camera map_cam = strided_camera(cam, stride());  // the map's size
   int w = map_cam.width, h = map_cam.height;
   const int64_t n = int64_t(w) * h;
@@ -234,9 +238,9 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
       const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
       Content part;
       if (slab_rays) {
-        part = content_of(render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps));
+        part = content_of(render_ray_groups(geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps));
       } else {
-        part = render_content(origins, dirs, false, 0, nullptr);
+        part = content_of(render_rays(geo, centre_head, origins, dirs, RayOptions{}, nullptr));
       }
       if (first_call) {
         first_call = false;
@@ -258,7 +262,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
       out.content.kept += part.kept;
       if (region) {
         // The same rays, the same kept samples (no jitter), the indicator as the value.
-        const auto in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+        const auto in = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
         for (int64_t r = 0; r < R; ++r) inside[size_t(block(r))] += in[size_t(r)];
       }
     }
@@ -288,11 +292,11 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
           }
       const Tensor origins = Tensor::from_host(o, {B * G, 3}, "render origins");
       const Tensor dirs = Tensor::from_host(d, {B * G, 3}, "render directions");
-      const GroupResult part = render_ray_groups(features.geo, features.field.head, shade, E, origins, dirs, G, kMergeSteps);
+      const GroupResult part = render_ray_groups(geo, features.field.head, shade, E, origins, dirs, G, kMergeSteps);
       const auto pc = part.value.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
       const auto pd = part.depth.to_host();
       std::vector<float> in;
-      if (region) in = render_rays(features.geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+      if (region) in = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
       for (int64_t r = 0; r < B; ++r) {
         const size_t i = size_t(which[size_t(b + r)]);
         // The group's value is already its G sub-rays' mean; the sums here are divided by n^2 at the end.
@@ -364,7 +368,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   out.content.kept_acc = Tensor::from_host(mean_of(kept_acc, 1), {n}, "camera kept opacity");
   out.content.acc = Tensor::from_host(mean_of(acc, 1), {n}, "camera opacity");
   out.content.depth = Tensor::from_host(mean_of(depth, 1), {n}, "camera depth");
-  if (features.geo.has_background && stride() > 1)
+  if (geo.has_background && stride() > 1)
     out.pixel_acc = pixel_opacity(scene, cam, w, h, acc_lo, acc_hi, std::max(chunk, 8192));
   return out;
 }
@@ -400,7 +404,8 @@ std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const sc
   if (todo.empty()) return out;
   const scene::Rays rays = scene::camera_rays(scene, cam);
   const OpacityHead head;
-  const size_t step = size_t(rays_per_call(features.geo, chunk));
+  const Geometry geo = features.geo.with_step_ratio(inference_step_ratio);  // as render_camera_content's
+  const size_t step = size_t(rays_per_call(geo, chunk));
   for (size_t b = 0; b < todo.size(); b += step) {
     const size_t R = std::min(todo.size() - b, step);
     std::vector<float> o(3 * R), d(3 * R);
@@ -411,7 +416,7 @@ std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const sc
       }
     const Tensor origins = Tensor::from_host(o, {int64_t(R), 3}, "pixel origins");
     const Tensor dirs = Tensor::from_host(d, {int64_t(R), 3}, "pixel directions");
-    const auto a = render_rays(features.geo, head, origins, dirs, RayOptions{}, nullptr).acc.to_host();
+    const auto a = render_rays(geo, head, origins, dirs, RayOptions{}, nullptr).acc.to_host();
     for (size_t i = 0; i < R; ++i) out[size_t(todo[b + i])] = a[i];
   }
   return out;

@@ -11,6 +11,7 @@
 // kGroupStyleDecoder): stage 2's "decoder.*", or with the VGG-AdaIN style decoder "style.decoder.*"; the
 // field's parameters are not listed (frozen).
 #pragma once
+#include <algorithm>
 #include <string>
 
 #include "lib/io/checkpoint.hpp"
@@ -85,6 +86,16 @@ class StyleModel : public nn::Module {
   // Content rays per feature-map block and axis that inference uses unless told otherwise (a recipe's
   // choice, saved in the checkpoint; 1: one ray per block centre, what training renders).
   int inference_supersample = 1;
+  // Samples per voxel side of render_camera_content's march (every inference frame, the table's content,
+  // the scene statistics); training keeps the geometry's own (0.5, TensoRF's). Set by create() from the
+  // geometry (default_inference_step_ratio), not saved.
+  float inference_step_ratio = 0.5f;
+  // NDC scenes: a sample every voxel side (1.0) instead of every half: fern 1008x756's content 0.57x the
+  // time, its decoded views and consistency unchanged (docs/results.md, "A sample a voxel at inference").
+  // Other scenes keep their trained step (0.5): crisp surfaces, early termination already ends their rays.
+  static float default_inference_step_ratio(const Geometry& g) {
+    return g.ndc ? std::max(1.0f, g.step_ratio) : g.step_ratio;
+  }
   // VggAdain only: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it
   // would repeat one (nn::maxpool2x2_phases_forward). Its picture moves with the map by one map pixel; a
   // single offset paints from relu4_1 on a grid of two map pixels fixed to the image, which shows as a
