@@ -110,7 +110,8 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   h << "</table>\n";
   if (in.plan.is_object()) {
     h << "<p>Time plan: a frame of this scene costs " << fmt(number(in.plan, "frame_content_s"), 2)
-      << " s of content and " << fmt(number(in.plan, "frame_style_s"), 2) << " s a style here (probe_*); the "
+      << " s of content and " << fmt(number(in.plan, "frame_style_s"), 2) << " s a style here (probe_*), an RGB "
+      << "view of the density stage " << fmt(number(in.plan, "frame_rgb_s"), 2) << " s (density_test); the "
       << "evaluation was predicted at " << fmt(number(in.plan, "predicted_eval_s") / 60.0, 1)
       << " min, the style stage given " << fmt(number(in.plan, "style_minutes"), 1) << " min.";
     for (const char* k : {"cuts", "late_cuts"})
