@@ -362,6 +362,7 @@ TEST_CASE("inference's march step: NDC scenes a sample a voxel, others as traine
   m.inference_step_ratio = 2.0f * trained.step_ratio;
   const auto half = m.render_camera_content(sc, cam);
   CHECK(m.features.geo.step == trained.step);
+  CHECK(m.inference_geometry().step == doctest::Approx(2.0 * trained.step).epsilon(1e-5));
   CHECK(double(half.content.samples) < 0.6 * double(fine.content.samples));
   CHECK(double(half.content.samples) > 0.4 * double(fine.content.samples));
   const auto af = fine.content.acc.to_host(), ah = half.content.acc.to_host();

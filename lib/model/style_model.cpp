@@ -200,8 +200,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   if (supersample < 1 || supersample > kMaxSupersample)
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
                 std::to_string(supersample));
-  // The march at inference's step (inference_step_ratio); the grids are shared, not copied.
-  const Geometry geo = features.geo.with_step_ratio(inference_step_ratio);
+  const Geometry geo = inference_geometry();
   const SictHead centre_head(features.field, const_cast<style::Sict&>(sict), false);
   const scene::Camera map_cam = strided_camera(cam, stride());  // the map's size
   int w = map_cam.width, h = map_cam.height;
@@ -404,7 +403,7 @@ std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const sc
   if (todo.empty()) return out;
   const scene::Rays rays = scene::camera_rays(scene, cam);
   const OpacityHead head;
-  const Geometry geo = features.geo.with_step_ratio(inference_step_ratio);  // as render_camera_content's
+  const Geometry geo = inference_geometry();  // as render_camera_content's
   const size_t step = size_t(rays_per_call(geo, chunk));
   for (size_t b = 0; b < todo.size(); b += step) {
     const size_t R = std::min(todo.size() - b, step);

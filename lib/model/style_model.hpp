@@ -96,6 +96,8 @@ class StyleModel : public nn::Module {
   static float default_inference_step_ratio(const Geometry& g) {
     return g.ndc ? std::max(1.0f, g.step_ratio) : g.step_ratio;
   }
+  // The geometry inference marches: the trained one at inference_step_ratio (grids and mask shared).
+  Geometry inference_geometry() const { return features.geo.with_step_ratio(inference_step_ratio); }
   // VggAdain only: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it
   // would repeat one (nn::maxpool2x2_phases_forward). Its picture moves with the map by one map pixel; a
   // single offset paints from relu4_1 on a grid of two map pixels fixed to the image, which shows as a
