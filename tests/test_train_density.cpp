@@ -48,6 +48,27 @@ const scene::Scene& small_scene() {
   return s;
 }
 
+// The final grid by scene kind and recipe: a camera of 504 px (above the small-image rule) on a scene that
+// only differs in its format string.
+TEST_CASE("final grid: 400^3 for forward-facing captures in the fast recipe; TensoRF's 640^3 for objects and the paper") {
+  scene::Scene s = small_scene();
+  for (auto& v : s.train) {
+    v.camera.width = 504;
+    v.camera.height = 378;
+  }
+  auto side = [&](const std::string& format, bool paper) {
+    s.format = format;
+    return int(std::lround(std::cbrt(double(train::default_density_config(s, paper).schedule.voxels_final))));
+  };
+  CHECK(side("llff-forward", false) == train::kFastLlffFinalSide);
+  CHECK(side("colmap-forward", false) == train::kFastLlffFinalSide);
+  CHECK(side("llff-forward", true) == 640);
+  CHECK(side("llff-object", false) == 640);
+  CHECK(side("llff-object", true) == 640);
+  CHECK(side("blender", false) == 300);
+  CHECK(side("blender", true) == 300);
+}
+
 // A small, fast configuration with every event of the TensoRF schedule inside the run: one alpha-mask
 // update (with the box shrink) and one upsample at step 60.
 train::DensityTrainConfig small_config(int iters) {
