@@ -49,8 +49,8 @@ const scene::Scene& small_scene() {
 }
 
 // The final grid by scene kind and recipe: a camera of 504 px (above the small-image rule) on a scene that
-// only differs in its format string.
-TEST_CASE("final grid: 400^3 for forward-facing captures in the fast recipe; TensoRF's 640^3 for objects and the paper") {
+// only differs in its format string and NDC flag.
+TEST_CASE("final grid: 400^3 for NDC scenes in the fast recipe; TensoRF's 640^3 for objects and the paper") {
   scene::Scene s = small_scene();
   for (auto& v : s.train) {
     v.camera.width = 504;
@@ -58,6 +58,7 @@ TEST_CASE("final grid: 400^3 for forward-facing captures in the fast recipe; Ten
   }
   auto side = [&](const std::string& format, bool paper) {
     s.format = format;
+    s.effects.ndc = format.size() > 8 && format.compare(format.size() - 8, 8, "-forward") == 0;
     return int(std::lround(std::cbrt(double(train::default_density_config(s, paper).schedule.voxels_final))));
   };
   CHECK(side("llff-forward", false) == train::kFastLlffFinalSide);

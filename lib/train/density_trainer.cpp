@@ -83,10 +83,9 @@ DensityTrainConfig default_density_config(const scene::Scene& scene, bool tensor
     // flower.txt's 640^3 is sized for 25k steps; a budget of minutes on a CPU gets ~10x fewer. Measured on
     // fern 1008x756 (10-minute density, then 10-minute features, alone; docs/results.md): 400^3 took 1556
     // steps to 640^3's 1190, held-out 22.25 vs 22.01 dB, decoded 18.64 vs 17.36 dB, a stylised frame 15.9
-    // vs 23.8 s (~0.6x the samples a ray), peak RSS 5.0 vs 6.3 GB. The paper recipe keeps 640^3, and so do
-    // object captures ("*-object": not measured at 400^3 yet).
-    const bool forward = scene.format.size() > 8 && scene.format.compare(scene.format.size() - 8, 8, "-forward") == 0;
-    const int64_t side = (tensorf_grid || !forward) ? 640 : kFastLlffFinalSide;
+    // vs 23.8 s (~0.6x the samples a ray: an NDC ray takes |res| / step of them), peak RSS 5.0 vs 6.3 GB.
+    // The paper recipe keeps 640^3, and so do scenes without NDC rays (object captures: not measured).
+    const int64_t side = (tensorf_grid || !scene.effects.ndc) ? 640 : kFastLlffFinalSide;
     c.schedule.voxels_final = side * side * side;
     c.schedule.mask_at = {2500};
     c.l1_initial = c.l1_rest = 0.0f;
