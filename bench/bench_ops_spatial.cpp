@@ -1,6 +1,7 @@
 // Perf mode of the spatial kernels of kernels/nn.cl (part of `stylerf bench ops`): relu, 2x2 max pool,
 // x2 upsample, the polyphase pool and its interleave, im2col, col2im at the sizes StyleRF runs them (256x256
-// images); and of kernels/strided.cl
+// images); of kernels/winograd.cl's F(4x4) tile transforms (input, output, their adjoints, the gather);
+// and of kernels/strided.cl
 // at AlexNet LPIPS's sizes for a 256x256 image: 3x3 stride-2 max pool, the strided im2col / col2im of
 // conv1 (11x11/4/2) and conv2 (5x5/1/2), and the whole strided conv2d (im2col + GEMM) in GFLOP/s. The
 // kernels are memory-bound, so their figure is GB/s = (bytes read once + bytes written) / time; im2col
@@ -116,6 +117,44 @@ void bench_ops_spatial(const BenchOptions& opt) {
       });
       row("col2im" + m, shape, xb + colb, t, t);
     }
+  }
+
+  // ---- kernels/winograd.cl, F(4x4, 3x3) (the Auto conv algorithm): the tile transforms of VGG conv1_2
+  // (64 channels at s x s) and of a 256-channel layer at s/4 (relu3_1 of an s x s patch). Bytes: the
+  // image once and the alpha^2 = 36 transformed planes of [C][T] once (T tiles of 4x4 pixels).
+  for (int c : {64, 256}) {
+    const int h = c == 64 ? s : s / 4, m = 4, alpha = 6, th = (h + m - 1) / m, T = th * th;
+    const std::string opts = "-DWINO_M=4", shape = host::shape_str({1, c, h, h});
+    Tensor x = Tensor::full({1, c, h, h}, 1.0f), dx = Tensor::zeros(x.shape()), b = Tensor::zeros({c});
+    Tensor V = Tensor::zeros({int64_t(alpha) * alpha, c, T}, "bench winograd tiles");
+    const double xb = double(x.numel()) * 4, vb = double(V.numel()) * 4;
+    const size_t groups = size_t(th) * size_t((th + 7) / 8);
+    const bool cpu = host::Runtime::instance().device().type & CL_DEVICE_TYPE_CPU;
+    const host::Range local(cpu ? 8 : 64, 1);  // as lib/nn/conv_winograd.cpp launches them
+    Timing t = best_of(reps, [&] {
+      host::launch_with_local("winograd", "wino_input_transform", opts, {groups, size_t(c)}, local, x, V, c, h, h, th,
+                              th, T, 1);
+    });
+    row("wino_input_fwd", shape, xb + vb, t, t);
+    t = best_of(reps, [&] {
+      host::launch_with_local("winograd", "wino_output_transform", opts, {groups, size_t(c)}, local, V, b, 1, dx, c, h,
+                              h, th, th, T);
+    });
+    row("wino_output_fwd", shape, xb + vb, t, t);
+    t = best_of(reps, [&] {
+      host::launch_with_local("winograd", "wino_output_backward", opts, {groups, size_t(c)}, local, x, V, c, h, h, th,
+                              th, T);
+    });
+    row("wino_output_bwd", shape, xb + vb, t, t);
+    t = best_of(reps, [&] {
+      host::launch_with_local("winograd", "wino_input_backward", opts, {groups, size_t(c)}, local, V, c, th, th, T);
+    });
+    row("wino_input_bwd", shape, 2 * vb, t, t);
+    t = best_of(reps, [&] {
+      host::launch_with_local("winograd", "wino_input_gather", opts, {groups, size_t(c)}, local, V, dx, c, h, h, th,
+                              th, T);
+    });
+    row("wino_input_gather", shape, xb + vb, t, t);
   }
 
   // ---- kernels/strided.cl at AlexNet's sizes (LPIPS --net alex on an s x s image) ----

@@ -163,8 +163,8 @@ TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   expect("eval consistency --ckpt '" + ck.density + "' --method adain", "needs --style");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --frames 5", "--frames must be in [8, 1000]");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --depth-tol 0", "--depth-tol");
-  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --supersample -1", "--supersample must be an integer in [0, 8]");
-  expect("eval table --scene-ckpts '" + ck.density + "' --supersample 9 -o /tmp/x", "--supersample must be an integer in [0, 8]");
+  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --supersample -1", "--supersample: supersample '-1': expected 1..8");
+  expect("eval table --scene-ckpts '" + ck.density + "' --supersample quincunx2 -o /tmp/x", "or quincunx");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net squeeze", "unknown net 'squeeze'");
   expect("eval consistency --ckpt '" + ck.density + "' --method stylerf --style '" + fixture("cmyk.jpg") + "'",
          "needs a style checkpoint");

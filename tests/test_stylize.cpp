@@ -11,7 +11,8 @@
 //    a text file named .png is an error naming the file; a style folder skips it;
 //  - background compositing: opacity 0 gives the scene's colour, opacity 1 leaves the image;
 //  - supersampled content: the mean of the n x n sub-ray renders (c, opacities, depth, region mask), one
-//    ray per block centre at n = 1, and out-of-range n refused; refined only where blocks_to_refine finds
+//    ray per block centre at n = 1, and out-of-range n refused; the quincunx: (4 x the centre + the four
+//    corner rays, rendered on their own) / 8, unrefined blocks their centre ray, the names parsed; refined only where blocks_to_refine finds
 //    an edge (a step, an opacity change; not a flat map or a linear ramp), the centre ray elsewhere;
 //  - a path's content rendered once and shared by two styles (eval table) gives each style the very
 //    frames it gets rendered alone.
@@ -28,6 +29,7 @@
 #include "lib/model/block_refine.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
+#include "lib/scene/rays.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
 #include "tests/small_scene.hpp"
@@ -257,9 +259,93 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
   double moved = 0;
   for (size_t i = 0; i < one.size(); ++i) moved = std::max(moved, double(std::abs(one[i] - two[i])));
   CHECK(moved > 1e-3);
-  testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, -1); }, "supersample must be in 1..8");
+  testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, -2); }, "supersample must be in 1..8");
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 0); }, "supersample must be in 1..8");
   testing::expect_error([&] { m.render_camera_content(sc, cam, 4096, nullptr, 9); }, "supersample must be in 1..8");
+}
+
+TEST_CASE("quincunx camera content: (4 x the centre ray + the four corner rays) / 8, corners shared") {
+  const model::StyleModel m = small_style_model();
+  const scene::Scene& sc = testing::small_scene();
+  const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
+  int w = 0, h = 0;
+  const auto centre_rays = model::block_rays(sc, cam, m.stride(), w, h);
+  const int s = m.stride(), cw = w + 1;
+  // The corner lattice's rays, (w + 1) x (h + 1), rendered on their own.
+  std::vector<float> co, cd;
+  for (int y = 0; y <= h; ++y)
+    for (int x = 0; x <= w; ++x) {
+      float o[3], d[3];
+      scene::pixel_ray(cam, float(s * x), float(s * y), o, d);
+      if (sc.effects.ndc) scene::to_ndc(cam, sc.ndc_near, o, d);
+      co.insert(co.end(), o, o + 3);
+      cd.insert(cd.end(), d, d + 3);
+    }
+  const int64_t R = int64_t(w) * h, K = int64_t(cw) * (h + 1);
+  auto render = [&](const std::vector<float>& o, const std::vector<float>& d, int64_t n) {
+    return m.render_content(Tensor::from_host(o, {n, 3}), Tensor::from_host(d, {n, 3}), false, 0, nullptr);
+  };
+  const auto centre = render(centre_rays.origins, centre_rays.directions, R);
+  const auto corner = render(co, cd, K);
+  const auto c0 = centre.c.to_host(), c1 = corner.c.to_host();
+  const auto a0 = centre.acc.to_host(), a1 = corner.acc.to_host();
+  const auto k0 = centre.kept_acc.to_host(), k1 = corner.kept_acc.to_host();
+  const auto d0 = centre.depth.to_host(), d1 = corner.depth.to_host();
+  const int E = int(c0.size() / size_t(R));
+  std::vector<double> c(c0.size()), a(static_cast<size_t>(R)), k(static_cast<size_t>(R)), d(static_cast<size_t>(R));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const size_t b = size_t(y) * w + x;
+      const size_t q[4] = {size_t(y) * cw + x, size_t(y) * cw + x + 1, size_t(y + 1) * cw + x, size_t(y + 1) * cw + x + 1};
+      for (int e = 0; e < E; ++e) {
+        double v = 4.0 * c0[b * E + size_t(e)];
+        for (size_t j : q) v += c1[j * E + size_t(e)];
+        c[b * E + size_t(e)] = v / 8;
+      }
+      auto mix = [&](const std::vector<float>& v0, const std::vector<float>& v1) {
+        return (4.0 * v0[b] + v1[q[0]] + v1[q[1]] + v1[q[2]] + v1[q[3]]) / 8;
+      };
+      a[b] = mix(a0, a1), k[b] = mix(k0, k1), d[b] = mix(d0, d1);
+    }
+  auto worst_rel = [](const std::vector<float>& got, const std::vector<double>& want) {
+    double scale = 1e-12, worst = 0;
+    for (double v : want) scale = std::max(scale, std::abs(v));
+    for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
+    return got.size() == want.size() ? worst / scale : 1e9;
+  };
+  const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
+  const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
+  // Every block refined, in chunks that cut across rows; shaded per sample (this scene keeps few samples).
+  const auto cc = m.render_camera_content(sc, cam, 333, &everything, model::kQuincunx, 0.0f);
+  CHECK(cc.refined == R);
+  CHECK(worst_rel(cc.content.c.to_host(), c) < 1e-6);
+  CHECK(worst_rel(cc.content.acc.to_host(), a) < 1e-6);
+  CHECK(worst_rel(cc.content.kept_acc.to_host(), k) < 1e-6);
+  CHECK(worst_rel(cc.content.depth.to_host(), d) < 1e-6);
+  const auto kept = cc.content.kept_acc.to_host();
+  for (size_t i = 0; i < kept.size(); ++i)
+    if (kept[i] > 1e-3f) CHECK(cc.region_mask[i] == doctest::Approx(1.0).epsilon(1e-4));
+  // Centre and corner rays shaded per depth slab (as on fern): the same geometry, SICT close but merged.
+  const auto slab = m.render_camera_content(sc, cam, 40, nullptr, model::kQuincunx, 0.0f, 0.0f);
+  CHECK(slab.slab_shaded);
+  CHECK(worst_rel(slab.content.acc.to_host(), a) < 1e-6);
+  CHECK(worst_rel(slab.content.kept_acc.to_host(), k) < 1e-5);
+  CHECK(worst_rel(slab.content.c.to_host(), c) < 0.1);
+  // Refined only at edges: a block left alone is its centre ray exactly.
+  const auto edges = m.render_camera_content(sc, cam, 4096, nullptr, model::kQuincunx, 0.3f);
+  const auto ae = edges.content.acc.to_host();
+  CHECK(edges.refined > 0);
+  CHECK(edges.refined < R);
+  int64_t same = 0;
+  for (int64_t b = 0; b < R; ++b) same += ae[size_t(b)] == a0[size_t(b)] ? 1 : 0;
+  CHECK(same >= R - edges.refined);
+  // The names a user types.
+  CHECK(model::parse_supersample("quincunx") == model::kQuincunx);
+  CHECK(model::parse_supersample("3") == 3);
+  CHECK(model::supersample_name(model::kQuincunx) == "quincunx");
+  CHECK(model::supersample_name(2) == "2x2");
+  testing::expect_error([] { model::parse_supersample("9"); }, "expected 1..8 (n x n rays a block) or quincunx");
+  testing::expect_error([] { model::parse_supersample("grid"); }, "supersample 'grid'");
 }
 
 TEST_CASE("supersampled content shaded per depth step: the same geometry, SICT on merged samples") {

@@ -116,7 +116,7 @@ TEST_CASE("stylize: bad input gets a clear error") {
   };
   expect("stylize --ckpt '" + ck.features + "' --style '" + style + "' -o '" + out + "'", "not a trained stylizer");
   expect("stylize --ckpt '" + ck.style + "' --style '" + style + "' --supersample 9 -o '" + out + "'",
-         "--supersample must be an integer in [0, 8]");
+         "--supersample: supersample '9': expected 1..8 (n x n rays a block) or quincunx");
   // Another scene: same format, other name.
   const std::string other = (testing::small_work_dir() / "other_scene").string();
   {

@@ -49,7 +49,7 @@ std::vector<stylerf::io::Image> stylised_frames(const model::StyleModel& m, cons
   stylerf::style::StyleCode code = enc.encode(style_path).code;
   stylerf::model::SceneStyleStats(m, scene).attach(code);
   return eval::stylerf_frames(m, scene, cams, code, m.features.geo.has_background, p.chunk,
-                              p.supersample > 0 ? p.supersample : m.inference_supersample, p.refine_contrast);
+                              p.supersample != 0 ? p.supersample : m.inference_supersample, p.refine_contrast);
 }
 
 // The density checkpoint's RGB path, or (with a style image) per-frame 2D AdaIN of it.
@@ -81,8 +81,7 @@ int run_consistency(int argc, char** argv) {
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
       "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
-      "supersample", po::value(&p.supersample)->default_value(0),
-      "stylerf: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "supersample", stylerf::cli::supersample_value(&p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;

@@ -26,7 +26,8 @@ using stylerf::host::Error;
 int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
-  int views = 5, supersample = 0;
+  int views = 5;
+  std::string supersample_text = "0";
   float refine_contrast = stylerf::model::kRefineContrast;
   po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
@@ -34,9 +35,7 @@ int run_eval_style(int argc, char** argv) {
       "views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
       "images", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
-      "supersample", po::value(&supersample)->default_value(0),
-      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
-      "render); 0: the checkpoint's recipe's")(
+      "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
   po::variables_map vm;
@@ -47,7 +46,7 @@ int run_eval_style(int argc, char** argv) {
     return vm.count("help") ? 0 : 2;
   }
   if (views < 0) throw Error("--views must be >= 0");
-  stylerf::cli::check_int_range("--supersample", supersample, 0, stylerf::model::kMaxSupersample);
+  const int supersample = stylerf::cli::supersample_from(supersample_text);
   stylerf::cli::check_refine_contrast(refine_contrast);
   if (!images.empty()) std::filesystem::create_directories(images);
   stylerf::cli::init_runtime(device, false);
@@ -65,7 +64,7 @@ int run_eval_style(int argc, char** argv) {
   auto adain = stylerf::style::AdainModel::load_default();
   train::StyleEvalOptions opt;
   opt.views = views;
-  opt.supersample = supersample > 0 ? supersample : model.inference_supersample;
+  opt.supersample = supersample != 0 ? supersample : model.inference_supersample;
   opt.refine_contrast = refine_contrast;
   opt.image_dir = images;
   opt.log = &std::cout;
@@ -94,8 +93,8 @@ int run_eval_style(int argc, char** argv) {
                      {"style_ratio", r.ours_style / r.adain_style}});
     const nlohmann::json doc = {{"checkpoint", ckpt},
                                 {"views", views},
-                                {"supersample", opt.supersample},
-                                {"refine_contrast", opt.supersample > 1 ? refine_contrast : 0.0f},
+                                {"supersample", stylerf::model::supersample_name(opt.supersample)},
+                                {"refine_contrast", opt.supersample != 1 ? refine_contrast : 0.0f},
                                 {"styles", per},
                                 {"style_loss_ratio", (os / k) / (as / k)},
                                 {"content_loss_ratio", (oc / k) / (ac / k)}};

@@ -175,8 +175,7 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "fps", po::value(&a.fps)->default_value(8), "side-by-side video frame rate")(
       "output,o", po::value(&a.out), "output directory")(
       "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(
-      "supersample", po::value(&a.p.supersample)->default_value(0),
-      "StyleRF: content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content render)")(
+      "supersample", stylerf::cli::supersample_value(&a.p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
@@ -198,7 +197,7 @@ struct TableInputs {
   const std::vector<std::string>& styles() const { return explicit_styles.empty() ? default_styles : explicit_styles; }
 };
 
-TableInputs check_table_args(const TableArgs& a) {
+TableInputs check_table_args(TableArgs& a) {  // parses --supersample into a.p
   check_path_options(a.p);
   if (a.out.empty()) throw Error("-o DIR is required");
   if (a.max_styles < 0) throw Error("--max-styles must be >= 0");
@@ -273,7 +272,7 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
   for (const auto& m : models) {
     const auto t = Clock::now();
     contents.push_back(eval::content_frames(*m, w.scene, w.path.cams, w.p.chunk,
-                                            w.p.supersample > 0 ? w.p.supersample : m->inference_supersample,
+                                            w.p.supersample != 0 ? w.p.supersample : m->inference_supersample,
                                             w.p.refine_contrast));
     std::cout << "  content of " << w.path.cams.size() << " frames rendered once for all styles ("
               << fmt(seconds_since(t), 1) << " s)" << std::endl;
@@ -417,9 +416,13 @@ std::string table_markdown(const TableArgs& a, const std::vector<SceneResult>& r
      << p.depth_tolerance << " (relative); background and off-image pixels masked. RMSE of RGB in [0,1]; LPIPS "
      << (lpips ? a.lpips_net + " v0.1, masked (each layer's map averaged over valid pixels)" : std::string("not measured"))
      << ". StyleRF content: "
-     << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n, averaged)")
-         : std::to_string(p.supersample) + "x" + std::to_string(p.supersample) +
-               (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)"))
+     << (p.supersample == 0 ? std::string("each checkpoint's recipe's rays per feature-map block (n x n averaged, or "
+                                          "a quincunx: the centre and the four shared corner rays)")
+         : p.supersample == model::kQuincunx
+             ? std::string("a quincunx of rays per feature-map block (the centre, weight 4, and the four corner rays "
+                           "shared with the neighbouring blocks)")
+             : model::supersample_name(p.supersample) +
+                   (p.supersample > 1 ? " rays per feature-map block, averaged" : " ray per feature-map block (its centre)"))
      << (p.supersample == 1 ? std::string()
          : p.refine_contrast > 0 ? ", in the blocks whose centre differs from a neighbour's by more than " +
                                        fmt(p.refine_contrast, 2) + " (the centre ray elsewhere)"
@@ -463,7 +466,7 @@ int run_eval_table(int argc, char** argv) {
   nlohmann::json doc = {{"frames", a.p.frames},
                         {"path_frames", a.p.path_frames},
                         {"depth_tolerance", a.p.depth_tolerance},
-                        {"supersample", a.p.supersample},
+                        {"supersample", a.p.supersample == 0 ? std::string("each checkpoint's") : model::supersample_name(a.p.supersample)},
                         {"refine_contrast", a.p.refine_contrast},
                         {"lpips", lpips ? a.lpips_net : std::string("none")},
                         {"seconds", total},

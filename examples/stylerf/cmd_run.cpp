@@ -214,7 +214,7 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
   const double frame = 1.0 / fps;
   c.style2d = std::max(frame - c.content, 0.1 * frame);
   const int n = train::style_recipe(train::parse_recipe(o.recipe)).inference_supersample;  // the probe's rays
-  c.rays_per_block = n * n;
+  c.rays_per_block = n == model::kQuincunx ? 2 : n * n;  // a quincunx: the centre and ~1 shared corner ray
   return c;
 }
 

@@ -153,6 +153,7 @@ struct StylizeArgs {
   std::string ckpt, views = "path", out, scene_dir, device, mix, mix_grid, region, inside, outside, cache;
   std::vector<std::string> style_args;
   int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 0;
+  std::string supersample_text = "0";  // --supersample, parsed into supersample (0: the checkpoint's)
   float refine_contrast = model::kRefineContrast;
   bool no_losses = false, decoded_background = false;
   bool test() const { return views == "test"; }
@@ -181,9 +182,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "scenes with a background colour: keep the decoder's empty space instead of compositing over the colour")(
       "fps", po::value(&a.fps)->default_value(30), "video frame rate")(
       "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
-      "supersample", po::value(&a.supersample)->default_value(0),
-      "content rays per feature-map block and axis, averaged (anti-aliasing: steadier video; up to n^2 x the content "
-      "render); 0: the checkpoint's recipe's")(
+      "supersample", stylerf::cli::supersample_value(&a.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&a.device), "OpenCL device");
   po::variables_map vm;
@@ -211,7 +210,7 @@ StyleChoice check_stylize_args(const StylizeArgs& a) {
   if (a.max_views < 0) throw Error("--max-views must be >= 0");
   if (a.size < 0 || a.size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
   if (a.chunk < 1) throw Error("--chunk must be >= 1");
-  stylerf::cli::check_int_range("--supersample", a.supersample, 0, model::kMaxSupersample);
+  stylerf::cli::supersample_from(a.supersample_text);  // checked here, parsed after loading
   stylerf::cli::check_refine_contrast(a.refine_contrast);
   if (a.fps < 1 || a.fps > 240) throw Error("--fps must be in [1, 240]");
   if (a.out.empty()) throw Error("-o DIR is required");
@@ -389,7 +388,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
         {"frames", t.frames},
         {"frames_per_s_after_first", t.fps_after()},
         {"content_render_s_per_view", t.content_s / double(cams.size())},
-        {"supersample", a.supersample},
+        {"supersample", model::supersample_name(a.supersample)},
         {"refine_contrast", a.refine_contrast},
         {"refined_block_share", t.blocks > 0 ? double(t.refined) / double(t.blocks) : 0.0},
         {"merged_views", t.merged_views},
@@ -407,8 +406,9 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
   std::cout << std::fixed << std::setprecision(3) << "styles encoded in " << encode_s << " s; first frame at "
             << t.first_frame_s << " s; then " << t.fps_after() << " frames/s (" << t.frames << " frames)\n";
   std::cout << "content: ";
-  if (a.supersample > 1)
-    std::cout << a.supersample << "x" << a.supersample << " rays in "
+  if (a.supersample != 1)
+    std::cout << (a.supersample == model::kQuincunx ? std::string("a quincunx of") : model::supersample_name(a.supersample))
+              << " rays in "
               << (t.blocks > 0 ? 100.0 * double(t.refined) / double(t.blocks) : 0.0)
               << "% of the blocks (--refine-contrast " << a.refine_contrast << ")"
               << (t.merged_views > 0 ? ", shaded once per depth slab of a block (many samples a ray)" : "") << ", ";
@@ -446,6 +446,7 @@ int run_stylize(int argc, char** argv) {
   cli::init_runtime(a.device, false);
   const auto ck = load_style_checkpoint(a.ckpt);
   const auto m = model::StyleModel::load(ck);
+  a.supersample = stylerf::cli::supersample_from(a.supersample_text);
   if (a.supersample == 0) a.supersample = m.inference_supersample;
   const auto scene = open_stylize_scene(a, ck);
   auto vgg = stylerf::nn::VggEncoder::load_default();

@@ -29,7 +29,7 @@ void check_same_scene_of(const io::Checkpoint& a, const io::Checkpoint& b, const
   scene::check_same_scene(sb, scene, scene::load_options_from_meta(sa).downsample, b.path);
 }
 
-void check_path_options(const PathOptions& p) {
+void check_path_options(PathOptions& p) {
   if (p.frames < 8 || p.frames > 1000)
     throw Error("--frames must be in [8, 1000] (the long range compares frame t with t - 7)");
   if (p.path_frames < p.frames || p.path_frames > 100000)
@@ -37,7 +37,7 @@ void check_path_options(const PathOptions& p) {
   if (p.size < 0 || p.size > 4096) throw Error("--size must be in [0, 4096] (0: the scene's)");
   if (!(p.depth_tolerance > 0 && p.depth_tolerance < 1)) throw Error("--depth-tol must be in (0, 1)");
   if (p.chunk < 1) throw Error("--chunk must be >= 1");
-  check_int_range("--supersample", p.supersample, 0, model::kMaxSupersample);
+  p.supersample = supersample_from(p.supersample_text);
   check_refine_contrast(p.refine_contrast);
 }
 

@@ -24,7 +24,7 @@ using eval::path_setup;
 using eval::lpips_distance;
 
 // Also the options' ranges, checked before anything loads.
-void check_path_options(const PathOptions& p);
+void check_path_options(PathOptions& p);
 
 // One line: "short (k=1): RMSE x LPIPS y; long (k=7): ...; valid pixels a% / b%".
 std::string score_line(const eval::ConsistencyScore& s);

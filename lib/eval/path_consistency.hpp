@@ -15,7 +15,8 @@ namespace stylerf::eval {
 
 struct PathOptions {
   int frames = 16, path_frames = 120, size = 0, chunk = 8192;
-  int supersample = 0;  // StyleRF content rays per block and axis (render_camera_content); 0: each checkpoint's
+  int supersample = 0;  // StyleRF content rays per block (render_camera_content: n x n or kQuincunx); 0: each checkpoint's
+  std::string supersample_text = "0";  // the command line's --supersample, parsed into supersample
   // Blocks refined to those rays only where the map has edges (render_camera_content); 0: every block.
   float refine_contrast = model::kRefineContrast;
   float depth_tolerance = 0.03f;

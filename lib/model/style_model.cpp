@@ -11,6 +11,7 @@
 #include "lib/nn/layout.hpp"
 #include "lib/nn/linear.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/scene/rays.hpp"
 #include "lib/style/style_encoder.hpp"
 
 namespace stylerf::model {
@@ -193,12 +194,24 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
   return render_rays(features.geo, head, origins, dirs, RayOptions{}, nullptr);
 }
 
+std::string supersample_name(int n) {
+  if (n == kQuincunx) return "quincunx";
+  return n == 1 ? "1" : std::to_string(n) + "x" + std::to_string(n);
+}
+
+int parse_supersample(const std::string& text) {
+  if (text == "quincunx" || text == "q") return kQuincunx;
+  if (text.size() == 1 && text[0] >= '1' && text[0] - '0' <= kMaxSupersample) return text[0] - '0';
+  throw Error("supersample '" + text + "': expected 1.." + std::to_string(kMaxSupersample) +
+              " (n x n rays a block) or quincunx");
+}
+
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
                                                             int chunk, const RegionHead* region, int supersample,
                                                             float refine_contrast, float merge_kept_per_ray) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
-  if (supersample < 1 || supersample > kMaxSupersample)
-    throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + ", got " +
+  if (!valid_supersample(supersample))
+    throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + " or quincunx, got " +
                 std::to_string(supersample));
   const Geometry geo = inference_geometry();
   const SictHead centre_head(features.field, const_cast<style::Sict&>(sict), false);
@@ -210,6 +223,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   std::vector<double> c(size_t(n) * E, 0.0), kept_acc(size_t(n), 0.0), acc(size_t(n), 0.0), depth(size_t(n), 0.0);
   std::vector<float> acc_lo(size_t(n), 1.0f), acc_hi(size_t(n), 0.0f);  // over each block's sub-rays
   std::vector<double> inside(region ? size_t(n) : 0, 0.0);
+  std::vector<double> rays_in(size_t(n), 1.0);  // sub-rays summed per block (their weights)
   CameraContent out;
   out.width = w;
   out.height = h;
@@ -314,13 +328,80 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
       out.content.kept += part.kept;
     }
   };
+  // Quincunx: a refined block is its centre ray (weight 4) plus the rays through its four corners (weight 1
+  // each), the corners shared with the neighbouring blocks: one ray more a block instead of n^2 - 1.
+  const bool quincunx = supersample == kQuincunx;
+  auto add_corners = [&](const std::vector<int64_t>& which) {
+    const int cw = w + 1, chh = h + 1, s = stride();
+    std::vector<int64_t> corner_id(size_t(cw) * chh, -1), corners;
+    for (int64_t b : which) {
+      const int bx = int(b % w), by = int(b / w);
+      for (int dy = 0; dy <= 1; ++dy)
+        for (int dx = 0; dx <= 1; ++dx) {
+          const size_t k = size_t(by + dy) * cw + size_t(bx + dx);
+          if (corner_id[k] < 0) {
+            corner_id[k] = int64_t(corners.size());
+            corners.push_back(int64_t(k));
+          }
+        }
+    }
+    const int64_t K = int64_t(corners.size());
+    std::vector<float> cc(size_t(K) * E), ck(static_cast<size_t>(K)), ca(static_cast<size_t>(K)), cd(static_cast<size_t>(K)),
+        ci(region ? size_t(K) : 0);
+    for (int64_t b = 0; b < K; b += chunk) {
+      const int64_t R = std::min<int64_t>(chunk, K - b);
+      std::vector<float> o(size_t(3 * R)), d(size_t(3 * R));
+      for (int64_t r = 0; r < R; ++r) {
+        const int64_t k = corners[size_t(b + r)];
+        scene::pixel_ray(cam, float(s * (k % cw)), float(s * (k / cw)), &o[size_t(3 * r)], &d[size_t(3 * r)]);
+        if (scene.effects.ndc) scene::to_ndc(cam, scene.ndc_near, &o[size_t(3 * r)], &d[size_t(3 * r)]);
+      }
+      const Tensor origins = Tensor::from_host(o, {R, 3}, "corner origins");
+      const Tensor dirs = Tensor::from_host(d, {R, 3}, "corner directions");
+      const Content part =
+          slab_rays ? content_of(render_ray_groups(geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps))
+                    : content_of(render_rays(geo, centre_head, origins, dirs, RayOptions{}, nullptr));
+      const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
+      const auto pd = part.depth.to_host();
+      std::copy(pc.begin(), pc.end(), cc.begin() + b * E);
+      std::copy(pk.begin(), pk.end(), ck.begin() + b);
+      std::copy(pa.begin(), pa.end(), ca.begin() + b);
+      std::copy(pd.begin(), pd.end(), cd.begin() + b);
+      if (region) {
+        const auto in = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+        std::copy(in.begin(), in.end(), ci.begin() + b);
+      }
+      out.content.samples += part.samples;
+      out.content.kept += part.kept;
+    }
+    for (int64_t b : which) {
+      const size_t i = size_t(b);
+      const int bx = int(b % w), by = int(b / w);
+      for (int e = 0; e < E; ++e) c[i * E + size_t(e)] *= 4.0;
+      kept_acc[i] *= 4.0;
+      acc[i] *= 4.0;
+      depth[i] *= 4.0;
+      if (region) inside[i] *= 4.0;
+      for (int dy = 0; dy <= 1; ++dy)
+        for (int dx = 0; dx <= 1; ++dx) {
+          const size_t q = size_t(corner_id[size_t(by + dy) * cw + size_t(bx + dx)]);
+          for (int e = 0; e < E; ++e) c[i * E + size_t(e)] += cc[q * E + size_t(e)];
+          kept_acc[i] += ck[q];
+          acc[i] += ca[q];
+          acc_lo[i] = std::min(acc_lo[i], ca[q]);
+          acc_hi[i] = std::max(acc_hi[i], ca[q]);
+          depth[i] += cd[q];
+          if (region) inside[i] += ci[q];
+        }
+      rays_in[i] = 8.0;
+    }
+  };
   // Every block's centre first. Then the blocks whose centre differs from a neighbour's (blocks_to_refine)
   // get the other sub-rays: elsewhere the n x n average equals the centre up to the map's curvature. For
   // odd n the centre is the middle sub-ray and is kept (a merged block: the others form its group); for
   // even n it is not one of them and is replaced.
   add_rays(0.5f, 0.5f, {});
-  std::vector<double> rays_in(size_t(n), 1.0);  // sub-rays summed per block
-  if (supersample > 1) {
+  if (supersample != 1) {
     std::vector<float> c0(c.begin(), c.end()), a0(acc.begin(), acc.end());
     const std::vector<uint8_t> refine = blocks_to_refine(c0, E, a0, w, h, refine_contrast);
     std::vector<int64_t> which;
@@ -330,8 +411,8 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
     // Shading merged per depth slab where SICT on every sub-ray sample is what costs (many kept samples a
     // ray: soft forward-facing geometry); on crisp surfaces the merge saves nothing (docs/results.md).
     const double kept_per_ray = double(out.content.kept) / double(std::max<int64_t>(1, n));
-    out.merged = !which.empty() && kept_per_ray >= double(merge_kept_per_ray);
-    const bool keep_centre = supersample % 2 == 1;
+    out.merged = !quincunx && !which.empty() && kept_per_ray >= double(merge_kept_per_ray);  // groups, not corners
+    const bool keep_centre = quincunx || supersample % 2 == 1;
     if (!keep_centre)
       for (int64_t b : which) {
         std::fill(c.begin() + b * E, c.begin() + (b + 1) * E, 0.0);
@@ -340,7 +421,9 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         acc_hi[size_t(b)] = 0.0f;
         if (region) inside[size_t(b)] = 0.0;
       }
-    if (out.merged) {
+    if (quincunx) {
+      add_corners(which);
+    } else if (out.merged) {
       add_groups(which, keep_centre);
     } else if (!which.empty()) {
       for (int sy = 0; sy < supersample; ++sy)
@@ -349,7 +432,8 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
           add_rays((sx + 0.5f) / float(supersample), (sy + 0.5f) / float(supersample), which);
         }
     }
-    for (int64_t b : which) rays_in[size_t(b)] = double(supersample) * supersample;
+    if (!quincunx)
+      for (int64_t b : which) rays_in[size_t(b)] = double(supersample) * supersample;
   }
   auto mean_of = [&](const std::vector<double>& sum, int per_block) {
     std::vector<float> m(sum.size());
@@ -509,7 +593,8 @@ void StyleModel::save(io::Checkpoint& ck) {
       {"sict", style::sict_mode_name(sict.mode)},
       {"dst_bias", dst.bias},
       {"decoder", style_decoder_name(decoder_kind())},
-      {"inference_supersample", inference_supersample},
+      {"inference_supersample", inference_supersample == kQuincunx ? json(supersample_name(kQuincunx))
+                                                                   : json(inference_supersample)},
       {"decoder_phases", decoder_phases}};
 }
 
@@ -527,7 +612,10 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
     bias = sm.at("dst_bias").get<bool>();
     decoder = parse_style_decoder(sm.value("decoder", std::string("stage2")));  // absent before the option existed
-    supersample = sm.value("inference_supersample", 1);  // absent before recipes set it
+    if (sm.contains("inference_supersample")) {  // absent before recipes set it; a name or n
+      const json& v = sm.at("inference_supersample");
+      supersample = v.is_string() ? parse_supersample(v.get<std::string>()) : v.get<int>();
+    }
     phases = sm.value("decoder_phases", false);           // absent before the option existed
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
@@ -538,9 +626,9 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   m.sict.load(ck, "");
   m.dst.load(ck, "");
   m.map_decoder->load(m, ck);
-  if (supersample < 1 || supersample > kMaxSupersample)
+  if (!valid_supersample(supersample))
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +
-                " is outside 1.." + std::to_string(kMaxSupersample));
+                " is outside 1.." + std::to_string(kMaxSupersample) + " (or quincunx)");
   m.inference_supersample = supersample;
   if (phases && !m.map_decoder->has_vgg_pool())
     throw Error("checkpoint " + ck.path + ": style_model.decoder_phases is set for the " +

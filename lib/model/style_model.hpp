@@ -28,6 +28,16 @@ namespace stylerf::model {
 enum StyleGroup { kGroupStylizer = 0, kGroupStyleDecoder = 1 };
 constexpr float kStyleWeightThreshold = 1e-3f;  // samples below this weight never reach SICT
 constexpr int kMaxSupersample = 8;  // inference rays per block and axis (render_camera_content)
+// The content rays of a block at inference ("supersample"): n >= 1, n x n rays spread evenly over the block
+// (1: its centre); or kQuincunx, the centre ray (weight 4) and the rays through the block's four corners
+// (weight 1 each), the corners shared with the neighbouring blocks: about one ray more a block where
+// 3 x 3 takes eight more (docs/results.md, "Quincunx rays a block").
+constexpr int kQuincunx = -1;
+inline bool valid_supersample(int n) { return n == kQuincunx || (n >= 1 && n <= kMaxSupersample); }
+// "quincunx", or n x n as "3x3" ("1" for the centre ray).
+std::string supersample_name(int n);
+// "quincunx" or "q" -> kQuincunx, "1".."8" -> n; anything else is an error naming the value and the choices.
+int parse_supersample(const std::string& text);
 // render_camera_content shades a refined block's sub-rays merged per depth slab (render_ray_groups) when
 // the centre rays keep at least this many samples a ray on average: fern 1/8 keeps ~180 (content 2.05x
 // faster with kMergeSteps, the same style loss and consistency), lego ~6 (the merge costs more than it
@@ -83,8 +93,8 @@ class StyleModel : public nn::Module {
   style::Sict sict;
   style::Dst dst;
   const MapDecoder* map_decoder = &map_decoder_for(StyleDecoderKind::Stage2);  // chosen by create()
-  // Content rays per feature-map block and axis that inference uses unless told otherwise (a recipe's
-  // choice, saved in the checkpoint; 1: one ray per block centre, what training renders).
+  // Content rays per feature-map block that inference uses unless told otherwise (a recipe's choice, saved
+  // in the checkpoint): n x n a block, or kQuincunx; 1: one ray per block centre, what training renders.
   int inference_supersample = 1;
   // Samples per voxel side of render_camera_content's march (every inference frame, the table's content,
   // the scene statistics); training keeps the geometry's own (0.5, TensoRF's). Set by create() from the
@@ -177,7 +187,7 @@ class StyleModel : public nn::Module {
     // over_background cuts silhouettes at the image's resolution rather than the map's blocks. Rendered
     // only in blocks near a silhouette (pixel_opacity): elsewhere 0 or 1.
     std::vector<float> pixel_acc;
-    // Blocks given their n x n sub-rays (supersample > 1; the others kept their centre ray).
+    // Blocks given their n x n sub-rays or their quincunx (supersample != 1; the others kept their centre ray).
     int64_t refined = 0;
     // Whether those blocks were shaded merged per depth slab (merge_kept_per_ray).
     bool merged = false;
@@ -194,8 +204,12 @@ class StyleModel : public nn::Module {
   // each sub-ray's map would have been before the decoder. Costs up to n^2 x the content render; matters
   // for the fast profile, whose one ray per block stands for 16 pixels (docs/results.md: what n = 2 buys on the
   // consistency table and costs a frame).
+  // supersample kQuincunx: a refined block is (4 x its centre + its four corner rays) / 8, the same sums
+  // weighted; each corner ray rendered once for all the refined blocks it touches, as the centre rays are
+  // (one ray, shaded per depth slab when they are). A tent-like filter over the block and its neighbours'
+  // edges for about one extra ray a block.
   // refine_contrast: only the blocks whose centre ray differs from a neighbour's by more than this get the
-  // n x n sub-rays; the others keep their centre (block_refine.hpp; 0: every block, the exact average).
+  // n x n sub-rays (or the quincunx); the others keep their centre (block_refine.hpp; 0: every block, the exact average).
   // merge_kept_per_ray: when the centre rays keep at least this many samples a ray on average, a refined
   // block's sub-rays other than the centre ray already rendered are one group (render_ray_groups): opacity,
   // depth and kept opacity exactly as above, SICT once per depth slab of kMergeSteps march steps on the

@@ -45,6 +45,10 @@ StyleTrainConfig style_recipe(Recipe r) {
   c.lr_decoder = 1e-5f;
   c.lr_decay_ratio = 0.1f;
   c.style_size = 256;
+  // Inference: 3 x 3 content rays in the blocks at edges. The quincunx (`--supersample quincunx`, the centre
+  // and the four shared corner rays) is as consistent on fern 1008x756 for a third of the content render,
+  // but not on the demo's 128 px scene: short-range RMSE 0.842x per-frame AdaIN's against 0.746x here
+  // (docs/results.md, "Quincunx rays a block").
   c.inference_supersample = 3;
   // VGG's pool at all four grid offsets: the decoder paints from relu4_1 at every map pixel, not on a
   // 2-pixel grid fixed to the image. Lego 1/4 with vgg-adain (the 60-minute run's model, 3 held-out

@@ -79,9 +79,9 @@ void StyleTrainConfig::validate() const {
   if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
   if (running_init_patches < 0)
     throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
-  if (inference_supersample < 1 || inference_supersample > model::kMaxSupersample)
-    throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) + ", got " +
-                                                    std::to_string(inference_supersample));
+  if (!model::valid_supersample(inference_supersample))
+    throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) +
+                                                    " or model::kQuincunx, got " + std::to_string(inference_supersample));
   if (decoder_phases && !model::map_decoder_for(style_decoder).has_vgg_pool())
     throw SettingError("decoder_phases", std::string("needs a vgg-adain decoder (the phases are those of its VGG "
                                                      "pool), not ") + model::style_decoder_name(style_decoder));

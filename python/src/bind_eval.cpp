@@ -54,14 +54,13 @@ pyb::dict range_dict(const eval::RangeScore& r) {
 // `stylerf eval consistency --method stylerf` for a code already encoded: the path's first `frames`
 // frames, warped by the scene's own geometry; RMSE, and LPIPS unless lpips_net is None.
 pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, int path_frames, int size,
-                      std::optional<std::string> lpips_name, std::optional<int> supersample) {
+                      std::optional<std::string> lpips_name, const SupersampleArg& supersample) {
   if (code.owner != s) throw pyb::value_error("code: this StyleCode was encoded by another StyleModel");
   if (frames < 8 || frames > 1000) throw pyb::value_error("frames: must be in [8, 1000] (the long range compares t with t - 7)");
   if (path_frames < frames || path_frames > 100000) throw pyb::value_error("path_frames: must be in [frames, 100000]");
   if (size < 0 || size > 4096) throw pyb::value_error("size: must be in [0, 4096] (0: the scene's)");
   if (lpips_name) check_net(*lpips_name);
-  const int n = supersample.value_or(s->model.inference_supersample);
-  if (n < 1 || n > model::kMaxSupersample) throw pyb::value_error("supersample: must be in [1, 8]");
+  const int n = supersample_of(*s, supersample);
   eval::ConsistencyScore score;
   {
     LibraryCall call;

@@ -33,13 +33,25 @@ ModelHandle open_model(const std::string& path, const std::string& scene_dir) {
   return s;
 }
 
-int check_supersample(const ModelState& s, std::optional<int> supersample) {
-  const int n = supersample.value_or(s.model.inference_supersample);
+}  // namespace
+
+int supersample_of(const ModelState& s, const SupersampleArg& arg) {
+  if (!arg) return s.model.inference_supersample;
+  if (const auto* text = std::get_if<std::string>(&*arg)) {
+    try {
+      return model::parse_supersample(*text);
+    } catch (const host::Error& e) {
+      throw pyb::value_error("supersample: " + std::string(e.what()));
+    }
+  }
+  const int n = std::get<int>(*arg);
   if (n < 1 || n > model::kMaxSupersample)
-    throw pyb::value_error("supersample: must be in [1, " + std::to_string(model::kMaxSupersample) + "], got " +
-                           std::to_string(n));
+    throw pyb::value_error("supersample: must be in [1, " + std::to_string(model::kMaxSupersample) +
+                           "] or 'quincunx', got " + std::to_string(n));
   return n;
 }
+
+namespace {
 
 CodeHandle encode(const ModelHandle& s, const pyb::object& image) {
   CodeHandle c;
@@ -75,9 +87,9 @@ std::vector<float> stylize_frame(const ModelState& s, const scene::Camera& cam, 
 }
 
 pyb::array_t<float> stylize(const ModelHandle& s, const ViewOrCamera& view, const CodeHandle& code,
-                            std::optional<int> supersample) {
+                            const SupersampleArg& supersample) {
   check_owner(*s, code, "code");
-  const int n = check_supersample(*s, supersample);
+  const int n = supersample_of(*s, supersample);
   const scene::Camera cam = resolve_view(s->scene, view);
   std::vector<float> rgb;
   {
@@ -90,9 +102,9 @@ pyb::array_t<float> stylize(const ModelHandle& s, const ViewOrCamera& view, cons
 // The same frame `repeats` times, each call timed in C++ (the bench's other side: what the Python call
 // costs beyond the library's work).
 std::vector<double> cpp_stylize_seconds(const ModelHandle& s, const ViewOrCamera& view, const CodeHandle& code,
-                                        std::optional<int> supersample, int repeats) {
+                                        const SupersampleArg& supersample, int repeats) {
   check_owner(*s, code, "code");
-  const int n = check_supersample(*s, supersample);
+  const int n = supersample_of(*s, supersample);
   const scene::Camera cam = resolve_view(s->scene, view);
   LibraryCall call;
   std::vector<double> out;
@@ -151,7 +163,11 @@ void bind_model(pyb::module_& m) {
       .def_static("open", &open_model, pyb::arg("path"), pyb::arg("scene") = "",
                   "scene: the scene folder, when it moved since training (default: the one the checkpoint records)")
       .def_readonly("path", &ModelState::path)
-      .def_property_readonly("supersample", [](const ModelState& s) { return s.model.inference_supersample; })
+      .def_property_readonly("supersample",
+                             [](const ModelState& s) -> std::variant<int, std::string> {
+                               if (s.model.inference_supersample == model::kQuincunx) return std::string("quincunx");
+                               return s.model.inference_supersample;
+                             })
       .def_property_readonly("stride", [](const ModelState& s) { return s.model.stride(); })
       .def_property_readonly("cameras", [](const ModelState& s) {
         std::vector<scene::Camera> v;

@@ -64,6 +64,11 @@ struct CodeHandle {
 using ViewOrCamera = std::variant<int, scene::Camera>;
 scene::Camera resolve_view(const scene::Scene& scene, const ViewOrCamera& v);
 
+// A supersample argument: n (n x n rays a block, 1..8), "quincunx", or None for the model's recipe's.
+using SupersampleArg = std::optional<std::variant<int, std::string>>;
+// Its value (model::kQuincunx for the quincunx); a ValueError "supersample: ..." when it is none of those.
+int supersample_of(const ModelState& s, const SupersampleArg& arg);
+
 void bind_runtime(pyb::module_& m);
 void bind_scene(pyb::module_& m);
 void bind_model(pyb::module_& m);

@@ -35,6 +35,8 @@ def test_bad_views_and_options(model, code):
         model.stylize(99, code)
     with pytest.raises(ValueError, match="^supersample: "):
         model.stylize(0, code, supersample=0)
+    with pytest.raises(ValueError, match="^supersample: supersample 'grid'"):
+        model.stylize(0, code, supersample="grid")
     with pytest.raises(ValueError, match="^weights: .*sum to 1"):
         stylerf.mix([code, code], [0.7, 0.7])
     with pytest.raises(ValueError, match="^c2w: .*rigid"):
