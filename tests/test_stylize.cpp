@@ -71,6 +71,14 @@ int mismatches(const std::vector<float>& pos, const std::vector<float>& got, con
   return bad;
 }
 
+// The largest |got - want| over the largest |want| (1e9 when the sizes differ).
+double worst_rel(const std::vector<float>& got, const std::vector<double>& want) {
+  double scale = 1e-12, worst = 0;
+  for (double v : want) scale = std::max(scale, std::abs(v));
+  for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
+  return got.size() == want.size() ? worst / scale : 1e9;
+}
+
 model::StyleModel small_style_model() {
   model::FeatureFieldConfig fc;
   fc.rank = {8, 8, 8};
@@ -231,12 +239,6 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
       }
     return std::vector<std::vector<double>>{c, k, a, d};
   };
-  auto worst_rel = [](const std::vector<float>& got, const std::vector<double>& want) {
-    double scale = 1e-12, worst = 0;
-    for (double v : want) scale = std::max(scale, std::abs(v));
-    for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
-    return got.size() == want.size() ? worst / scale : 1e9;
-  };
   const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
   const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
   for (int n : {1, 2, 3}) {
@@ -307,12 +309,6 @@ TEST_CASE("quincunx camera content: (4 x the centre ray + the four corner rays) 
       };
       a[b] = mix(a0, a1), k[b] = mix(k0, k1), d[b] = mix(d0, d1);
     }
-  auto worst_rel = [](const std::vector<float>& got, const std::vector<double>& want) {
-    double scale = 1e-12, worst = 0;
-    for (double v : want) scale = std::max(scale, std::abs(v));
-    for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
-    return got.size() == want.size() ? worst / scale : 1e9;
-  };
   const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
   const model::RegionHead everything(model::Region::parse("sphere:0,0,0,1e6", {cam}), space);
   // Every block refined, in chunks that cut across rows; shaded per sample (this scene keeps few samples).
