@@ -14,6 +14,7 @@
 //    a feature checkpoint where a style one is needed.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -28,6 +29,7 @@
 #include "lib/nn/ops.hpp"
 #include "lib/style/adain.hpp"
 #include "lib/train/style_losses.hpp"
+#include "lib/train/recipes.hpp"
 #include "lib/train/style_trainer.hpp"
 #include "lib/train/stage_programs.hpp"
 #include "tests/small_scene.hpp"
@@ -234,6 +236,29 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   CHECK(r.styles().holdout == styles.holdout);
   r.set_total_iters(5);
   CHECK(std::isfinite(r.step().style));
+}
+
+TEST_CASE("the fast recipe settles its inference rays by the scene: the quincunx on large forward-facing maps, else 3 x 3") {
+  CHECK(model::default_inference_supersample(32, 32, false) == 3);   // the demo's 128 px scene
+  CHECK(model::default_inference_supersample(200, 200, false) == 3);  // lego 800x800: crisp surfaces
+  CHECK(model::default_inference_supersample(126, 95, true) == 3);    // fern 1/8
+  CHECK(model::default_inference_supersample(model::kQuincunxMapSide - 1, 10, true) == 3);
+  CHECK(model::default_inference_supersample(10, model::kQuincunxMapSide, true) == model::kQuincunx);
+  CHECK(model::default_inference_supersample(252, 189, true) == model::kQuincunx);  // fern 1008x756
+  CHECK(train::style_recipe(train::Recipe::Fast).inference_supersample == model::kSupersampleByScene);
+
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1, nullptr);
+  auto cfg = small_config(1);
+  cfg.inference_supersample = model::kSupersampleByScene;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  REQUIRE(std::max(testing::small_scene().width(), testing::small_scene().height()) < 4 * model::kQuincunxMapSide);
+  CHECK(t.model().inference_supersample == 3);  // settled, never saved as "by the scene"
+  const std::string path = (testing::small_work_dir() / "style_by_scene.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  CHECK(model::StyleModel::load(io::load_checkpoint(path, "style")).inference_supersample == 3);
+
+  cfg.inference_supersample = -2;
+  testing::expect_error([&] { cfg.validate(); }, "inference_supersample");
 }
 
 // Three steps, one of them a 2D warm-start step on rendered maps, with one of the VGG-tail decoders; the

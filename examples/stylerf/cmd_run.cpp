@@ -17,6 +17,7 @@
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <fstream>
@@ -177,6 +178,22 @@ Shown shown_styles(const RunOptions& o) {
   return r;
 }
 
+// Content rays a block the probe's frames took (its metrics' "supersample", what the recipe settled for this
+// scene's map: "quincunx", "3x3" or "1"): a quincunx is the centre and ~1 shared corner ray.
+int probe_rays_per_block(const std::string& metrics) {
+  std::string name;
+  try {
+    std::ifstream in(metrics);
+    name = nlohmann::json::parse(in).at("timing").at("supersample").get<std::string>();
+  } catch (const std::exception& e) {
+    throw Error(metrics + ": the frame probe's rays a block are unreadable (" + e.what() + ")");
+  }
+  if (name == model::supersample_name(model::kQuincunx)) return 2;
+  const int n = std::atoi(name.c_str());
+  if (n < 1 || n > model::kMaxSupersample) throw Error(metrics + ": the frame probe's supersample '" + name + "' is not one of ours");
+  return n * n;
+}
+
 // The cost of one frame of this scene on this machine (eval_budget.hpp): a one-step style checkpoint (the
 // frame's cost does not depend on the weights' values) and 3 path frames of the first shown style.
 // `spent` gains the probe's seconds; `style_fixed_s` gets the one-step run's, what a style stage costs
@@ -213,8 +230,7 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
                 " frames/s); delete " + (out / "probe").string() + " to measure again");
   const double frame = 1.0 / fps;
   c.style2d = std::max(frame - c.content, 0.1 * frame);
-  const int n = train::style_recipe(train::parse_recipe(o.recipe)).inference_supersample;  // the probe's rays
-  c.rays_per_block = n == model::kQuincunx ? 2 : n * n;  // a quincunx: the centre and ~1 shared corner ray
+  c.rays_per_block = probe_rays_per_block(metrics);
   return c;
 }
 

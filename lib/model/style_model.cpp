@@ -199,6 +199,10 @@ std::string supersample_name(int n) {
   return n == 1 ? "1" : std::to_string(n) + "x" + std::to_string(n);
 }
 
+int default_inference_supersample(int map_w, int map_h, bool ndc) {
+  return ndc && std::max(map_w, map_h) >= kQuincunxMapSide ? kQuincunx : 3;
+}
+
 int parse_supersample(const std::string& text) {
   if (text == "quincunx" || text == "q") return kQuincunx;
   if (text.size() == 1 && text[0] >= '1' && text[0] - '0' <= kMaxSupersample) return text[0] - '0';
@@ -230,10 +234,32 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
   const ShadeFn shade = [&](const Tensor& comps) {
     return sict.forward_factored(comps, features.field.basis.value, false, nullptr);
   };
-  // Whether add_rays shades per depth slab (render_ray_groups of one ray): decided by its first call, whose
+  // Whether shade_rays shades per depth slab (render_ray_groups of one ray): decided by its first call, whose
   // rays are shaded per sample; the later calls merge when that call kept >= merge_kept_per_ray samples a
   // ray. On soft geometry SICT on every kept sample is most of a centre ray's cost.
   bool first_call = true, slab_rays = false;
+  // One renderer call on the R rays o, d ([R, 3] on the host), each ray its own: their content and, with a
+  // region, their region indicator composited with the same weights (the same kept samples, no jitter).
+  struct Shaded {
+    Content part;
+    std::vector<float> inside;
+  };
+  auto shade_rays = [&](const std::vector<float>& o, const std::vector<float>& d, int64_t R) {
+    const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
+    const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
+    Shaded s;
+    s.part = slab_rays ? content_of(render_ray_groups(geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps))
+                       : content_of(render_rays(geo, centre_head, origins, dirs, RayOptions{}, nullptr));
+    if (first_call) {
+      first_call = false;
+      slab_rays = double(s.part.kept) >= double(merge_kept_per_ray) * double(R);
+      out.slab_shaded = slab_rays;
+    }
+    out.content.samples += s.part.samples;
+    out.content.kept += s.part.kept;
+    if (region) s.inside = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
+    return s;
+  };
   // Renders the blocks `which` (all when empty) at sub-position (fx, fy) of each block and adds into the sums.
   auto add_rays = [&](float fx, float fy, const std::vector<int64_t>& which) {
     const scene::Rays rays = block_rays(scene, cam, stride(), w, h, fx, fy);
@@ -247,21 +273,9 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
           o[size_t(3 * r + j)] = rays.origins[size_t(3 * block(r) + j)];
           d[size_t(3 * r + j)] = rays.directions[size_t(3 * block(r) + j)];
         }
-      const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
-      const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
-      Content part;
-      if (slab_rays) {
-        part = content_of(render_ray_groups(geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps));
-      } else {
-        part = content_of(render_rays(geo, centre_head, origins, dirs, RayOptions{}, nullptr));
-      }
-      if (first_call) {
-        first_call = false;
-        slab_rays = double(part.kept) >= double(merge_kept_per_ray) * double(R);
-        out.slab_shaded = slab_rays;
-      }
-      const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
-      const auto pd = part.depth.to_host();
+      const Shaded s = shade_rays(o, d, R);
+      const auto pc = s.part.c.to_host(), pk = s.part.kept_acc.to_host(), pa = s.part.acc.to_host();
+      const auto pd = s.part.depth.to_host();
       for (int64_t r = 0; r < R; ++r) {
         const size_t i = size_t(block(r));
         for (int e = 0; e < E; ++e) c[i * E + size_t(e)] += pc[size_t(r * E + e)];
@@ -270,13 +284,7 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         acc_lo[i] = std::min(acc_lo[i], pa[size_t(r)]);
         acc_hi[i] = std::max(acc_hi[i], pa[size_t(r)]);
         depth[i] += pd[size_t(r)];
-      }
-      out.content.samples += part.samples;
-      out.content.kept += part.kept;
-      if (region) {
-        // The same rays, the same kept samples (no jitter), the indicator as the value.
-        const auto in = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
-        for (int64_t r = 0; r < R; ++r) inside[size_t(block(r))] += in[size_t(r)];
+        if (region) inside[i] += s.inside[size_t(r)];
       }
     }
   };
@@ -356,23 +364,14 @@ StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& 
         scene::pixel_ray(cam, float(s * (k % cw)), float(s * (k / cw)), &o[size_t(3 * r)], &d[size_t(3 * r)]);
         if (scene.effects.ndc) scene::to_ndc(cam, scene.ndc_near, &o[size_t(3 * r)], &d[size_t(3 * r)]);
       }
-      const Tensor origins = Tensor::from_host(o, {R, 3}, "corner origins");
-      const Tensor dirs = Tensor::from_host(d, {R, 3}, "corner directions");
-      const Content part =
-          slab_rays ? content_of(render_ray_groups(geo, features.field.head, shade, E, origins, dirs, 1, kMergeSteps))
-                    : content_of(render_rays(geo, centre_head, origins, dirs, RayOptions{}, nullptr));
-      const auto pc = part.c.to_host(), pk = part.kept_acc.to_host(), pa = part.acc.to_host();
-      const auto pd = part.depth.to_host();
+      const Shaded sh = shade_rays(o, d, R);
+      const auto pc = sh.part.c.to_host(), pk = sh.part.kept_acc.to_host(), pa = sh.part.acc.to_host();
+      const auto pd = sh.part.depth.to_host();
       std::copy(pc.begin(), pc.end(), cc.begin() + b * E);
       std::copy(pk.begin(), pk.end(), ck.begin() + b);
       std::copy(pa.begin(), pa.end(), ca.begin() + b);
       std::copy(pd.begin(), pd.end(), cd.begin() + b);
-      if (region) {
-        const auto in = render_rays(geo, *region, origins, dirs, RayOptions{}, nullptr).value.to_host();
-        std::copy(in.begin(), in.end(), ci.begin() + b);
-      }
-      out.content.samples += part.samples;
-      out.content.kept += part.kept;
+      if (region) std::copy(sh.inside.begin(), sh.inside.end(), ci.begin() + b);
     }
     for (int64_t b : which) {
       const size_t i = size_t(b);

@@ -38,6 +38,17 @@ inline bool valid_supersample(int n) { return n == kQuincunx || (n >= 1 && n <= 
 std::string supersample_name(int n);
 // "quincunx" or "q" -> kQuincunx, "1".."8" -> n; anything else is an error naming the value and the choices.
 int parse_supersample(const std::string& text);
+// A recipe's inference_supersample that the style trainer settles by the scene (default_inference_supersample).
+constexpr int kSupersampleByScene = 0;
+// The map side (blocks) from which forward-facing (NDC) scenes take the quincunx.
+constexpr int kQuincunxMapSide = 200;
+// The quincunx for forward-facing (NDC) scenes whose feature map has at least kQuincunxMapSide blocks on its
+// longer side (images of 800 px and more at the fast profile's stride 4); 3 x 3 elsewhere. Measured
+// (docs/results.md, "Quincunx rays a block"): fern 1008x756 is more consistent with it (short-range RMSE
+// 0.735x per-frame AdaIN's against 0.753x) for a third of the content render; lego 800x800 (an object on
+// crisp surfaces) less (0.717x against 0.694x, LPIPS 0.755x against 0.698x), as the demo's 128 px scene
+// (0.842x against 0.746x). Fern and horns at 1/8 are not measured with it: 3 x 3, as they were.
+int default_inference_supersample(int map_w, int map_h, bool ndc);
 // render_camera_content shades a refined block's sub-rays merged per depth slab (render_ray_groups) when
 // the centre rays keep at least this many samples a ray on average: fern 1/8 keeps ~180 (content 2.05x
 // faster with kMergeSteps, the same style loss and consistency), lego ~6 (the merge costs more than it

@@ -45,11 +45,11 @@ StyleTrainConfig style_recipe(Recipe r) {
   c.lr_decoder = 1e-5f;
   c.lr_decay_ratio = 0.1f;
   c.style_size = 256;
-  // Inference: 3 x 3 content rays in the blocks at edges. The quincunx (`--supersample quincunx`, the centre
-  // and the four shared corner rays) is as consistent on fern 1008x756 for a third of the content render,
-  // but not on the demo's 128 px scene: short-range RMSE 0.842x per-frame AdaIN's against 0.746x here
-  // (docs/results.md, "Quincunx rays a block").
-  c.inference_supersample = 3;
+  // Inference rays in the blocks at edges, by the scene (model::default_inference_supersample): the quincunx
+  // (the centre and the four shared corner rays) on forward-facing scenes at 800 px and more, where it was
+  // the more consistent for a third of the content render (fern 1008x756: a frame 9.3 vs 22.7 s); 3 x 3
+  // elsewhere, where the nine were (lego 800x800, the demo's 128 px scene; docs/results.md).
+  c.inference_supersample = model::kSupersampleByScene;
   // VGG's pool at all four grid offsets: the decoder paints from relu4_1 at every map pixel, not on a
   // 2-pixel grid fixed to the image. Lego 1/4 with vgg-adain (the 60-minute run's model, 3 held-out
   // styles, eval table): short-range RMSE 0.839x -> 0.656x per-frame AdaIN's, LPIPS 0.740x -> 0.563x,

@@ -79,9 +79,10 @@ void StyleTrainConfig::validate() const {
   if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
   if (running_init_patches < 0)
     throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
-  if (!model::valid_supersample(inference_supersample))
+  if (!model::valid_supersample(inference_supersample) && inference_supersample != model::kSupersampleByScene)
     throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) +
-                                                    " or model::kQuincunx, got " + std::to_string(inference_supersample));
+                                                    ", model::kQuincunx or model::kSupersampleByScene, got " +
+                                                    std::to_string(inference_supersample));
   if (decoder_phases && !model::map_decoder_for(style_decoder).has_vgg_pool())
     throw SettingError("decoder_phases", std::string("needs a vgg-adain decoder (the phases are those of its VGG "
                                                      "pool), not ") + model::style_decoder_name(style_decoder));
@@ -147,6 +148,11 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
                              "feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
   model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
   model_.inference_supersample = cfg_.inference_supersample;
+  if (model_.inference_supersample == model::kSupersampleByScene) {  // the recipe's: by this scene
+    const int s = model_.stride();
+    model_.inference_supersample = model::default_inference_supersample(
+        (scene.width() + s - 1) / s, (scene.height() + s - 1) / s, model_.features.geo.ndc);
+  }
   model_.decoder_phases = cfg_.decoder_phases;
   init(log);
   init_running_stats(log);

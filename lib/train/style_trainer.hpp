@@ -68,7 +68,9 @@ struct StyleTrainConfig {
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
-  int inference_supersample = 1;  // saved with the model: the rays per block inference uses by default
+  // Saved with the model: the rays per block inference uses by default (kSupersampleByScene: settled here by
+  // the scene, model::default_inference_supersample).
+  int inference_supersample = 1;
   bool decoder_phases = false;    // VggAdain: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
   uint64_t seed = 0;
   int finite_check_every = 50;
