@@ -116,6 +116,8 @@ TEST_CASE("run --minutes: the style stage planned from a measured frame, the sam
   CHECK(summary["plan"]["frame_content_s"].get<double>() > 0);
   CHECK(summary["plan"]["frame_rgb_s"].get<double>() > 0);  // the density_test render timed its views
   CHECK(summary["plan"]["style_minutes"].get<double>() > 0);
+  // The rays a block the probe's frames took, read off their metrics: the recipe's 3x3 on this small scene.
+  CHECK(summary["plan"]["frame_rays_per_block"].get<int>() == 9);
 
   // Resumed: the recorded seconds give the same plan, so the style stage keeps its key and nothing runs.
   r = testing::run_cli(cmd);
