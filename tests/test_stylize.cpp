@@ -340,6 +340,9 @@ TEST_CASE("quincunx camera content: (4 x the centre ray + the four corner rays) 
   CHECK(model::parse_supersample("3") == 3);
   CHECK(model::supersample_name(model::kQuincunx) == "quincunx");
   CHECK(model::supersample_name(2) == "2x2");
+  for (int n : {1, 2, 3, model::kMaxSupersample, model::kQuincunx})  // every name written reads back
+    CHECK(model::parse_supersample(model::supersample_name(n)) == n);
+  testing::expect_error([] { model::parse_supersample("3x2"); }, "supersample '3x2'");
   testing::expect_error([] { model::parse_supersample("9"); }, "expected 1..8 (n x n rays a block) or quincunx");
   testing::expect_error([] { model::parse_supersample("grid"); }, "supersample 'grid'");
 }

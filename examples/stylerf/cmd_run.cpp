@@ -17,7 +17,6 @@
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <fstream>
@@ -188,10 +187,12 @@ int probe_rays_per_block(const std::string& metrics) {
   } catch (const std::exception& e) {
     throw Error(metrics + ": the frame probe's rays a block are unreadable (" + e.what() + ")");
   }
-  if (name == model::supersample_name(model::kQuincunx)) return 2;
-  const int n = std::atoi(name.c_str());
-  if (n < 1 || n > model::kMaxSupersample) throw Error(metrics + ": the frame probe's supersample '" + name + "' is not one of ours");
-  return n * n;
+  try {
+    const int n = model::parse_supersample(name);
+    return n == model::kQuincunx ? 2 : n * n;
+  } catch (const Error& e) {
+    throw Error(metrics + ": the frame probe's " + e.what());
+  }
 }
 
 // The cost of one frame of this scene on this machine (eval_budget.hpp): a one-step style checkpoint (the

@@ -205,7 +205,9 @@ int default_inference_supersample(int map_w, int map_h, bool ndc) {
 
 int parse_supersample(const std::string& text) {
   if (text == "quincunx" || text == "q") return kQuincunx;
-  if (text.size() == 1 && text[0] >= '1' && text[0] - '0' <= kMaxSupersample) return text[0] - '0';
+  // "n" or supersample_name's "nxn", so that every name written (metrics, tables) reads back.
+  const bool square = text.size() == 3 && text[1] == 'x' && text[2] == text[0];
+  if ((text.size() == 1 || square) && text[0] >= '1' && text[0] - '0' <= kMaxSupersample) return text[0] - '0';
   throw Error("supersample '" + text + "': expected 1.." + std::to_string(kMaxSupersample) +
               " (n x n rays a block) or quincunx");
 }

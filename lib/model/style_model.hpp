@@ -36,7 +36,8 @@ constexpr int kQuincunx = -1;
 inline bool valid_supersample(int n) { return n == kQuincunx || (n >= 1 && n <= kMaxSupersample); }
 // "quincunx", or n x n as "3x3" ("1" for the centre ray).
 std::string supersample_name(int n);
-// "quincunx" or "q" -> kQuincunx, "1".."8" -> n; anything else is an error naming the value and the choices.
+// "quincunx" or "q" -> kQuincunx, "1".."8" or supersample_name's "3x3" -> n; anything else is an error naming
+// the value and the choices.
 int parse_supersample(const std::string& text);
 // A recipe's inference_supersample that the style trainer settles by the scene (default_inference_supersample).
 constexpr int kSupersampleByScene = 0;
