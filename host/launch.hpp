@@ -1,7 +1,9 @@
 // Kernel launch: sets arguments by type and enqueues on the runtime's queue, recording an event for
 // per-kernel timing when profiling is on. Example:
 //   launch("nn", "relu_forward", {n}, x, y, int(n));
-// Global sizes are rounded up to a multiple of the local size; kernels guard their index.
+// Global sizes are rounded up to a multiple of the local size; kernels guard their index. A launch without
+// a local size gets auto_local_size_x's in dimension 0 (1 in the others, which stay exact), so every kernel
+// must guard its dimension-0 index.
 #pragma once
 #include <CL/cl.h>
 
@@ -56,8 +58,11 @@ void set_arg(cl_kernel k, cl_uint i, T v, const char* name) {
 }
 }  // namespace detail
 
-// Enqueues an already-fetched kernel. local may be empty (driver's choice) via local.n == 0 trick:
-// pass Range(0) to let the driver choose.
+// The local size in dimension 0 of a launch that names none: a power of two, at most 256 and at most the
+// kernel's own limit, near global_x / 8 (eight work-groups or more where the range allows).
+size_t auto_local_size_x(size_t global_x, size_t kernel_max);
+
+// Enqueues an already-fetched kernel. Range(0) as local: auto_local_size_x's.
 void enqueue(cl_kernel k, const std::string& name, const Range& global, const Range& local);
 
 template <class... Args>
@@ -69,7 +74,7 @@ void launch_with_local(const std::string& program, const std::string& kernel, co
   enqueue(k, kernel, global, local);
 }
 
-// The common case: 1-3D global range, driver-chosen local size, no build options.
+// The common case: 1-3D global range, auto_local_size_x's local size, no build options.
 template <class... Args>
 void launch(const std::string& program, const std::string& kernel, const Range& global, const Args&... args) {
   launch_with_local(program, kernel, "", global, Range(0), args...);

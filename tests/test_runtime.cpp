@@ -1,6 +1,9 @@
 // The host runtime: device choice, buffers, kernel launch, errors.
 #include <doctest/doctest.h>
 
+#include <algorithm>
+#include <set>
+
 #include "host/device.hpp"
 #include "host/error.hpp"
 #include "host/launch.hpp"
@@ -79,6 +82,34 @@ TEST_CASE("kernel launch runs, and errors name the kernel") {
   CHECK(ty.to_host() == out);
   launch("elementwise", "axpby", {3}, tx, ty, 0.0f, 1.0f, int64_t(3));  // in range: runs
   CHECK(ty.to_host() == out);
+}
+
+TEST_CASE("a launch without a local size gets a power-of-two group in dimension 0, from a few sizes") {
+  // PoCL compiles a kernel anew for every local size it meets: a range-dependent choice (the driver's)
+  // compiled channel attention once per frame. Ours comes from 9 sizes whatever the range.
+  std::set<size_t> sizes;
+  for (size_t g = 1; g <= 200000; g += (g < 5000 ? 1 : 997)) {
+    const size_t l = auto_local_size_x(g, 4096);
+    CHECK((l & (l - 1)) == 0);
+    CHECK(l <= 256);
+    CHECK(l <= std::max<size_t>(1, (g + 7) / 8));  // eight groups or more where the range allows
+    sizes.insert(l);
+  }
+  CHECK(sizes.size() == 9);
+  CHECK(auto_local_size_x(1000000, 4096) == 256);
+  CHECK(auto_local_size_x(1000000, 100) == 64);  // a kernel allowing fewer work-items
+  CHECK(auto_local_size_x(1000000, 1) == 1);
+
+  // The padded work-items return at the kernel's guard: a range of 1009 (prime) writes 1009 floats, not
+  // the 1024 its groups span.
+  const int n = 1009;
+  std::vector<float> x(1100, 1.0f), y(1100, 5.0f);
+  Tensor tx = Tensor::from_host(x, {1100}), ty = Tensor::from_host(y, {1100});
+  launch("elementwise", "axpby", {size_t(n)}, tx, ty, 2.0f, 1.0f, n);
+  const auto out = ty.to_host();
+  CHECK(out[0] == 7.0f);
+  CHECK(out[n - 1] == 7.0f);
+  for (int i = n; i < 1100; ++i) REQUIRE(out[i] == 5.0f);
 }
 
 TEST_CASE("a program built ahead of its first launch is built once; the launch builds nothing more") {
