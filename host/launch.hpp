@@ -58,9 +58,11 @@ void set_arg(cl_kernel k, cl_uint i, T v, const char* name) {
 }
 }  // namespace detail
 
-// The local size in dimension 0 of a launch that names none: a power of two, at most 256 and at most the
-// kernel's own limit, near global_x / 8 (eight work-groups or more where the range allows).
-size_t auto_local_size_x(size_t global_x, size_t kernel_max);
+// The local size in dimension 0 of a launch that names none (the others get 1 and stay exact), from the
+// global size in dimension 0, the product of the others, and the kernel's own limit: a power of two, at
+// most 256; over a 1D range one of 256, 32 and 1 (eight groups or more), so that a kernel is compiled for
+// few local sizes however its range changes.
+size_t auto_local_size_x(size_t global_x, size_t groups_other, size_t kernel_max);
 
 // Enqueues an already-fetched kernel. Range(0) as local: auto_local_size_x's.
 void enqueue(cl_kernel k, const std::string& name, const Range& global, const Range& local);

@@ -85,20 +85,25 @@ TEST_CASE("kernel launch runs, and errors name the kernel") {
 }
 
 TEST_CASE("a launch without a local size gets a power-of-two group in dimension 0, from a few sizes") {
-  // PoCL compiles a kernel anew for every local size it meets: a range-dependent choice (the driver's)
-  // compiled channel attention once per frame. Ours comes from 9 sizes whatever the range.
+  // PoCL compiles a kernel anew for every local size it meets: the driver's range-dependent choice
+  // compiled channel attention once per frame. Over 1D ranges ours is one of three sizes.
   std::set<size_t> sizes;
   for (size_t g = 1; g <= 200000; g += (g < 5000 ? 1 : 997)) {
-    const size_t l = auto_local_size_x(g, 4096);
-    CHECK((l & (l - 1)) == 0);
-    CHECK(l <= 256);
-    CHECK(l <= std::max<size_t>(1, (g + 7) / 8));  // eight groups or more where the range allows
+    const size_t l = auto_local_size_x(g, 1, 4096);
+    CHECK((l == 1 || l == 32 || l == 256));
+    CHECK((g + l - 1) / l >= std::min<size_t>(g, 8));  // eight groups or more where the range allows
     sizes.insert(l);
   }
-  CHECK(sizes.size() == 9);
-  CHECK(auto_local_size_x(1000000, 4096) == 256);
-  CHECK(auto_local_size_x(1000000, 100) == 64);  // a kernel allowing fewer work-items
-  CHECK(auto_local_size_x(1000000, 1) == 1);
+  CHECK(sizes.size() == 3);
+  CHECK(auto_local_size_x(1000000, 1, 4096) == 256);
+  CHECK(auto_local_size_x(1000000, 1, 100) == 32);  // a kernel allowing fewer work-items
+  CHECK(auto_local_size_x(1000000, 1, 1) == 1);
+  CHECK(auto_local_size_x(255, 1, 4096) == 1);
+  // 2D: the other dimension gives the groups, one group spans dimension 0 (up to 256).
+  CHECK(auto_local_size_x(32, 100003, 4096) == 32);
+  CHECK(auto_local_size_x(33, 100003, 4096) == 64);
+  CHECK(auto_local_size_x(5000, 64, 4096) == 256);
+  CHECK(auto_local_size_x(32, 4, 4096) == 1);  // too few groups from dimension 1: the 1D rule
 
   // The padded work-items return at the kernel's guard: a range of 1009 (prime) writes 1009 floats, not
   // the 1024 its groups span.
