@@ -345,6 +345,43 @@ TEST_CASE("conv2d bad shapes give clear errors") {
   CHECK(e.find("[N,Cin,H,W]") != std::string::npos);
 }
 
+TEST_CASE("conv2d filter cache: the Winograd transform of the tensor it saw, reused, bit-identical to none") {
+  const Case c{2, 12, 10, 9, 7, 3, Padding::Reflect, true};
+  const Data d = make_data(c, 41);
+  const Tensor x = Tensor::from_host(d.x, {c.N, c.Cin, c.H, c.W}), b = Tensor::from_host(d.b, {c.Cout});
+  const Tensor dy = Tensor::from_host(d.dy, {c.N, c.Cout, c.H, c.W});
+  const host::Shape ws{c.Cout, c.Cin, 3, 3};
+  nn::ConvFilterCache cache;  // one cache for both algorithms: each keeps its own transform
+  for (nn::ConvAlgo algo : {nn::ConvAlgo::Winograd2, nn::ConvAlgo::Winograd4}) {
+    CAPTURE(nn::conv_algo_name(algo));
+    Tensor w = Tensor::from_host(d.w, ws);
+    const std::vector<float> plain = nn::conv2d_forward(x, w, b, c.pad, algo).to_host();
+    CHECK(nn::conv2d_forward(x, w, b, c.pad, algo, &cache).to_host() == plain);  // made
+    CHECK(nn::conv2d_forward(x, w, b, c.pad, algo, &cache).to_host() == plain);  // reused
+    const std::vector<float> dx = nn::conv2d_backward(x, w, dy, c.pad, true, false, algo).dx.to_host();
+    CHECK(nn::conv2d_backward(x, w, dy, c.pad, true, false, algo, &cache).dx.to_host() == dx);
+
+    // Writing into the same buffer is invisible to the cache (the caller's contract: clear()). That the old
+    // output comes back shows the transform really is reused.
+    std::vector<float> w2 = d.w;
+    for (float& v : w2) v = -0.5f * v + 0.01f;
+    w.upload(w2);
+    const std::vector<float> fresh = nn::conv2d_forward(x, w, b, c.pad, algo).to_host();
+    REQUIRE(fresh != plain);
+    CHECK(nn::conv2d_forward(x, w, b, c.pad, algo, &cache).to_host() == plain);
+    cache.clear();
+    CHECK(nn::conv2d_forward(x, w, b, c.pad, algo, &cache).to_host() == fresh);
+
+    // A replaced tensor (what a load does) is noticed without clear().
+    const Tensor w3 = Tensor::from_host(d.w, ws);
+    CHECK(nn::conv2d_forward(x, w3, b, c.pad, algo, &cache).to_host() == plain);
+  }
+  // im2col and 1x1 convs ignore the cache.
+  const Tensor w = Tensor::from_host(d.w, ws);
+  CHECK(nn::conv2d_forward(x, w, b, c.pad, nn::ConvAlgo::Im2col, &cache).to_host() ==
+        nn::conv2d_forward(x, w, b, c.pad, nn::ConvAlgo::Im2col).to_host());
+}
+
 TEST_CASE("conv algorithm names: parse, Auto's resolution, and a clear error for a bad name") {
   CHECK(nn::parse_conv_algo("winograd4") == nn::ConvAlgo::Winograd4);
   CHECK(error_of([] { nn::parse_conv_algo("fft"); }).find("unknown conv algorithm 'fft'") != std::string::npos);

@@ -239,6 +239,54 @@ TEST_CASE("conv stack: gradients accumulate over backward calls; need_dx = false
   testing::expect_error([&] { s.forward(Tensor::zeros({1, 2, 4, 5})); }, "input must be a non-empty [N, 3, H, W]");
 }
 
+TEST_CASE("conv stack: frozen, the same outputs and gradients from kept filter transforms; writable paths unfreeze") {
+  struct AlgoScope {  // every 3x3 conv of this test runs Winograd F(4x4): the only convs that keep a transform
+    AlgoScope() { nn::set_default_conv_algo(nn::ConvAlgo::Winograd4); }
+    ~AlgoScope() { nn::set_default_conv_algo(nn::ConvAlgo::Auto); }
+  } algo;
+  const ConvStackSpec spec = spec_of({6, 8, 8, 3}, {false, true, false}, Padding::Reflect);
+  const Tensor x = Tensor::from_host(testing::random_normal(2 * 6 * 6 * 5, 5), {2, 6, 6, 5});
+  const Tensor g = Tensor::from_host(testing::random_normal(2 * 3 * 12 * 10, 6), {2, 3, 12, 10});
+  // One training step's output, dx and weight gradients (each stack's grads start undefined).
+  auto step = [&](ConvStack& st) {
+    ConvStack::Ctx ctx;
+    std::vector<std::vector<float>> out{st.forward(x, &ctx).to_host()};
+    out.push_back(st.backward(ctx, g).to_host());
+    for (const auto& l : st.layers()) out.push_back(l.w.grad.to_host());
+    return out;
+  };
+  ConvStack plain(spec, 11), s(spec, 11);
+  const std::vector<float> y_infer = plain.forward(x).to_host();
+  CHECK(!s.frozen());
+  s.freeze();
+  CHECK(s.frozen());
+  CHECK(s.forward(x).to_host() == y_infer);
+  CHECK(step(s) == step(plain));  // unfrozen, forward's transforms serve backward through the context
+  CHECK(s.forward(x).to_host() == y_infer);
+  CHECK(s.frozen());
+
+  // A frozen stack really serves kept transforms: a write that bypasses every writable path (misuse) is
+  // not seen until the stack is unfrozen.
+  Tensor w0 = s.layers()[0].w.value;  // a handle on the same buffer
+  std::vector<float> wv = w0.to_host();
+  for (float& v : wv) v *= 0.5f;
+  w0.upload(wv);
+  CHECK(s.forward(x).to_host() == y_infer);
+  s.unfreeze();
+  const std::vector<float> y_halved = s.forward(x).to_host();
+  CHECK(y_halved != y_infer);
+
+  // Taking the params (an optimiser, Module::load) and He init unfreeze it: what comes next is fresh.
+  s.freeze();
+  CHECK(s.forward(x).to_host() == y_halved);
+  s.params();
+  CHECK(!s.frozen());
+  s.freeze();
+  s.init_he(12);
+  CHECK(!s.frozen());
+  CHECK(s.forward(x).to_host() == ConvStack(spec, 12).forward(x).to_host());
+}
+
 TEST_CASE("conv stack: spec checks, names, groups, He init") {
   testing::expect_error([] { ConvStack(spec_of({3}, {}, Padding::Reflect, "x."), 1); }, "ConvStack 'x.': a spec needs at least two");
   testing::expect_error([] { ConvStack(spec_of({3, 0, 2}, {}, Padding::Reflect), 1); }, "channel counts must be >= 1");

@@ -196,8 +196,9 @@ Tensor Lpips::conv_relu(const Tensor& x, const Conv& c) const {
   const int k = int(c.w.dim(2));
   // The stride-1 "same" 3x3 convs take conv2d's faster path; the others (AlexNet's 11x11/4 and 5x5) the
   // general one.
-  const Tensor y = k == 3 && c.stride == 1 && c.pad == 1 ? nn::conv2d_forward(x, c.w, c.b, nn::Padding::Zero)
-                                                         : nn::conv2d_strided_forward(x, c.w, c.b, c.stride, c.pad);
+  const Tensor y = k == 3 && c.stride == 1 && c.pad == 1
+                       ? nn::conv2d_forward(x, c.w, c.b, nn::Padding::Zero, nn::ConvAlgo::Auto, &c.filters)
+                       : nn::conv2d_strided_forward(x, c.w, c.b, c.stride, c.pad);
   return nn::relu_forward(y);
 }
 

@@ -47,6 +47,7 @@
 
 #include "host/tensor.hpp"
 #include "lib/io/image.hpp"
+#include "lib/nn/ops.hpp"
 
 namespace stylerf::eval {
 
@@ -99,6 +100,7 @@ class Lpips {
   struct Conv {
     host::Tensor w, b;
     int stride = 1, pad = 1;  // zero padding
+    mutable nn::ConvFilterCache filters;  // frozen weights: the 3x3 convs' Winograd transform is made once
   };
   double pooled(const io::Image& a, const io::Image& b, const std::vector<float>* mask) const;
   host::Tensor conv_relu(const host::Tensor& x, const Conv& c) const;

@@ -166,6 +166,7 @@ FeatureModel FeatureModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": bad feature-model metadata (" + e.what() + ")");
   }
   m.nn::Module::load(ck, "model.");
+  m.decoder.freeze();
   return m;
 }
 

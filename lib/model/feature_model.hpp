@@ -63,7 +63,8 @@ class FeatureModel : public nn::Module {
   void collect_params(std::vector<nn::Param*>& out) override;
 
   // Checkpoint kind "features": the geometry ("geometry.*"), the field and decoder ("model.*"), and
-  // meta["feature_model"] (profile, field config, decoder architecture).
+  // meta["feature_model"] (profile, field config, decoder architecture). A loaded model's decoder is frozen
+  // (nn::ConvStack::freeze: inference reuses its Winograd filter transforms) until its params are taken.
   void save(io::Checkpoint& ck);
   static FeatureModel load(const io::Checkpoint& ck);
 };

@@ -635,6 +635,8 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": style_model.decoder_phases is set for the " +
                 style_decoder_name(decoder) + " decoder (only the vgg-adain decoders have them)");
   m.decoder_phases = phases;
+  m.features.decoder.freeze();
+  if (!m.style_decoder.empty()) m.style_decoder.freeze();
   return m;
 }
 

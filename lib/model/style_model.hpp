@@ -261,7 +261,8 @@ class StyleModel : public nn::Module {
   void collect_buffers(std::vector<nn::StateBuffer*>& out) override;
 
   // Checkpoint kind "style": the feature model's tensors and meta, the stylizer under "style.*", and
-  // meta["style_model"] (SICT mode, DST bias).
+  // meta["style_model"] (SICT mode, DST bias). A loaded model's decoders are frozen (nn::ConvStack::freeze:
+  // inference reuses their Winograd filter transforms) until their params are taken (an optimiser).
   void save(io::Checkpoint& ck);
   static StyleModel load(const io::Checkpoint& ck);
 };

@@ -122,14 +122,17 @@ int conv_rows_per_chunk(const char* op, const ColGemmGeom& g) {
 
 }  // namespace detail
 
-Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo) {
+void ConvFilterCache::clear() { entries_[0] = entries_[1] = Entry(); }
+
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo,
+                      ConvFilterCache* filters) {
   const ConvGeom g = check_conv("conv2d_forward", x, w, pad);
   if (b.defined()) expect_shape(b, {g.Cout}, "conv2d_forward", "bias");
   Tensor y({g.N, g.Cout, g.H, g.W}, "conv2d_forward output");
   const int hw = int(g.hw()), ckk = int(g.ckk());
   const ConvAlgo a = g.K == 3 ? resolve_conv_algo(algo, g.Cin, g.Cout, g.H, g.W, g.N) : ConvAlgo::Im2col;
   if (a == ConvAlgo::Winograd2 || a == ConvAlgo::Winograd4) {
-    detail::winograd_forward(a == ConvAlgo::Winograd2 ? 2 : 4, g, g.mode, x, w, b, y);
+    detail::winograd_forward(a == ConvAlgo::Winograd2 ? 2 : 4, g, g.mode, x, w, b, y, filters);
     return y;
   }
   if (g.K == 1) {
@@ -148,7 +151,7 @@ Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding
 }
 
 Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
-                            bool need_params, ConvAlgo algo) {
+                            bool need_params, ConvAlgo algo, ConvFilterCache* filters) {
   const ConvGeom g = check_conv("conv2d_backward", x, w, pad);
   expect_shape(dy, {g.N, g.Cout, g.H, g.W}, "conv2d_backward", "dy");
   Conv2dGrads out;
@@ -163,7 +166,7 @@ Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, 
   const ConvAlgo a = g.K == 3 ? resolve_conv_algo(algo, g.Cin, g.Cout, g.H, g.W, g.N) : ConvAlgo::Im2col;
   if (a == ConvAlgo::Winograd2 || a == ConvAlgo::Winograd4) {
     detail::winograd_backward(a == ConvAlgo::Winograd2 ? 2 : 4, g, g.mode, x, w, dy, need_dx ? &out.dx : nullptr,
-                              need_params ? &out.dw : nullptr);
+                              need_params ? &out.dw : nullptr, filters);
     return out;
   }
   if (g.K == 1) {

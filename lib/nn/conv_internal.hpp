@@ -106,13 +106,18 @@ void conv_chunked_backward(const char* op, const ColGemmGeom& g, cl_mem w, cl_me
 
 }  // namespace stylerf::nn::detail
 
+namespace stylerf::nn {
+class ConvFilterCache;
+}
+
 namespace stylerf::nn::detail {
 
 // Winograd F(m x m, 3 x 3), m = 2 or 4 (lib/nn/conv_winograd.cpp): y = conv(x, w) + b (b may be
-// undefined); dx and dw (either may be null) are overwritten. mode: 0 zero padding, 1 reflect.
+// undefined); dx and dw (either may be null) are overwritten. mode: 0 zero padding, 1 reflect. filters
+// (may be null) keeps w's transform across calls (nn::ConvFilterCache).
 void winograd_forward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
-                      const host::Tensor& b, host::Tensor& y);
+                      const host::Tensor& b, host::Tensor& y, ConvFilterCache* filters);
 void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
-                       const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw);
+                       const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw, ConvFilterCache* filters);
 
 }  // namespace stylerf::nn::detail

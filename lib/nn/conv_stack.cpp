@@ -144,6 +144,7 @@ void ConvStack::name_params() {
 }
 
 void ConvStack::init_he(uint64_t seed) {
+  unfreeze();  // the weights are written in place
   std::mt19937_64 rng(seed);
   for (Layer& l : layers_) {
     const Tensor& w = l.w.value;
@@ -208,10 +209,21 @@ int ConvStack::upsamplings() const {
 }
 
 void ConvStack::collect_params(std::vector<Param*>& out) {
+  unfreeze();
   for (Layer& l : layers_) {
     out.push_back(&l.w);
     out.push_back(&l.b);
   }
+}
+
+void ConvStack::freeze() {
+  frozen_ = true;
+  frozen_filters_.assign(layers_.size(), ConvFilterCache());
+}
+
+void ConvStack::unfreeze() {
+  frozen_ = false;
+  frozen_filters_.clear();
 }
 
 // ---- forward / backward ---------------------------------------------------------------------------
@@ -246,18 +258,28 @@ Tensor ConvStack::forward(const Tensor& x, Ctx* ctx, bool phase_input) const {
   if (ctx) {
     *ctx = Ctx();
     ctx->phase_input = phase_input;
+    if (!frozen_) ctx->filters.resize(layers_.size());
   }
   Tensor h = x;
   bool interleave = phase_input;
-  for (const Layer& l : layers_) {
+  for (size_t i = 0; i < layers_.size(); ++i) {
+    const Layer& l = layers_[i];
     if (ctx) ctx->inputs.push_back(h);
-    h = conv2d_forward(h, l.w.value, l.b.value, pad_);
+    h = conv2d_forward(h, l.w.value, l.b.value, pad_, ConvAlgo::Auto, filters_for(i, ctx));
     if (l.relu) h = relu_forward(h);
     if (ctx) ctx->relu_out.push_back(l.relu ? h : Tensor());
     if (l.upsample) h = interleave ? phase_interleave_forward(h) : upsample2x_forward(h);
     if (l.upsample) interleave = false;
   }
   return h;
+}
+
+// Layer i's filter cache for this call: the frozen stack's own, else the context's (forward fills it,
+// backward reads it), else none (an unfrozen inference forward transforms per call).
+ConvFilterCache* ConvStack::filters_for(size_t i, const Ctx* ctx) const {
+  if (frozen_) return &frozen_filters_[i];
+  if (ctx && i < ctx->filters.size()) return &ctx->filters[i];
+  return nullptr;
 }
 
 Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx) {
@@ -280,7 +302,7 @@ Tensor ConvStack::backward(const Ctx& ctx, const Tensor& dy, bool need_dx) {
       d = ctx.phase_input && i == first_upsample ? phase_interleave_backward(d) : upsample2x_backward(d);
     if (l.relu) d = relu_backward(ctx.relu_out[i], d);
     Conv2dGrads g = conv2d_backward(ctx.inputs[i], l.w.value, d, pad_, /*need_dx=*/i > 0 || need_dx,
-                                    /*need_params=*/true);
+                                    /*need_params=*/true, ConvAlgo::Auto, filters_for(size_t(i), &ctx));
     l.w.accumulate(g.dw);
     l.b.accumulate(g.db);
     d = g.dx;

@@ -51,6 +51,9 @@ class ConvStack : public Module {
     std::vector<Tensor> inputs;    // each conv's input
     std::vector<Tensor> relu_out;  // each conv's ReLU output (undefined for the last conv)
     bool phase_input = false;      // forward's
+    // Each conv's Winograd filter transform, made by forward and reused by backward's dX (the weights
+    // cannot change in between). Unused while the stack is frozen: its own caches serve both.
+    mutable std::vector<ConvFilterCache> filters;
   };
 
   ConvStack() = default;
@@ -90,16 +93,30 @@ class ConvStack : public Module {
   // Adds dW and db of every conv into the Params' grads.
   Tensor backward(const Ctx& ctx, const Tensor& dy, bool need_dx = true);
 
+  // Hands out the weights to be written (an optimiser, Module::load): it unfreezes the stack (below).
   void collect_params(std::vector<Param*>& out) override;
+
+  // A frozen stack reuses each conv's Winograd filter transform (nn::ConvFilterCache) in every forward and
+  // backward instead of making it per call: a third of a small stylised frame's device time. For
+  // inference: the weights must not change while frozen. Every writable path to them (collect_params, so
+  // an optimiser, Module::load, init_he) unfreezes the stack first, so a stack that is trained or loaded
+  // after freeze() is never served a stale transform; call freeze() again once done.
+  void freeze();
+  void unfreeze();
+  bool frozen() const { return frozen_; }
 
  private:
   std::string where() const;  // "ConvStack 'decoder.'" for errors
   void name_params();         // from prefix_ and each layer's index
+  ConvFilterCache* filters_for(size_t layer, const Ctx* ctx) const;
 
   std::vector<Layer> layers_;
   Padding pad_ = Padding::Reflect;
   std::string prefix_;
   int group_ = 0;
+  bool frozen_ = false;
+  // One per layer while frozen; mutable because forward is const (a cache, not state a caller sees).
+  mutable std::vector<ConvFilterCache> frozen_filters_;
 };
 
 }  // namespace stylerf::nn

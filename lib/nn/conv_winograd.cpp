@@ -3,7 +3,8 @@
 //   forward   M[xi] [Cout, T] = U[xi] [Cout, Cin] x V[xi] [Cin, T]
 //   dX        dV[xi] [Cin, T] = U[xi]^T x dM[xi]
 //   dW        dU[xi] [Cout, Cin] = dM[xi] x V[xi]^T          (V recomputed from x, not kept from forward)
-// The transformed tensors are pooled temporaries, returned when the call ends.
+// The transformed tensors are pooled temporaries, returned when the call ends; the filters' transform U is
+// kept instead when the caller hands in a cache (nn::ConvFilterCache, lib/nn/ops.hpp).
 #include <algorithm>
 #include <string>
 
@@ -11,6 +12,7 @@
 #include "host/launch.hpp"
 #include "lib/nn/conv_algo.hpp"
 #include "lib/nn/conv_internal.hpp"
+#include "lib/nn/ops.hpp"
 
 namespace stylerf::nn::detail {
 namespace {
@@ -51,6 +53,12 @@ host::Tensor filter_transform(const Tiles& t, const ConvDims& d, const host::Ten
   return U;
 }
 
+// w's transform: from the cache when one is given (made and kept there on a miss), else made for this call.
+host::Tensor filters_of(const Tiles& t, const ConvDims& d, const host::Tensor& w, ConvFilterCache* cache) {
+  if (!cache) return filter_transform(t, d, w);
+  return cache->get(t.m, w, [&] { return filter_transform(t, d, w); });
+}
+
 host::Tensor input_transform(const Tiles& t, const ConvDims& d, const host::Tensor& x, int mode) {
   host::Tensor V({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input tiles");
   launch_wino(t, "wino_input_transform", {t.groups, size_t(d.Cin)}, x, V, d.Cin, d.H, d.W, t.th, t.tw, t.T, mode);
@@ -68,9 +76,9 @@ void batched_gemm(const Tiles& t, Trans ta, Trans tb, int M, int N, int K, const
 }  // namespace
 
 void winograd_forward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
-                      const host::Tensor& b, host::Tensor& y) {
+                      const host::Tensor& b, host::Tensor& y, ConvFilterCache* filters) {
   const Tiles t = tiles_of(d, m);
-  const host::Tensor U = filter_transform(t, d, w);
+  const host::Tensor U = filters_of(t, d, w, filters);
   const host::Tensor V = input_transform(t, d, x, mode);
   host::Tensor M({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output tiles");
   batched_gemm(t, Trans::No, Trans::No, d.Cout, t.T, d.Cin, U, d.Cin, V, t.T, M, t.T);
@@ -79,7 +87,7 @@ void winograd_forward(int m, const ConvDims& d, int mode, const host::Tensor& x,
 }
 
 void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x, const host::Tensor& w,
-                       const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw) {
+                       const host::Tensor& dy, host::Tensor* dx, host::Tensor* dw, ConvFilterCache* filters) {
   const Tiles t = tiles_of(d, m);
   host::Tensor dM({int64_t(t.alpha) * t.alpha, d.Cout, t.T}, "winograd output-tile gradient");
   launch_wino(t, "wino_output_backward", {t.groups, size_t(d.Cout)}, dy, dM, d.Cout, d.H, d.W, t.th, t.tw, t.T);
@@ -90,7 +98,7 @@ void winograd_backward(int m, const ConvDims& d, int mode, const host::Tensor& x
     launch_wino(t, "wino_filter_backward", {size_t(d.Cin + 7) / 8, size_t(d.Cout)}, dU, *dw, d.Cin, d.Cout);
   }
   if (dx) {
-    const host::Tensor U = filter_transform(t, d, w);
+    const host::Tensor U = filters_of(t, d, w, filters);
     host::Tensor dV({int64_t(t.alpha) * t.alpha, d.Cin, t.T}, "winograd input-tile gradient");
     batched_gemm(t, Trans::Yes, Trans::No, d.Cin, t.T, d.Cout, U, d.Cin, dM, t.T, dV, t.T);
     launch_wino(t, "wino_input_backward", {t.groups, size_t(d.Cin)}, dV, d.Cin, t.th, t.tw, t.T);

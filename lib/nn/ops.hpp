@@ -17,9 +17,37 @@ using host::Tensor;
 // ---- conv2d (stride 1, "same" size; kernel 1 or 3) ---------------------------------------------
 enum class Padding { Zero, Reflect };
 
+// A Winograd conv transforms its weights on every call (kernels/winograd.cl wino_filter_transform: 36 x Cout x
+// Cin floats at F(4x4), a third of the device time of a 128 px stylised frame). A ConvFilterCache handed
+// to conv2d_forward / conv2d_backward keeps the transform of the weight tensor it last saw and reuses it
+// while the same tensor comes back. It holds a handle on that tensor, so a replaced tensor (a load) makes
+// it transform again; it cannot see writes into the same buffer. Share one only where the weights cannot
+// change between the calls: a frozen network (VGG, LPIPS, a decoder at inference) or one training step's
+// forward and backward. Whoever writes the weights in place (an optimiser step, init) calls clear().
+class ConvFilterCache {
+ public:
+  void clear();
+  // The transform for Winograd F(m x m, 3 x 3) of w: kept when w is the tensor of the last call with this
+  // m, else made by `make` and kept (lib/nn/conv_winograd.cpp).
+  template <class Make>
+  const Tensor& get(int m, const Tensor& w, Make&& make) {
+    Entry& e = entries_[m == 4 ? 1 : 0];
+    if (!e.u.defined() || e.w.mem() != w.mem()) e = {w, make()};
+    return e.u;
+  }
+
+ private:
+  struct Entry {
+    Tensor w, u;  // the weights (a handle: their buffer cannot be reused while kept) and their transform
+  };
+  Entry entries_[2];  // F(2x2), F(4x4)
+};
+
 // x [N,Cin,H,W], w [Cout,Cin,k,k] (k = 1 or 3), b [Cout] or undefined -> y [N,Cout,H,W]. `algo` picks how a
-// 3x3 conv runs (lib/nn/conv_algo.hpp; Auto: the measured default).
-Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo = ConvAlgo::Auto);
+// 3x3 conv runs (lib/nn/conv_algo.hpp; Auto: the measured default). `filters` (may be null) keeps a
+// Winograd transform of w across calls (above).
+Tensor conv2d_forward(const Tensor& x, const Tensor& w, const Tensor& b, Padding pad, ConvAlgo algo = ConvAlgo::Auto,
+                      ConvFilterCache* filters = nullptr);
 struct Conv2dGrads {
   Tensor dx;  // undefined unless asked for
   Tensor dw;  // undefined unless asked for
@@ -27,7 +55,7 @@ struct Conv2dGrads {
 };
 // need_dx false skips the col2im work (frozen early layers); need_params false skips dW/db (frozen VGG).
 Conv2dGrads conv2d_backward(const Tensor& x, const Tensor& w, const Tensor& dy, Padding pad, bool need_dx,
-                            bool need_params, ConvAlgo algo = ConvAlgo::Auto);
+                            bool need_params, ConvAlgo algo = ConvAlgo::Auto, ConvFilterCache* filters = nullptr);
 
 // ---- general conv2d: k x k, stride s, zero padding p (AlexNet's trunk) -----------------------------
 // x [N,Cin,H,W], w [Cout,Cin,k,k] (any k >= 1), b [Cout] or undefined -> y [N,Cout,Ho,Wo] with

@@ -111,8 +111,8 @@ VggFeatures VggEncoder::forward(const Tensor& x, int deepest, bool keep_for_back
     if (s.conv < 0) {
       h = maxpool2x2_forward(h);
     } else {
-      const Conv& c = convs_[s.conv];
-      h = conv2d_forward(h, c.w, c.b, s.conv == 0 ? Padding::Zero : pad_);
+      Conv& c = convs_[s.conv];
+      h = conv2d_forward(h, c.w, c.b, s.conv == 0 ? Padding::Zero : pad_, ConvAlgo::Auto, &c.filters);
       if (s.relu) h = relu_forward(h);
     }
     if (keep_for_backward) saved_.push_back(h);
@@ -147,8 +147,10 @@ Tensor VggEncoder::backward(const VggFeatures& grads) {
       d = maxpool2x2_backward(in, d);
     } else {
       if (s.relu) d = relu_backward(saved_[i + 1], d);
-      const Conv& c = convs_[s.conv];
-      d = conv2d_backward(in, c.w, d, s.conv == 0 ? Padding::Zero : pad_, /*need_dx=*/true, /*need_params=*/false).dx;
+      Conv& c = convs_[s.conv];
+      d = conv2d_backward(in, c.w, d, s.conv == 0 ? Padding::Zero : pad_, /*need_dx=*/true, /*need_params=*/false,
+                          ConvAlgo::Auto, &c.filters)
+              .dx;
     }
   }
   if (!d.defined()) throw Error("VggEncoder::backward: all tap gradients are undefined");

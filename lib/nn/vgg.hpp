@@ -57,6 +57,7 @@ class VggEncoder {
   struct Conv {
     std::string name;
     Tensor w, b;
+    ConvFilterCache filters;  // the weights are frozen: their Winograd transform is made once
   };
   // The program up to relu4_1: conv (+ relu) or 2x2 max pool; `tap` >= 0 marks a tap at the step output.
   struct Step {

@@ -34,7 +34,8 @@ Tensor VggTail::forward(const Tensor& x, Ctx* ctx, bool phases) const {
   for (int i = 0; i < int(convs_.size()); ++i) {
     if (i == kPoolBefore) h = phases ? maxpool2x2_phases_forward(h) : maxpool2x2_forward(h);
     if (ctx) ctx->inputs.push_back(h);
-    h = relu_forward(conv2d_forward(h, convs_[size_t(i)].w, convs_[size_t(i)].b, pad_));
+    const Conv& c = convs_[size_t(i)];
+    h = relu_forward(conv2d_forward(h, c.w, c.b, pad_, ConvAlgo::Auto, &c.filters));
     if (ctx) ctx->outputs.push_back(h);
   }
   return h;
@@ -47,7 +48,8 @@ Tensor VggTail::backward(const Ctx& ctx, const Tensor& dy) const {
   for (int i = int(convs_.size()) - 1; i >= 0; --i) {
     const Tensor& in = ctx.inputs[size_t(i)];
     d = relu_backward(ctx.outputs[size_t(i)], d);
-    d = conv2d_backward(in, convs_[size_t(i)].w, d, pad_, /*need_dx=*/true, /*need_params=*/false).dx;
+    const Conv& c = convs_[size_t(i)];
+    d = conv2d_backward(in, c.w, d, pad_, /*need_dx=*/true, /*need_params=*/false, ConvAlgo::Auto, &c.filters).dx;
     if (i == kPoolBefore) {
       const Tensor& pooled_from = ctx.outputs[size_t(i) - 1];
       d = ctx.phases ? maxpool2x2_phases_backward(pooled_from, d) : maxpool2x2_backward(pooled_from, d);

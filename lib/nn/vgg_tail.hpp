@@ -35,6 +35,7 @@ class VggTail {
  private:
   struct Conv {
     Tensor w, b;
+    mutable ConvFilterCache filters;  // frozen weights: their Winograd transform is made once
   };
   std::vector<Conv> convs_;  // conv3_2, conv3_3, conv3_4, conv4_1; the pool sits before the last
   Padding pad_ = Padding::Reflect;

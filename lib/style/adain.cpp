@@ -13,6 +13,7 @@ AdainModel AdainModel::load_default() {
   AdainModel m;
   m.encoder = nn::VggEncoder::load_default();
   m.decoder = nn::load_adain_decoder();  // refuses a file of another architecture, naming it
+  m.decoder.freeze();                     // pretrained and never trained: its filter transforms are kept
   return m;
 }
 
