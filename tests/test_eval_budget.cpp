@@ -4,6 +4,8 @@
 
 #include "lib/eval/eval_budget.hpp"
 
+#include <cmath>
+
 using namespace stylerf::eval;
 
 TEST_CASE("eval budget: predicted seconds follow the frames each step renders") {
@@ -78,11 +80,36 @@ TEST_CASE("eval budget: fern at 1008x756 predicted within 10% of what its evalua
   // (eval-style 486, videos 214, mix 233; the consistency table 1228 with the RGB render giving the warps,
   // `eval table` of 2026-11-28). Before the table's RGB views and the mix cells' statistics were counted,
   // the prediction was 1425 s for what took 2161.
-  FrameCost c{19.04, 2.092, 9, 32.46};
+  FrameCost c{19.04, 2.092, 9, 32.46, 1008.0 * 756.0};
   EvalCounts n;
   n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
   const double measured = 486 + 214 + 233 + 1228;
   CHECK(eval_seconds(c, n) == doctest::Approx(measured).epsilon(0.10));
   c.rgb = 0;  // unmeasured: the RGB views counted as style2d, the table far under its cost
   CHECK(eval_seconds(c, n) < 0.8 * measured);
+}
+
+TEST_CASE("eval budget: fern at 504x378 predicted within 10% of what its evaluation took") {
+  // Recorded, not timed here: fern 1/8's 90-minute run of 2026-11-29 (/work/runs/s37/fern8; its probe:
+  // content 3.59 s a frame at 3x3 rays, 1.68 s a style, density_test 10.61 s a view) and the seconds its
+  // steps took with the counts its plan cut to (eval-style 168, videos 48, mix 78, the table 370). Counting
+  // all 2D work at the probed style2d predicted 1102 s, and the style stage lost 9 of its minutes to it.
+  FrameCost c{3.59, 1.68, 9, 10.61, 504.0 * 378.0};
+  EvalCounts n;
+  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
+  const double measured = 168 + 48 + 78 + 370;
+  CHECK(eval_seconds(c, n) == doctest::Approx(measured).epsilon(0.10));
+  c.pixels = 0;  // unknown: every 2D unit a style2d, as before
+  CHECK(eval_seconds(c, n) > 1.5 * measured);
+}
+
+TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") {
+  const FrameCost big{10.0, 2.0, 9, 20.0, 1600.0 * 1200.0}, full{10.0, 2.0, 9, 20.0, 1008.0 * 756.0};
+  CHECK(aux_unit(big) == doctest::Approx(2.0));
+  CHECK(aux_unit(full) == doctest::Approx(2.0));
+  CHECK(aux_unit({10.0, 2.0, 9, 20.0, 0.0}) == doctest::Approx(2.0));  // unknown size
+  const FrameCost quarter{10.0, 2.0, 9, 20.0, 504.0 * 378.0};
+  CHECK(aux_unit(quarter) == doctest::Approx(2.0 * std::pow(0.25, 0.6)));
+  EvalCounts n;
+  CHECK(eval_seconds(quarter, n) < eval_seconds(full, n));
 }

@@ -219,9 +219,11 @@ eval::FrameCost probe_frame_cost(PipelineSteps& steps, const RunOptions& o, cons
   double fps = 0;
   try {
     std::ifstream in(metrics);
-    const auto timing = nlohmann::json::parse(in).at("timing");
+    const auto j = nlohmann::json::parse(in);
+    const auto& timing = j.at("timing");
     c.content = timing.at("content_render_s_per_view").get<double>();
     fps = timing.at("frames_per_s_after_first").get<double>();
+    c.pixels = j.at("size").at(0).get<double>() * j.at("size").at(1).get<double>();
   } catch (const std::exception& e) {
     throw Error(metrics + ": the frame probe's timing is unreadable (" + e.what() + "); delete " +
                 (out / "probe").string() + " to measure again");
@@ -289,7 +291,8 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   const double style_train_s = (left - eval_s - style_fixed_s) / (1 + kHeldOutShare);
   plan.style_minutes = std::max(0.25 * nominal_style, style_train_s) / 60.0;
   std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
-            << " s of content + " << c.style2d << " s a style (an RGB view " << c.rgb << " s); evaluation predicted " << std::setprecision(1)
+            << " s of content + " << c.style2d << " s a style (an RGB view " << c.rgb << " s; other 2D work "
+            << eval::aux_unit(c) << " s a unit); evaluation predicted " << std::setprecision(1)
             << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min of training";
   if (!plan.cuts.empty()) std::cout << " (to fit: " << plan.cuts << ")";
   std::cout << std::endl;
@@ -370,6 +373,7 @@ int run_pipeline(int argc, char** argv) {
                  {"frame_style_s", cost.style2d},
                  {"frame_rays_per_block", cost.rays_per_block},
                  {"frame_rgb_s", cost.rgb},
+                 {"frame_pixels", cost.pixels},
                  {"eval_views", counts.eval_views},
                  {"predicted_eval_s", plan.predicted_eval_s},
                  {"style_minutes", style_minutes},

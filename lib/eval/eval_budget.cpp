@@ -1,19 +1,28 @@
 #include "lib/eval/eval_budget.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace stylerf::eval {
 
 namespace {
 constexpr double kStartupPerStep = 8.0;  // seconds: weights, checkpoint, scene, style codes (lego 1/4 runs)
 constexpr int kMixCells = 25;
+constexpr double kFullSizePixels = 1008.0 * 756.0;  // fern at 1/4, where a unit measured a style2d
+constexpr double kPixelExponent = 0.6;             // fitted to fern at 1008x756 and 504x378
 }  // namespace
 
+double aux_unit(const FrameCost& c) {
+  if (!(c.pixels > 0)) return c.style2d;
+  return c.style2d * std::pow(std::min(1.0, c.pixels / kFullSizePixels), kPixelExponent);
+}
+
 double eval_seconds(const FrameCost& c, const EvalCounts& n) {
-  const double k = c.content, s = c.style2d, rgb = c.rgb > 0 ? c.rgb : c.style2d;
+  // s: the probed frame's own 2D work (the videos' and the mix sheet's frames); u: the other 2D work.
+  const double k = c.content, s = c.style2d, u = aux_unit(c), rgb = c.rgb > 0 ? c.rgb : c.style2d;
   // eval-style: each view's content once; per style ours, AdaIN's (an encoder and a decoder) and the VGG
   // losses of both.
-  const double style_eval = n.eval_views * (k + n.holdout * 4.0 * s);
+  const double style_eval = n.eval_views * (k + n.holdout * 4.0 * u);
   // videos: each frame's content once, then each shown style.
   const double videos = n.video_frames * (k + n.shown * s);
   const double mix = k + kMixCells * s;
@@ -21,13 +30,13 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
   // the content of its frames once (eval table shares it between styles); per style our frames and
   // AdaIN's, and LPIPS pairs for both.
   const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
-  const double table = n.table_frames * rgb + pairs * 2.0 * s + n.table_frames * k +
-                       n.shown * (2.0 * n.table_frames * s + 2.0 * pairs * 2.0 * s);
+  const double table = n.table_frames * rgb + pairs * 2.0 * u + n.table_frames * k +
+                       n.shown * (2.0 * n.table_frames * u + 2.0 * pairs * 2.0 * u);
   // Scene statistics: each of the 4 steps renders its views' content at one ray a block; per style (eval-style's
   // held-out ones, the videos', the mix sheet's 25 cells, the table's) DST and the tail on each view,
-  // counted as half a style2d (no decoder, no losses).
+  // counted as half a unit (no decoder, no losses).
   const double stats_k = k / std::max(1, c.rays_per_block);
-  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + kMixCells) * 0.5 * s);
+  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + kMixCells) * 0.5 * u);
   return style_eval + videos + mix + table + stats + 4 * kStartupPerStep;
 }
 

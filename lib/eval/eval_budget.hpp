@@ -24,7 +24,16 @@ struct FrameCost {
   // also gives every method's warps); 0: not measured, counted as a style2d. Fern at 1008x756: ~30 s, 14x
   // its style2d, so counting it as one left 8 minutes of the table out of the plan.
   double rgb = 0;
+  // The frame's pixels (width x height); 0: unknown, the 2D work beyond the frame counted at full style2d.
+  double pixels = 0;
 };
+
+// The 2D work of the evaluation beyond the probed frame (AdaIN frames, VGG losses, LPIPS pairs, the scene
+// statistics' DST and tail) in seconds of one unit, from the probed style2d. That work scales with the
+// pixels; the probed style2d also carries a per-frame cost that does not (launches, the PNG), a larger
+// share of a small frame. At and above fern's 1008x756 a unit is a style2d; below, style2d x
+// (pixels / 1008x756)^0.6 (fern at 504x378: 0.44 style2d; without it the plan took 1102 s for 664).
+double aux_unit(const FrameCost& c);
 
 // What the evaluation renders.
 struct EvalCounts {
@@ -42,10 +51,10 @@ struct EvalCounts {
 // Predicted seconds of the evaluation steps after the style stage (eval-style, videos, mix sheet,
 // consistency table), from the frame's costs, with each step's scene statistics where the decoder reads
 // them (the mix sheet's for each of its 25 cells). What a step does beyond frames is counted in frames of
-// the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about a style2d, plus a
-// start-up allowance per step (loading weights, the scene, encoding styles). Checked against fern
-// 1008x756's 90-minute run (tests/test_eval_budget.cpp): 2118 s predicted for the 2161 s its steps took
-// (each step within 11%).
+// the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about an aux_unit, plus a
+// start-up allowance per step (loading weights, the scene, encoding styles). Checked against two 90-minute
+// fern runs (tests/test_eval_budget.cpp): at 1008x756, 2118 s predicted for the 2161 s its steps took
+// (each step within 11%); at 504x378, 687 s for 664 (the mix sheet 42% over, the others within 14%).
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
