@@ -110,6 +110,10 @@ TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") 
   CHECK(aux_unit({10.0, 2.0, 9, 20.0, 0.0}) == doctest::Approx(2.0));  // unknown size
   const FrameCost quarter{10.0, 2.0, 9, 20.0, 504.0 * 378.0};
   CHECK(aux_unit(quarter) == doctest::Approx(2.0 * std::pow(0.25, 0.6)));
+  const FrameCost half{10.0, 2.0, 9, 20.0, 0.5 * 1008.0 * 756.0};
+  CHECK(aux_unit(half) == doctest::Approx(2.0 * std::pow(0.5, 0.6)));
+  // Below the smallest fitted size (lego at 200x200) the unit is not extrapolated.
+  CHECK(aux_unit({10.0, 2.0, 9, 20.0, 200.0 * 200.0}) == doctest::Approx(aux_unit(quarter)));
   EvalCounts n;
   CHECK(eval_seconds(quarter, n) < eval_seconds(full, n));
 }

@@ -8,13 +8,16 @@ namespace stylerf::eval {
 namespace {
 constexpr double kStartupPerStep = 8.0;  // seconds: weights, checkpoint, scene, style codes (lego 1/4 runs)
 constexpr int kMixCells = 25;
-constexpr double kFullSizePixels = 1008.0 * 756.0;  // fern at 1/4, where a unit measured a style2d
-constexpr double kPixelExponent = 0.6;             // fitted to fern at 1008x756 and 504x378
+// Fitted to fern at 1008x756 (where a unit measured a style2d) and 504x378; not extrapolated beyond them:
+// a smaller frame keeps 504x378's unit, a larger one 1008x756's.
+constexpr double kFullSizePixels = 1008.0 * 756.0, kSmallestFittedPixels = 504.0 * 378.0;
+constexpr double kPixelExponent = 0.6;
 }  // namespace
 
 double aux_unit(const FrameCost& c) {
   if (!(c.pixels > 0)) return c.style2d;
-  return c.style2d * std::pow(std::min(1.0, c.pixels / kFullSizePixels), kPixelExponent);
+  const double px = std::clamp(c.pixels, kSmallestFittedPixels, kFullSizePixels);
+  return c.style2d * std::pow(px / kFullSizePixels, kPixelExponent);
 }
 
 double eval_seconds(const FrameCost& c, const EvalCounts& n) {

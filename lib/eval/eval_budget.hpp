@@ -32,7 +32,8 @@ struct FrameCost {
 // statistics' DST and tail) in seconds of one unit, from the probed style2d. That work scales with the
 // pixels; the probed style2d also carries a per-frame cost that does not (launches, the PNG), a larger
 // share of a small frame. At and above fern's 1008x756 a unit is a style2d; below, style2d x
-// (pixels / 1008x756)^0.6 (fern at 504x378: 0.44 style2d; without it the plan took 1102 s for 664).
+// (pixels / 1008x756)^0.6 (fern at 504x378: 0.44 style2d; without it the plan took 1102 s for 664), held
+// at 504x378's value for smaller frames (nothing smaller was measured; lego at 200x200 would get 0.17).
 double aux_unit(const FrameCost& c);
 
 // What the evaluation renders.
