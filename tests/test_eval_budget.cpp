@@ -74,6 +74,16 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   CHECK(fit_eval(c, few, 1.0).video_frames == 6);
 }
 
+namespace {
+// The counts both 90-minute fern runs' plans cut their evaluations to: eval-style's 3 test views x 12
+// held-out styles, one video of 8 frames, the table's 16 frames, the scene statistics' 6 views.
+EvalCounts fern_run_counts() {
+  EvalCounts n;
+  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
+  return n;
+}
+}  // namespace
+
 TEST_CASE("eval budget: fern at 1008x756 predicted within 10% of what its evaluation took") {
   // Recorded, not timed here: fern_native90's probe (content 19.04 s a frame at 3x3 rays, 2.09 s a style,
   // its density_test 32.46 s a view) and the seconds its steps took with the counts its plan cut to
@@ -81,26 +91,22 @@ TEST_CASE("eval budget: fern at 1008x756 predicted within 10% of what its evalua
   // `eval table` of 2026-11-28). Before the table's RGB views and the mix cells' statistics were counted,
   // the prediction was 1425 s for what took 2161.
   FrameCost c{19.04, 2.092, 9, 32.46, 1008.0 * 756.0};
-  EvalCounts n;
-  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
   const double measured = 486 + 214 + 233 + 1228;
-  CHECK(eval_seconds(c, n) == doctest::Approx(measured).epsilon(0.10));
+  CHECK(eval_seconds(c, fern_run_counts()) == doctest::Approx(measured).epsilon(0.10));
   c.rgb = 0;  // unmeasured: the RGB views counted as style2d, the table far under its cost
-  CHECK(eval_seconds(c, n) < 0.8 * measured);
+  CHECK(eval_seconds(c, fern_run_counts()) < 0.8 * measured);
 }
 
 TEST_CASE("eval budget: fern at 504x378 predicted within 10% of what its evaluation took") {
-  // Recorded, not timed here: fern 1/8's 90-minute run of 2026-11-29 (/work/runs/s37/fern8; its probe:
-  // content 3.59 s a frame at 3x3 rays, 1.68 s a style, density_test 10.61 s a view) and the seconds its
-  // steps took with the counts its plan cut to (eval-style 168, videos 48, mix 78, the table 370). Counting
-  // all 2D work at the probed style2d predicted 1102 s, and the style stage lost 9 of its minutes to it.
+  // Recorded, not timed here: fern 1/8's 90-minute run of 2026-11-29 (its probe: content 3.59 s a frame at
+  // 3x3 rays, 1.68 s a style, density_test 10.61 s a view) and the seconds its steps took with the counts
+  // its plan cut to (eval-style 168, videos 48, mix 78, the table 370). Counting all 2D work at the probed
+  // style2d predicted 1102 s, and the style stage lost 9 of its minutes to it.
   FrameCost c{3.59, 1.68, 9, 10.61, 504.0 * 378.0};
-  EvalCounts n;
-  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
   const double measured = 168 + 48 + 78 + 370;
-  CHECK(eval_seconds(c, n) == doctest::Approx(measured).epsilon(0.10));
+  CHECK(eval_seconds(c, fern_run_counts()) == doctest::Approx(measured).epsilon(0.10));
   c.pixels = 0;  // unknown: every 2D unit a style2d, as before
-  CHECK(eval_seconds(c, n) > 1.5 * measured);
+  CHECK(eval_seconds(c, fern_run_counts()) > 1.5 * measured);
 }
 
 TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") {
