@@ -97,16 +97,23 @@ TEST_CASE("eval budget: fern at 1008x756 predicted within 10% of what its evalua
   CHECK(eval_seconds(c, fern_run_counts()) < 0.8 * measured);
 }
 
-TEST_CASE("eval budget: fern at 504x378 predicted within 10% of what its evaluation took") {
-  // Recorded, not timed here: fern 1/8's 90-minute run of 2026-11-29 (its probe: content 3.59 s a frame at
-  // 3x3 rays, 1.68 s a style, density_test 10.61 s a view) and the seconds its steps took with the counts
-  // its plan cut to (eval-style 168, videos 48, mix 78, the table 370). Counting all 2D work at the probed
-  // style2d predicted 1102 s, and the style stage lost 9 of its minutes to it.
+TEST_CASE("eval budget: fern at 504x378 predicted within 20% of what two evaluations took") {
+  // Recorded, not timed here: fern 1/8's two 90-minute runs of 2026-11-29 and the seconds their steps took
+  // with the counts their plans cut to. The probes of the same frames measured 1.68 and 1.13 s a style (two
+  // timed frames each: the noise that the 20% here and the plan's 15% margin absorb).
+  // First: content 3.59 s a frame at 3x3 rays, density_test 10.61 s a view; 1 style, 8 video frames;
+  // eval-style 168, videos 48, mix 78, the table 370. Counting all 2D work at the probed style2d predicted
+  // 1102 s, and the style stage lost 9 of its minutes to it.
   FrameCost c{3.59, 1.68, 9, 10.61, 504.0 * 378.0};
-  const double measured = 168 + 48 + 78 + 370;
-  CHECK(eval_seconds(c, fern_run_counts()) == doctest::Approx(measured).epsilon(0.10));
+  const double first = 168 + 48 + 78 + 370;
+  CHECK(eval_seconds(c, fern_run_counts()) == doctest::Approx(first).epsilon(0.20));
   c.pixels = 0;  // unknown: every 2D unit a style2d, as before
-  CHECK(eval_seconds(c, fern_run_counts()) > 1.5 * measured);
+  CHECK(eval_seconds(c, fern_run_counts()) > 1.5 * first);
+  // Second: content 3.91 s, density_test 9.71 s a view; 3 styles, 25 video frames; eval-style 175, videos
+  // 188, mix 83, the table 569.
+  EvalCounts n = fern_run_counts();
+  n.shown = 3, n.video_frames = 25;
+  CHECK(eval_seconds({3.91, 1.13, 9, 9.71, 504.0 * 378.0}, n) == doctest::Approx(175 + 188 + 83 + 569).epsilon(0.20));
 }
 
 TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") {
@@ -115,9 +122,9 @@ TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") 
   CHECK(aux_unit(full) == doctest::Approx(2.0));
   CHECK(aux_unit({10.0, 2.0, 9, 20.0, 0.0}) == doctest::Approx(2.0));  // unknown size
   const FrameCost quarter{10.0, 2.0, 9, 20.0, 504.0 * 378.0};
-  CHECK(aux_unit(quarter) == doctest::Approx(2.0 * std::pow(0.25, 0.6)));
+  CHECK(aux_unit(quarter) == doctest::Approx(2.0 * std::pow(0.25, 0.4)));
   const FrameCost half{10.0, 2.0, 9, 20.0, 0.5 * 1008.0 * 756.0};
-  CHECK(aux_unit(half) == doctest::Approx(2.0 * std::pow(0.5, 0.6)));
+  CHECK(aux_unit(half) == doctest::Approx(2.0 * std::pow(0.5, 0.4)));
   // Below the smallest fitted size (lego at 200x200) the unit is not extrapolated.
   CHECK(aux_unit({10.0, 2.0, 9, 20.0, 200.0 * 200.0}) == doctest::Approx(aux_unit(quarter)));
   EvalCounts n;

@@ -8,10 +8,10 @@ namespace stylerf::eval {
 namespace {
 constexpr double kStartupPerStep = 8.0;  // seconds: weights, checkpoint, scene, style codes (lego 1/4 runs)
 constexpr int kMixCells = 25;
-// Fitted to fern at 1008x756 (where a unit measured a style2d) and 504x378; not extrapolated beyond them:
+// Fitted to fern at 1008x756 (where a unit measured a style2d) and two runs at 504x378; not extrapolated:
 // a smaller frame keeps 504x378's unit, a larger one 1008x756's.
 constexpr double kFullSizePixels = 1008.0 * 756.0, kSmallestFittedPixels = 504.0 * 378.0;
-constexpr double kPixelExponent = 0.6;
+constexpr double kPixelExponent = 0.4;
 }  // namespace
 
 double aux_unit(const FrameCost& c) {

@@ -32,8 +32,8 @@ struct FrameCost {
 // statistics' DST and tail) in seconds of one unit, from the probed style2d. That work scales with the
 // pixels; the probed style2d also carries a per-frame cost that does not (launches, the PNG), a larger
 // share of a small frame. At and above fern's 1008x756 a unit is a style2d; below, style2d x
-// (pixels / 1008x756)^0.6 (fern at 504x378: 0.44 style2d; without it the plan took 1102 s for 664), held
-// at 504x378's value for smaller frames (nothing smaller was measured; lego at 200x200 would get 0.17).
+// (pixels / 1008x756)^0.4 (fern at 504x378: 0.57 style2d; without it one run's plan took 1102 s for an
+// evaluation of 664), held at 504x378's value for smaller frames (nothing smaller was measured).
 double aux_unit(const FrameCost& c);
 
 // What the evaluation renders.
@@ -55,7 +55,8 @@ struct EvalCounts {
 // the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about an aux_unit, plus a
 // start-up allowance per step (loading weights, the scene, encoding styles). Checked against two 90-minute
 // fern runs (tests/test_eval_budget.cpp): at 1008x756, 2118 s predicted for the 2161 s its steps took
-// (each step within 11%); at 504x378, 687 s for 664 (the mix sheet 42% over, the others within 14%).
+// (each step within 11%); at 504x378, two runs whose probes measured a style2d of 1.68 and 1.13 s (the
+// same frames: the probe's two timed frames are noisy), 789 s for 664 and 944 s for 1015 (+19%, -7%).
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
