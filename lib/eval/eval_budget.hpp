@@ -29,9 +29,9 @@ struct FrameCost {
 };
 
 // The 2D work of the evaluation beyond the probed frame (AdaIN frames, VGG losses, LPIPS pairs, the scene
-// statistics' DST and tail) in seconds of one unit, from the probed style2d. That work scales with the
-// pixels; the probed style2d also carries a per-frame cost that does not (launches, the PNG), a larger
-// share of a small frame. At and above fern's 1008x756 a unit is a style2d; below, style2d x
+// statistics' DST and tail) in seconds of one unit, from the probed style2d. Measured: that work shrinks
+// with the pixels faster than the probed style2d does (likely a per-frame cost in the latter, launches and
+// the PNG, not timed apart). At and above fern's 1008x756 a unit is a style2d; below, style2d x
 // (pixels / 1008x756)^0.4 (fern at 504x378: 0.57 style2d; without it one run's plan took 1102 s for an
 // evaluation of 664), held at 504x378's value for smaller frames (nothing smaller was measured).
 double aux_unit(const FrameCost& c);
@@ -53,7 +53,7 @@ struct EvalCounts {
 // consistency table), from the frame's costs, with each step's scene statistics where the decoder reads
 // them (the mix sheet's for each of its 25 cells). What a step does beyond frames is counted in frames of
 // the same size: a 2D AdaIN frame, a VGG loss evaluation and an LPIPS pair each about an aux_unit, plus a
-// start-up allowance per step (loading weights, the scene, encoding styles). Checked against two 90-minute
+// start-up allowance per step (loading weights, the scene, encoding styles). Checked against three 90-minute
 // fern runs (tests/test_eval_budget.cpp): at 1008x756, 2118 s predicted for the 2161 s its steps took
 // (each step within 11%); at 504x378, two runs whose probes measured a style2d of 1.68 and 1.13 s (the
 // same frames: the probe's two timed frames are noisy), 789 s for 664 and 944 s for 1015 (+19%, -7%).
