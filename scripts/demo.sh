@@ -23,7 +23,7 @@ echo "== 2D AdaIN with the real VGG-19 encoder and AdaIN decoder"
 "$S" adain --content "$OUT/content.png" --style "$OUT/styles/style_3.png" --size 256 -o "$OUT/adain.png"
 echo "== a generated scene: 48 views of four textured objects, with known depth"
 "$S" make-scene -o "$OUT/scene" --size 128 --views 48
-echo "== StyleRF in one command (iterations sized for about 3 minutes of training here; a real scene: --minutes 90)"
-"$S" run --scene "$OUT/scene" --styles "$OUT/styles" --holdout-styles 4 --stage-iters 1200,450,200 \
-    --frames 36 --eval-views 3 --check -o "$OUT"
+echo "== StyleRF in one command (iterations sized for about 4 minutes of training here; a real scene: --minutes 90)"
+"$S" run --scene "$OUT/scene" --styles "$OUT/styles" --holdout-styles 4 --stage-iters 700,320,100 \
+    --frames 36 --eval-views 3 --table-frames 12 --check -o "$OUT"
 echo "== done in $(( $(date +%s) - start )) s after the build; open $OUT/index.html"

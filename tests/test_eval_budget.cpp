@@ -130,3 +130,31 @@ TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") 
   EvalCounts n;
   CHECK(eval_seconds(quarter, n) < eval_seconds(full, n));
 }
+
+TEST_CASE("eval budget: the style stage keeps a floor, and the evaluation what it needs beyond it") {
+  const double nominal = 42.9 * 60;  // a 90-minute run's nominal style minutes
+  // A 90-minute run at 504x378 has ~47 minutes left after the features: the style stage keeps 35% of them
+  // (above the 15-minute floor), so the evaluation may take 65%.
+  CHECK(eval_share_seconds(2820, nominal) == doctest::Approx(0.65 * 2820));
+  // ~30 minutes left: the floor itself.
+  CHECK(eval_share_seconds(1800, nominal) == doctest::Approx(1800 - kStyleSecondsEnough));
+  // A short run: the style stage keeps 65% (its loss still falls steeply), the evaluation 35%.
+  CHECK(eval_share_seconds(900, nominal) == doctest::Approx(0.35 * 900));
+  // Where the nominal split leaves the evaluation more, it keeps that.
+  CHECK(eval_share_seconds(2820, 600) == doctest::Approx(2820 - 600));
+  CHECK(eval_share_seconds(0, nominal) == 0);
+  CHECK(eval_share_seconds(-5, nominal) == 0);
+
+  // Horns 1/8's 90-minute run of 2026-11-29 (recorded, not timed here): its probe measured content 4.55 s,
+  // 1.74 s a style, an RGB view 10.96 s; ~2820 s were left. With 35% of them for the evaluation
+  // (the rule before) the videos were cut to 8 frames of one style; with the floor, 3 styles of 40-odd.
+  const FrameCost horns{4.55, 1.74, 9, 10.96, 504.0 * 378.0};
+  EvalCounts wanted;
+  wanted.eval_views = 5, wanted.scene_stats_views = 6;
+  const EvalCounts before = fit_eval(horns, wanted, 0.35 * 2820 / 1.15);
+  CHECK(before.video_frames == 8);
+  CHECK(before.shown == 1);
+  const EvalCounts now = fit_eval(horns, wanted, eval_share_seconds(2820, nominal) / 1.15);
+  CHECK(now.shown == wanted.shown);
+  CHECK(now.video_frames >= 40);
+}

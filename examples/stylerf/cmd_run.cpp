@@ -262,9 +262,9 @@ int views_rendered(const std::string& metrics, int fallback) {
 }
 
 // Under --minutes: the style stage's minutes and the evaluation's counts, from the seconds spent so far
-// and the measured frame. The evaluation gets what the nominal split leaves it, or up to 35% of what is
-// left when that is more; the style stage gets the rest, less its held-out checks and fixed seconds; the
-// counts shrink (fit_eval) to the evaluation's share. Predictions carry a 15% margin.
+// and the measured frame. The evaluation may take what eval::eval_share_seconds allows (the style stage
+// keeps ~15 minutes, or 35-65% of what is left); the counts shrink (fit_eval) to that share, and the style
+// stage gets the rest, less its held-out checks and fixed seconds. Predictions carry a 15% margin.
 constexpr double kEvalMargin = 1.15;
 // train-style's --minutes count its steps only; its held-out check every 100 steps comes on top, about as
 // long as 5 steps (lego 1/4: 4.3-5.2 s a check at ~1.0 s a step; horns 1/8: 5.1-6.6 s at ~1.1 s), so the
@@ -283,7 +283,7 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
                          double nominal_style_min, double style_fixed_s) {
   const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
   EvalPlan plan;
-  const double share = std::max(left - nominal_style, 0.35 * left);
+  const double share = eval::eval_share_seconds(left, nominal_style);
   plan.counts = eval::fit_eval(c, wanted, share / kEvalMargin);
   const double eval_s = kEvalMargin * eval::eval_seconds(c, plan.counts);
   plan.predicted_eval_s = eval_s;
