@@ -67,9 +67,9 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
 // The most of `left_s` (the run's seconds left when the style stage is planned) the evaluation may take;
 // the style stage gets the rest. The style stage keeps `nominal_style_s` (the --minutes split's share)
 // where that leaves the evaluation more, and otherwise a floor: kStyleSecondsEnough, held between 35% and
-// 65% of what is left. Why a floor and not a share: the held-out style loss stops improving after ~300 steps
+// 65% of what is left. Why a floor and not a share: the held-out style loss gains at most ~3% after ~300 steps
 // (checked every 100 steps in three 90-minute runs at 504x378: fern 15.24 at step 300 -> 14.73 at 719 and
-// 14.81 -> 14.40 at 676, horns 16.53 at 200 -> 16.81 at 608), while the evaluation's cuts take what a user
+// 14.81 -> 14.40 at 676, horns 17.00 at 300 -> 16.81 at 608), while the evaluation's cuts take what a user
 // sees: with 35% of what was left, horns 1/8's videos were cut to 8 frames of one style.
 double eval_share_seconds(double left_s, double nominal_style_s);
 constexpr double kStyleSecondsEnough = 15 * 60.0;  // ~360 steps at 504x378 (2.3-2.5 s a step), ~900 on lego 1/4
