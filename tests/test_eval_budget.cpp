@@ -151,10 +151,10 @@ TEST_CASE("eval budget: the style stage keeps a floor, and the evaluation what i
   const FrameCost horns{4.55, 1.74, 9, 10.96, 504.0 * 378.0};
   EvalCounts wanted;
   wanted.eval_views = 5, wanted.scene_stats_views = 6;
-  const EvalCounts before = fit_eval(horns, wanted, 0.35 * 2820 / 1.15);
+  const EvalCounts before = fit_eval(horns, wanted, 0.35 * 2820 / kEvalMargin);
   CHECK(before.video_frames == 8);
   CHECK(before.shown == 1);
-  const EvalCounts now = fit_eval(horns, wanted, eval_share_seconds(2820, nominal) / 1.15);
+  const EvalCounts now = fit_eval(horns, wanted, eval_share_seconds(2820, nominal) / kEvalMargin);
   CHECK(now.shown == wanted.shown);
   CHECK(now.video_frames >= 40);
 }

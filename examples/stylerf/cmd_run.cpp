@@ -264,8 +264,7 @@ int views_rendered(const std::string& metrics, int fallback) {
 // Under --minutes: the style stage's minutes and the evaluation's counts, from the seconds spent so far
 // and the measured frame. The evaluation may take what eval::eval_share_seconds allows (the style stage
 // keeps ~15 minutes, or 35-65% of what is left); the counts shrink (fit_eval) to that share, and the style
-// stage gets the rest, less its held-out checks and fixed seconds. Predictions carry a 15% margin.
-constexpr double kEvalMargin = 1.15;
+// stage gets the rest, less its held-out checks and fixed seconds. Predictions carry eval::kEvalMargin.
 // train-style's --minutes count its steps only; its held-out check every 100 steps comes on top, about as
 // long as 5 steps (lego 1/4: 4.3-5.2 s a check at ~1.0 s a step; horns 1/8: 5.1-6.6 s at ~1.1 s), so the
 // stage's wall time is its minutes x (1 + this) plus the fixed seconds the probe measured. Without it both
@@ -284,8 +283,8 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
   EvalPlan plan;
   const double share = eval::eval_share_seconds(left, nominal_style);
-  plan.counts = eval::fit_eval(c, wanted, share / kEvalMargin);
-  const double eval_s = kEvalMargin * eval::eval_seconds(c, plan.counts);
+  plan.counts = eval::fit_eval(c, wanted, share / eval::kEvalMargin);
+  const double eval_s = eval::kEvalMargin * eval::eval_seconds(c, plan.counts);
   plan.predicted_eval_s = eval_s;
   plan.cuts = eval::describe_cuts(wanted, plan.counts);
   const double style_train_s = (left - eval_s - style_fixed_s) / (1 + kHeldOutShare);
@@ -397,7 +396,7 @@ int run_pipeline(int argc, char** argv) {
     const double left = o.minutes * 60.0 - (spent + s.seconds + eval_style_s);
     eval::EvalCounts rest = counts;
     rest.eval_views = 0;  // done
-    const eval::EvalCounts fitted = eval::fit_eval(cost, rest, left / kEvalMargin);
+    const eval::EvalCounts fitted = eval::fit_eval(cost, rest, left / eval::kEvalMargin);
     const std::string cuts = eval::describe_cuts(rest, fitted);
     if (!cuts.empty()) {
       std::cout << "stylerf run: " << std::fixed << std::setprecision(1) << left / 60.0

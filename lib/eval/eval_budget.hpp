@@ -72,6 +72,8 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
 // 14.81 -> 14.40 at 676, horns 17.00 at 300 -> 16.81 at 608), while the evaluation's cuts take what a user
 // sees: with 35% of what was left, horns 1/8's videos were cut to 8 frames of one style.
 double eval_share_seconds(double left_s, double nominal_style_s);
+// `stylerf run` plans with its predictions x this: the probe's two timed frames are noisy (see above).
+constexpr double kEvalMargin = 1.15;
 constexpr double kStyleSecondsEnough = 15 * 60.0;  // ~360 steps at 504x378 (2.3-2.5 s a step), ~900 on lego 1/4
 
 // One line naming what was cut from `wanted` to get `got` ("" when nothing was).
