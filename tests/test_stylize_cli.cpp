@@ -161,6 +161,8 @@ TEST_CASE("stylize: bad input gets a clear error") {
   expect(train + "--lr-decoder -1", "--lr-decoder must be a positive number");
   expect(train + "--lr-decoder 0", "--lr-decoder must be a positive number");
   expect(train + "--lr-stylizer 0", "--lr-stylizer must be a positive number");
+  expect(train + "--content-weight 0", "--content-weight must be a positive number");
+  expect(train + "--content-weight -3", "--content-weight must be a positive number");
   expect(train + "--style-size 128", "--style-size must be in [256, 4096] (the crop is 256), got 128");
   expect(train + "--patch 12", "--patch must be a positive multiple of 8, got 12");
   expect(train + "--iters 0", "--iters must be >= 1, got 0");

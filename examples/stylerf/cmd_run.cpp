@@ -382,7 +382,10 @@ int run_pipeline(int argc, char** argv) {
   std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
                                         std::to_string(o.holdout), "--recipe", o.recipe, "--force", "-o", s_ck);
   for (const auto& a : length(2, style_minutes)) style.push_back(a);
-  auto s = steps.run("style", style, s_ck, f.key + styles_fp);
+  // The recipe's settings are in the key too: a later build whose recipe differs (say its content weight)
+  // trains the style stage again instead of keeping a checkpoint of the old recipe.
+  const std::string recipe_fp = train::style_recipe(train::parse_recipe(o.recipe)).to_json().dump();
+  auto s = steps.run("style", style, s_ck, f.key + styles_fp + recipe_fp);
 
   const std::string upstream = s.key + d.key;
   const double eval_style_s =

@@ -39,7 +39,7 @@ struct StyleArgs {
       decoder_warm = 0;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, warm_share = 1.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, warm_share = 1.0f, content_weight = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   std::set<std::string> given;
@@ -91,6 +91,9 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
       "profile)")(
       "warm-share", po::value(&a.warm_share),
       "with --minutes, the warm start also ends once this fraction of the minutes is spent (1: its steps only)")(
+      "content-weight", po::value(&a.content_weight),
+      "the content loss's weight against the style loss's 20 (default: the recipe's; fast 3, paper 1, the "
+      "paper's)")(
       "patch", po::value(&a.patch)->default_value(256), "patch side in pixels (multiple of 8)")(
       "log-every", po::value(&a.log_every)->default_value(10), "iterations between progress lines")(
       "eval-every", po::value(&a.eval_every)->default_value(100), "iterations between held-out evaluations (0: never)")(
@@ -109,7 +112,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
     return 0;
   }
   if (vm.count("help") || a.out.empty() || (!a.resume && (a.features_path.empty() || a.styles_dir.empty()))) {
-    std::cout << desc << "\n(also --sict, --dst, --decoder-warm, --warm-share, --patch, --log-every, --eval-every, --eval-styles, "
+    std::cout << desc << "\n(also --sict, --dst, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, --eval-every, --eval-styles, "
                          "--ckpt-every, --timing: --help-all)\n";
     return vm.count("help") ? 0 : 2;
   }
@@ -128,6 +131,7 @@ void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
   if (a.has("lr-decay")) cfg.lr_decay_ratio = a.lr_decay;
   if (a.has("warm-start")) cfg.warm_start = a.warm;
   if (a.has("warm-share")) cfg.warm_share = a.warm_share;
+  if (a.has("content-weight")) cfg.weights.content = a.content_weight;
   if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
   if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
   // The recipe's grid phases belong to the vgg-adain decoders' VGG pool (the stage2 decoder has none).

@@ -71,6 +71,8 @@ void StyleTrainConfig::validate() const {
                                          std::to_string(style_crop) + "), got " + std::to_string(style_size));
   positive("lr_stylizer", lr_stylizer);
   positive("lr_decoder", lr_decoder);
+  positive("content_weight", weights.content);
+  positive("style_weight", weights.style);
   if (!(lr_decay_ratio > 0 && lr_decay_ratio <= 1))
     throw SettingError("lr_decay_ratio", "must be in (0, 1], got " + std::to_string(lr_decay_ratio));
   if (warm_start < 0) throw SettingError("warm_start", "must be >= 0, got " + std::to_string(warm_start));
