@@ -354,9 +354,10 @@ int run_pipeline(int argc, char** argv) {
   counts.eval_views = std::min(o.eval_views, views_rendered((out / "features_test/metrics.json").string(), o.eval_views));
   counts.holdout = o.holdout, counts.video_frames = o.frames;
   counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
+  const train::StyleTrainConfig recipe_cfg = train::style_recipe(train::parse_recipe(o.recipe));
   // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
   // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).
-  if (model::map_decoder_for(train::style_recipe(train::parse_recipe(o.recipe)).style_decoder).renormalises_relu4())
+  if (model::map_decoder_for(recipe_cfg.style_decoder).renormalises_relu4())
     counts.scene_stats_views = model::SceneStyleStats::kDefaultViews;
   const bool by_minutes = budget.iters.empty() && o.stage_minutes.empty();
   double style_minutes = budget.style;
@@ -384,8 +385,7 @@ int run_pipeline(int argc, char** argv) {
   for (const auto& a : length(2, style_minutes)) style.push_back(a);
   // The recipe's settings are in the key too: a later build whose recipe differs (say its content weight)
   // trains the style stage again instead of keeping a checkpoint of the old recipe.
-  const std::string recipe_fp = train::style_recipe(train::parse_recipe(o.recipe)).to_json().dump();
-  auto s = steps.run("style", style, s_ck, f.key + styles_fp + recipe_fp);
+  auto s = steps.run("style", style, s_ck, f.key + styles_fp + recipe_cfg.to_json().dump());
 
   const std::string upstream = s.key + d.key;
   const double eval_style_s =

@@ -1,5 +1,6 @@
 // The style stage's losses (StyleRF's train_style, docs/design.md):
-//   content = MSE of relu4_1 between VGG of the stylised image and of the true image, x content_weight (1);
+//   content = MSE of relu4_1 between VGG of the stylised image and of the true image, x content_weight (the
+//             paper's 1; the fast recipe's 3, train::style_recipe);
 //   style   = sum over relu1_1 .. relu4_1 of the AdaIN style loss (MSE of channel means + MSE of channel
 //             stds) between the stylised image and the style image, x style_weight (20).
 // On scenes with a background (images with alpha) both are masked by the rendered opacity: the opacity
