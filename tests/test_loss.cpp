@@ -57,6 +57,10 @@ void check_style(const std::vector<float>& a, const Shape& sa, const std::vector
   CHECK(l.shape() == Shape{1});
   check_close(l.to_host(), {testing::ref::style_loss(ad, bd, nc, hwa, hwb, kEps)}, 1e-5, 0.0, what + " style loss");
   Tensor da = nn::style_loss_backward(ta, tb, dloss);
+  // Against b's statistics measured once: the same numbers, bit for bit.
+  const nn::StyleTarget target = nn::style_target(tb);
+  CHECK(nn::style_loss_forward(ta, target).to_host() == l.to_host());
+  CHECK(nn::style_loss_backward(ta, target, dloss).to_host() == da.to_host());
   auto f = [&](const std::vector<double>& x) { return dloss * testing::ref::style_loss(x, bd, nc, hwa, hwb, kEps); };
   const auto want = finite_difference(f, ad, h);
   check_close(da.to_host(), want, 1e-3, 1e-4 * testing::ref::max_abs(want), what + " style loss da");
@@ -125,4 +129,6 @@ TEST_CASE("bad shapes give errors naming the op") {
   expect_error([&] { nn::mse_forward(a, Tensor()); }, "mse_forward: b is undefined");
   expect_error([&] { nn::style_loss_forward(a, Tensor::zeros({2, 4, 4, 4})); }, "style_loss_forward");
   expect_error([&] { nn::style_loss_backward(Tensor::zeros({3, 4, 4}), a, 1.0f); }, "style_loss_backward");
+  expect_error([&] { nn::style_loss_forward(a, nn::StyleTarget{}); }, "style target is empty");
+  expect_error([&] { nn::style_loss_forward(a, nn::style_target(Tensor::zeros({1, 5, 4, 4}))); }, "target's mean");
 }

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "host/error.hpp"
@@ -236,6 +237,42 @@ TEST_CASE("style training moves the stylizer and decoder, never the field; check
   CHECK(r.styles().holdout == styles.holdout);
   r.set_total_iters(5);
   CHECK(std::isfinite(r.step().style));
+}
+
+TEST_CASE("a style seen whole is encoded once, a whole view's content target kept: the steps and held-out losses are as if computed each time") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1, nullptr);
+  for (const auto decoder : {model::StyleDecoderKind::Stage2, model::StyleDecoderKind::VggAdainRelu4}) {
+    CAPTURE(model::style_decoder_name(decoder));
+    train::StyleTrainConfig cfg = small_config(6);  // 6 steps over 3 training styles: some are seen again
+    cfg.style_size = cfg.style_crop = 32;
+    cfg.style_decoder = decoder;
+    cfg.warm_start = 3;  // 2D steps, then rendered ones
+    cfg.warm_maps = train::WarmMaps::Rendered;
+    train::StyleTrainer kept(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    train::StyleTrainer fresh(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+    std::set<std::string> seen;
+    bool repeated = false;
+    while (!kept.done()) {
+      fresh.forget_encoded_styles();
+      const auto a = kept.step(), b = fresh.step();
+      CHECK(a.style_name == b.style_name);
+      repeated = repeated || !seen.insert(a.style_name).second;
+      CHECK(a.content == b.content);
+      CHECK(a.style == b.style);
+    }
+    CHECK(repeated);  // the cache was used
+    CHECK(kept.encoded_styles() >= 1);
+    CHECK(fresh.encoded_styles() <= 1);
+    CHECK(kept.content_targets() >= 1);  // the small scene's 48 px views are whole patches
+    CHECK(kept.model().dst.fc_w.value.to_host() == fresh.model().dst.fc_w.value.to_host());
+    CHECK(kept.model().sict.qkv_w.value.to_host() == fresh.model().sict.qkv_w.value.to_host());
+    const auto h1 = kept.evaluate_holdout(), h2 = kept.evaluate_holdout();  // the second from the kept encoding
+    fresh.forget_encoded_styles();
+    const auto h3 = fresh.evaluate_holdout();
+    CHECK(h1.style == h2.style);
+    CHECK(h1.style == h3.style);
+    CHECK(h1.content == h3.content);
+  }
 }
 
 TEST_CASE("the fast recipe settles its inference rays by the scene: the quincunx on large forward-facing maps, else 3 x 3") {

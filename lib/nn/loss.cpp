@@ -47,6 +47,46 @@ Tensor mse_backward(const Tensor& a, const Tensor& b, float dloss) {
 // ---- AdaIN style loss --------------------------------------------------------------------------
 
 namespace {
+void expect_style_target(const Tensor& a, const StyleTarget& b, const char* op) {
+  const ChannelDims da = expect_nchw(a, op, "a");
+  if (!b.stats.mean.defined() || !b.stats.std.defined() || !b.mean_lo.defined())
+    throw Error(std::string(op) + ": the style target is empty (make it with style_target)");
+  const Shape want{da.n, da.c};
+  host::expect_shape(b.stats.mean, want, op, "the target's mean");
+  host::expect_shape(b.stats.std, want, op, "the target's std");
+  host::expect_shape(b.mean_lo, want, op, "the target's mean residual");
+}
+}  // namespace
+
+StyleTarget style_target(const Tensor& b, float eps) {
+  expect_nchw(b, "style_target", "b");
+  detail::PreciseStats p = detail::channel_stats_precise(b, eps, "style_target", "b");
+  return StyleTarget{std::move(p.stats), std::move(p.mean_lo)};
+}
+
+Tensor style_loss_forward(const Tensor& a, const StyleTarget& b, float eps) {
+  const char* op = "style_loss_forward";
+  expect_style_target(a, b, op);
+  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
+  const int nc = static_cast<int>(pa.stats.mean.numel());
+  Tensor out({1}, "style loss");
+  launch("loss", "style_loss_forward", {1}, pa.stats.mean, pa.mean_lo, pa.stats.std, b.stats.mean, b.mean_lo,
+         b.stats.std, out, nc);
+  return out;
+}
+
+Tensor style_loss_backward(const Tensor& a, const StyleTarget& b, float dloss, float eps) {
+  const char* op = "style_loss_backward";
+  expect_style_target(a, b, op);
+  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
+  const int nc = static_cast<int>(pa.stats.mean.numel());
+  Tensor dmean(pa.stats.mean.shape(), "style loss dmean"), dstd(pa.stats.mean.shape(), "style loss dstd");
+  launch("loss", "style_loss_stat_grads", {size_t(nc)}, pa.stats.mean, pa.mean_lo, pa.stats.std, b.stats.mean,
+         b.mean_lo, b.stats.std, dmean, dstd, nc, static_cast<float>(2.0 * dloss / nc));
+  return detail::channel_stats_backward_precise(a, pa.stats, pa.mean_lo, dmean, dstd, op);
+}
+
+namespace {
 void expect_style_pair(const Tensor& a, const Tensor& b, const char* op) {
   const ChannelDims da = expect_nchw(a, op, "a");
   const ChannelDims db = expect_nchw(b, op, "b");
@@ -57,27 +97,13 @@ void expect_style_pair(const Tensor& a, const Tensor& b, const char* op) {
 }  // namespace
 
 Tensor style_loss_forward(const Tensor& a, const Tensor& b, float eps) {
-  const char* op = "style_loss_forward";
-  expect_style_pair(a, b, op);
-  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
-  const detail::PreciseStats pb = detail::channel_stats_precise(b, eps, op, "b");
-  const int nc = static_cast<int>(pa.stats.mean.numel());
-  Tensor out({1}, "style loss");
-  launch("loss", "style_loss_forward", {1}, pa.stats.mean, pa.mean_lo, pa.stats.std, pb.stats.mean, pb.mean_lo,
-         pb.stats.std, out, nc);
-  return out;
+  expect_style_pair(a, b, "style_loss_forward");
+  return style_loss_forward(a, style_target(b, eps), eps);
 }
 
 Tensor style_loss_backward(const Tensor& a, const Tensor& b, float dloss, float eps) {
-  const char* op = "style_loss_backward";
-  expect_style_pair(a, b, op);
-  const detail::PreciseStats pa = detail::channel_stats_precise(a, eps, op, "a");
-  const detail::PreciseStats pb = detail::channel_stats_precise(b, eps, op, "b");
-  const int nc = static_cast<int>(pa.stats.mean.numel());
-  Tensor dmean(pa.stats.mean.shape(), "style loss dmean"), dstd(pa.stats.mean.shape(), "style loss dstd");
-  launch("loss", "style_loss_stat_grads", {size_t(nc)}, pa.stats.mean, pa.mean_lo, pa.stats.std, pb.stats.mean,
-         pb.mean_lo, pb.stats.std, dmean, dstd, nc, static_cast<float>(2.0 * dloss / nc));
-  return detail::channel_stats_backward_precise(a, pa.stats, pa.mean_lo, dmean, dstd, op);
+  expect_style_pair(a, b, "style_loss_backward");
+  return style_loss_backward(a, style_target(b, eps), dloss, eps);
 }
 
 }  // namespace stylerf::nn

@@ -142,6 +142,15 @@ Tensor mse_backward(const Tensor& a, const Tensor& b, float dloss);  // d/da
 // AdaIN style loss: MSE(mean_a, mean_b) + MSE(std_a, std_b) over [N,C].
 Tensor style_loss_forward(const Tensor& a, const Tensor& b, float eps = kStatsEps);
 Tensor style_loss_backward(const Tensor& a, const Tensor& b, float dloss, float eps = kStatsEps);  // d/da
+// The same loss against b's statistics measured once (style_target(b)): a style image seen at many steps
+// is reduced once. style_loss_forward(a, style_target(b)) equals style_loss_forward(a, b) bit for bit.
+struct StyleTarget {
+  ChannelStats stats;  // [N,C]
+  Tensor mean_lo;      // [N,C]: the mean's low-order residual (the loss compares means in double-float)
+};
+StyleTarget style_target(const Tensor& b, float eps = kStatsEps);
+Tensor style_loss_forward(const Tensor& a, const StyleTarget& b, float eps = kStatsEps);
+Tensor style_loss_backward(const Tensor& a, const StyleTarget& b, float dloss, float eps = kStatsEps);  // d/da
 
 // ---- reductions & elementwise ------------------------------------------------------------------
 Tensor sum(const Tensor& x);                       // [1]

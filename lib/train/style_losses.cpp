@@ -65,7 +65,22 @@ Tensor scatter_positions(const Tensor& d, const Tensor& idx, int H, int W) {
   return dx;
 }
 
+StyleTargets style_targets(const nn::VggFeatures& style) {
+  StyleTargets t;
+  for (int i = 0; i < nn::VggFeatures::kCount; ++i) {
+    if (!style[i].defined()) throw Error(std::string("style targets: the ") + nn::vgg_tap_name(i) + " tap was not computed");
+    t[size_t(i)] = nn::style_target(style[i]);
+  }
+  return t;
+}
+
 StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41, const nn::VggFeatures& style,
+                             const OpacityMask* mask, const StyleLossWeights& w, nn::VggFeatures* grads) {
+  if (mask && mask->empty()) throw Error("style losses: the opacity mask keeps no position");
+  return style_losses(out, content41, style_targets(style), mask, w, grads);
+}
+
+StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41, const StyleTargets& style,
                              const OpacityMask* mask, const StyleLossWeights& w, nn::VggFeatures* grads) {
   constexpr int K = nn::VggFeatures::kCount;
   if (mask && mask->empty()) throw Error("style losses: the opacity mask keeps no position");
@@ -82,10 +97,10 @@ StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41
   }
   for (int t = 0; t < K; ++t) {
     const Tensor a = sel(out[t], t);
-    v.style_tap[size_t(t)] = w.style * scalar(nn::style_loss_forward(a, style[t]));
+    v.style_tap[size_t(t)] = w.style * scalar(nn::style_loss_forward(a, style[size_t(t)]));
     v.style += v.style_tap[size_t(t)];
     if (grads) {
-      Tensor g = unsel(nn::style_loss_backward(a, style[t], w.style), out[t], t);
+      Tensor g = unsel(nn::style_loss_backward(a, style[size_t(t)], w.style), out[t], t);
       if ((*grads)[t].defined()) {
         nn::axpby(1.0f, g, 1.0f, (*grads)[t]);
       } else {

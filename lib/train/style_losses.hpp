@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "host/tensor.hpp"
+#include "lib/nn/ops.hpp"
 #include "lib/nn/vgg.hpp"
 
 namespace stylerf::train {
@@ -38,9 +39,17 @@ struct StyleLossValues {
   std::array<double, nn::VggFeatures::kCount> style_tap{};  // style's terms per tap (relu1_1 .. relu4_1), weighted
   double total() const { return content + style; }
 };
+// The style image's side of the style loss: each tap's channel statistics (nn::style_target), measured once
+// per style image (a 256 px image's taps are 30 MB; these, a few KB).
+using StyleTargets = std::array<nn::StyleTarget, nn::VggFeatures::kCount>;
+StyleTargets style_targets(const nn::VggFeatures& style);
+
 // out: taps of the stylised image; content41: relu4_1 of the true image; style: taps of the style image.
 // mask null: no masking. grads non-null: filled with d loss / d tap (for VggEncoder::backward).
 StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41, const nn::VggFeatures& style,
+                             const OpacityMask* mask, const StyleLossWeights& w, nn::VggFeatures* grads);
+// The same, against the style's targets (style_losses(out, c, style_targets(style), ...) is bit-identical).
+StyleLossValues style_losses(const nn::VggFeatures& out, const Tensor& content41, const StyleTargets& style,
                              const OpacityMask* mask, const StyleLossWeights& w, nn::VggFeatures* grads);
 
 }  // namespace stylerf::train

@@ -221,7 +221,7 @@ void StyleTrainer::init_running_stats(std::ostream* log) {
   if (log) *log << "SICT running statistics initialised from the kept samples of " << n << " training patches" << std::endl;
 }
 
-StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+StyleStepStats StyleTrainer::rendered_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
                                            style::Dst::StyleContext& sctx) {
   StyleStepStats st;
   const int s = model_.stride();
@@ -247,11 +247,11 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
     st.skipped = true;
     return st;
   }
-  const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
+  const Tensor content41 = content_target(p);
   const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
-  const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
+  const StyleLossValues lv = style_losses(out, content41, style_targets, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
   const style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
@@ -262,7 +262,7 @@ StyleStepStats StyleTrainer::rendered_step(int k, const nn::VggFeatures& style_t
   return st;
 }
 
-StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+StyleStepStats StyleTrainer::warm_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
                                        style::Dst::StyleContext& sctx) {
   (void)k;
   StyleStepStats st;
@@ -301,13 +301,13 @@ StyleStepStats StyleTrainer::warm_step(int k, const nn::VggFeatures& style_taps,
       return st;
     }
   }
-  const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
+  const Tensor content41 = content_target(p);
   model::StyleModel::Context mctx;  // only its decoder part is used
   const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
                               : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
-  const StyleLossValues lv = style_losses(out, truth[3], style_taps, masked ? &mask : nullptr, cfg_.weights, &grads);
+  const StyleLossValues lv = style_losses(out, content41, style_targets, masked ? &mask : nullptr, cfg_.weights, &grads);
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
   const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
@@ -364,23 +364,64 @@ void StyleTrainer::set_step_lrs(int k, bool decoder_warm) {
   set_group_lr("decoder", float(double(cfg_.lr_decoder) * std::pow(decay, progress)));
 }
 
+std::shared_ptr<const StyleTrainer::EncodedStyle> StyleTrainer::encoded_style(const std::string& path, bool whole_image,
+                                                                              const std::function<Tensor()>& load) {
+  if (whole_image) {
+    const auto hit = encoded_styles_.find(path);
+    if (hit != encoded_styles_.end()) return hit->second;
+  }
+  const nn::VggFeatures taps = vgg_.forward(load(), 4, false);
+  auto e = std::make_shared<EncodedStyle>();
+  e->targets = style_targets(taps);
+  e->taps[2] = taps[2];
+  e->taps[3] = taps[3];
+  const size_t bytes = size_t(taps[2].numel() + taps[3].numel()) * sizeof(float);
+  if (whole_image && encoded_style_bytes_ + bytes <= kEncodedStyleBytes) {
+    encoded_style_bytes_ += bytes;
+    encoded_styles_.emplace(path, e);
+  }
+  return e;
+}
+
+Tensor StyleTrainer::content_target(const features::Patch& p) {
+  // At most 2 x 2 corners a view (an image up to 7 px larger than the patch, which keeps multiples of 8).
+  const bool whole_view = scene_->width() - p.width < 8 && scene_->height() - p.height < 8;
+  const int64_t key = (int64_t(p.view) * 8 + p.x0 / 4) * 8 + p.y0 / 4;
+  if (whole_view) {
+    const auto hit = content_targets_.find(key);
+    if (hit != content_targets_.end()) return hit->second;
+  }
+  Tensor t = vgg_.forward(p.rgb_tensor(), 4, false)[3];
+  const size_t bytes = size_t(t.numel()) * sizeof(float);
+  if (whole_view && content_target_bytes_ + bytes <= kContentTargetBytes) {
+    content_target_bytes_ += bytes;
+    content_targets_.emplace(key, t);
+  }
+  return t;
+}
+
 StyleStepStats StyleTrainer::step() {
   const auto t0 = std::chrono::steady_clock::now();
   const int k = iteration_ + 1;
   if (styles_.train.empty()) throw Error("train-style: no training styles");
   std::uniform_int_distribution<size_t> pick(0, styles_.train.size() - 1);
   const std::string& path = styles_.train[pick(rng_)];
-  auto source = style_sources_.find(path);
-  if (source == style_sources_.end()) source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
-  const Tensor simg = style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
-  const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
+  auto crop = [&] {
+    auto source = style_sources_.find(path);
+    if (source == style_sources_.end())
+      source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
+    // Draws the crop's corner from rng_ only when the crop is smaller than the image.
+    return style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
+  };
   model_.zero_grad();
   StyleStepStats st;
   if (k <= cfg_.decoder_warm) {
-    st = decoder_warm_step(simg, taps);  // the style branch is not used
+    const Tensor simg = crop();
+    st = decoder_warm_step(simg, vgg_.forward(simg, 4, false));  // the style branch is not used
   } else {
+    const auto style = encoded_style(path, cfg_.style_size == cfg_.style_crop, crop);
     style::Dst::StyleContext sctx;
-    const style::StyleCode code = model_.style_code(taps, &sctx);
+    const style::StyleCode code = model_.style_code(style->taps, &sctx);
     bool warm = k <= cfg_.decoder_warm + cfg_.warm_start;
     if (warm && schedule_progress_ >= cfg_.warm_share) {
       // The warm start's share of the minutes is spent: it ends here, and the config (hence the checkpoint)
@@ -392,7 +433,7 @@ StyleStepStats StyleTrainer::step() {
       rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
       targets_ = features::FeatureTargets{};
     }
-    st = warm ? warm_step(k, taps, code, sctx) : rendered_step(k, taps, code, sctx);
+    st = warm ? warm_step(k, style->targets, code, sctx) : rendered_step(k, style->targets, code, sctx);
   }
   st.style_name = stem(path);
   if (!st.skipped) {
@@ -436,12 +477,12 @@ HoldoutLoss StyleTrainer::evaluate_holdout(int max_styles) {
   const nn::VggFeatures truth = vgg_.forward(p.rgb_tensor(), 4, false);
   const int n = (max_styles > 0) ? std::min<int>(max_styles, int(styles_.holdout.size())) : int(styles_.holdout.size());
   for (int i = 0; i < n; ++i) {
-    const Tensor simg = load_style_image(styles_.holdout[size_t(i)], cfg_.style_crop, cfg_.style_crop, nullptr);
-    const nn::VggFeatures taps = vgg_.forward(simg, 4, false);
-    const style::StyleCode code = model_.style_code(taps, nullptr);
+    const std::string& path = styles_.holdout[size_t(i)];
+    const auto style = encoded_style(path, true, [&] { return load_style_image(path, cfg_.style_crop, cfg_.style_crop, nullptr); });
+    const style::StyleCode code = model_.style_code(style->taps, nullptr);
     const Tensor rgb = model_.decode_styled(content, code, ph, pw, nullptr);
     const nn::VggFeatures out = vgg_.forward(rgb, 4, false);
-    const StyleLossValues lv = style_losses(out, truth[3], taps, masked ? &mask : nullptr, cfg_.weights, nullptr);
+    const StyleLossValues lv = style_losses(out, truth[3], style->targets, masked ? &mask : nullptr, cfg_.weights, nullptr);
     h.content += lv.content;
     h.style += lv.style;
     ++h.styles;

@@ -27,6 +27,7 @@
 //    one scene's photographs and must learn painted texture within the run (model::StyleDecoderKind);
 //    VggAdainRelu4 also re-normalises the tail's relu4_1 output to the style's relu4_1 statistics.
 #pragma once
+#include <functional>
 #include <iosfwd>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -130,14 +131,40 @@ class StyleTrainer {
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
   // max_styles of them), SICT in inference mode.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
+  // Style images encoded once and kept (see encoded_style), and whole views' content targets (see
+  // content_target); forgetting them frees their memory and changes no result (tests compare the two).
+  size_t encoded_styles() const { return encoded_styles_.size(); }
+  size_t content_targets() const { return content_targets_.size(); }
+  void forget_encoded_styles() {
+    encoded_styles_.clear();
+    encoded_style_bytes_ = 0;
+    content_targets_.clear();
+    content_target_bytes_ = 0;
+  }
   void save(const std::string& path, const nlohmann::json& scene_meta);
 
  private:
   void init(std::ostream* log);
   void init_running_stats(std::ostream* log);
-  StyleStepStats rendered_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+  // What a step needs of a style image: relu3_1 and relu4_1 (DST's style code, the relu4 decoder's target;
+  // the other taps are dropped) and the style loss's targets.
+  struct EncodedStyle {
+    nn::VggFeatures taps;
+    StyleTargets targets;
+  };
+  // The style image's encoding. With style_size == style_crop every step sees the whole image, and each
+  // style is encoded once (the VGG pass of a 256 px image was a third of a 2D step at 128 px); held-out
+  // styles are always whole images. Kept up to kEncodedStyleBytes (6 MB a 256 px style), then encoded per use.
+  std::shared_ptr<const EncodedStyle> encoded_style(const std::string& path, bool whole_image,
+                                                    const std::function<Tensor()>& load);
+  static constexpr size_t kEncodedStyleBytes = size_t(1) << 30;
+  // relu4_1 of a patch's true colours (the content loss's target). Where the patch is the whole view (lego at
+  // 1/4, the demo's scene) each view's is kept (up to kContentTargetBytes), else computed per step.
+  Tensor content_target(const features::Patch& p);
+  static constexpr size_t kContentTargetBytes = size_t(256) << 20;
+  StyleStepStats rendered_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
                                style::Dst::StyleContext& sctx);
-  StyleStepStats warm_step(int k, const nn::VggFeatures& style_taps, const style::StyleCode& code,
+  StyleStepStats warm_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
@@ -157,6 +184,10 @@ class StyleTrainer {
   std::mt19937_64 rng_;
   // Each training style decoded and resized to style_size once (116 styles at 512: 365 MB of host memory).
   std::unordered_map<std::string, io::Image> style_sources_;
+  std::unordered_map<std::string, std::shared_ptr<const EncodedStyle>> encoded_styles_;  // by path
+  size_t encoded_style_bytes_ = 0;
+  std::unordered_map<int64_t, Tensor> content_targets_;  // by the patch's view and corner
+  size_t content_target_bytes_ = 0;
   int iteration_ = 0;
   nlohmann::json features_meta_;
 };
