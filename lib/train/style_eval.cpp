@@ -40,14 +40,15 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
   const bool masked = m.features.geo.has_background;
   const StyleLossWeights w;
   std::vector<StyleEvalRow> rows(styles.size());
-  std::vector<nn::VggFeatures> style_taps;
+  std::vector<StyleTargets> style_targets_of;  // each style's loss targets, measured once for all views
   std::vector<style::StyleCode> codes;
   std::vector<Tensor> style_imgs;
   const model::SceneStyleStats scene_stats(m, scene);
   for (const auto& s : styles) {
     style_imgs.push_back(load_style_image(s, 256, 256, nullptr));
-    style_taps.push_back(vgg.forward(style_imgs.back(), 4, false));
-    codes.push_back(m.style_code(style_taps.back(), nullptr));
+    const nn::VggFeatures taps = vgg.forward(style_imgs.back(), 4, false);
+    style_targets_of.push_back(style_targets(taps));
+    codes.push_back(m.style_code(taps, nullptr));
     scene_stats.attach(codes.back());
   }
   for (int vi = 0; vi < count; ++vi) {
@@ -71,8 +72,8 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         for (float& x : a) x = std::clamp(x, 0.0f, 1.0f);
         ad.upload(a);
       }
-      const StyleLossValues lo = style_losses(vgg.forward(ours, 4, false), ft[3], style_taps[si], masked ? &mask : nullptr, w, nullptr);
-      const StyleLossValues la = style_losses(vgg.forward(ad, 4, false), ft[3], style_taps[si], masked ? &mask : nullptr, w, nullptr);
+      const StyleLossValues lo = style_losses(vgg.forward(ours, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
+      const StyleLossValues la = style_losses(vgg.forward(ad, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
       StyleEvalRow& r = rows[si];
       r.style = std::filesystem::path(styles[si]).stem().string();
       r.ours_content += lo.content / count;
