@@ -33,7 +33,7 @@ void ViewLosses::add_style(const std::string& path) {
   s.path = path;
   if (!path.empty()) {
     s.image = style::load_style_image(path, style::kStyleImageSize, style::kStyleImageSize, nullptr);
-    s.taps = vgg_.forward(s.image, 4, false);
+    s.targets = train::style_targets(vgg_.forward(s.image, 4, false));
   }
   styles_.push_back(std::move(s));
   sums_.emplace_back();
@@ -86,7 +86,7 @@ nlohmann::json ViewLosses::measure(const std::vector<float>& rgb, int cam_w, siz
     ++sum.views;
     return j;
   }
-  const auto lo = train::style_losses(ours_taps, content41_, s.taps, mask, w, nullptr);
+  const auto lo = train::style_losses(ours_taps, content41_, s.targets, mask, w, nullptr);
   j["content"] = lo.content;
   j["style"] = lo.style;
   sum.ours_content += lo.content;
@@ -97,7 +97,7 @@ nlohmann::json ViewLosses::measure(const std::vector<float>& rgb, int cam_w, siz
     auto a = ad.to_host();
     for (float& x : a) x = std::clamp(x, 0.0f, 1.0f);
     ad.upload(a);
-    const auto la = train::style_losses(vgg_.forward(ad, 4, false), content41_, s.taps, mask, w, nullptr);
+    const auto la = train::style_losses(vgg_.forward(ad, 4, false), content41_, s.targets, mask, w, nullptr);
     j["adain_content"] = la.content;
     j["adain_style"] = la.style;
     sum.adain_content += la.content;

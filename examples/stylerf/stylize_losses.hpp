@@ -32,7 +32,7 @@ class ViewLosses {
   struct Style {
     std::string path;
     host::Tensor image;
-    nn::VggFeatures taps;
+    train::StyleTargets targets;  // each tap's channel statistics, reduced once for every frame
   };
   struct Sums {
     double ours_content = 0, ours_style = 0, adain_content = 0, adain_style = 0;
