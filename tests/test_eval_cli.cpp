@@ -87,14 +87,16 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
   CHECK(fs::exists(dir / "rgb" / "frame_015.png"));
   CHECK(rgb["seconds"]["total"].is_number());
 
-  // The AlexNet trunk: another LPIPS, the same RMSE.
-  r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net alex --json '" +
-          (dir / "rgb_alex.json").string() + "'");
+  // The default trunk is AlexNet; VGG-16 gives another LPIPS and the same RMSE.
+  r = run("eval consistency --ckpt '" + ck.density + "' --method rgb --lpips-net vgg --json '" +
+          (dir / "rgb_vgg.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
-  const auto alex = read_json(dir / "rgb_alex.json");
-  check_score(alex["score"], true);
-  CHECK(alex["score"]["short"]["rmse"] == rgb["score"]["short"]["rmse"]);
-  CHECK(alex["score"]["short"]["lpips"] != rgb["score"]["short"]["lpips"]);
+  const auto vgg = read_json(dir / "rgb_vgg.json");
+  check_score(vgg["score"], true);
+  CHECK(vgg["score"]["short"]["rmse"] == rgb["score"]["short"]["rmse"]);
+  CHECK(vgg["score"]["short"]["lpips"] != rgb["score"]["short"]["lpips"]);
+  CHECK(rgb["lpips"].get<std::string>().rfind("alex ", 0) == 0);
+  CHECK(vgg["lpips"].get<std::string>().rfind("vgg ", 0) == 0);
 
   r = run("eval consistency --ckpt '" + ck.density + "' --method adain --style '" + fixture("cmyk.jpg") +
           "' --no-lpips --json '" + (dir / "adain.json").string() + "'");
@@ -209,7 +211,8 @@ TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the pro
     CHECK(r.output.find(needle) != std::string::npos);
   };
   expect("lpips " + small + " " + small + " --net alex", "are 40x30: LPIPS (--net alex) needs at least 31x31");
-  CHECK(run("lpips " + small + " " + small).code == 0);  // VGG takes 16x16 and up
+  CHECK(run("lpips " + small + " " + small + " --net vgg").code == 0);  // VGG takes 16x16 and up
+  expect("lpips " + small + " " + small, "needs at least 31x31");  // AlexNet is the default
   expect("lpips " + a + " " + small + " --net alex", "is 48x40 but");
   expect("lpips " + a + " " + b + " --net squeeze", "--net squeeze: unknown trunk (use vgg or alex)");
 }

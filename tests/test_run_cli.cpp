@@ -69,6 +69,7 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(s["style_loss_ratio"].get<double>() > 0);
   CHECK(s["per_style"].size() == 2);  // the two held-out styles
   CHECK(s["consistency"]["short_rmse_ratio"].get<double>() > 0);
+  CHECK(s["consistency"]["lpips_net"] == "alex");  // eval table's default trunk, named beside its ratios
   CHECK(s["mix_corner_min_mean_abs_diff"].get<double>() >= 0);
   CHECK(s["checks"].size() == 3);
   std::ifstream page(out / "index.html");

@@ -64,7 +64,7 @@ std::vector<stylerf::io::Image> unstylised_frames(const model::DensityModel& den
 }
 
 int run_consistency(int argc, char** argv) {
-  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = "vgg";
+  std::string ckpt, method, style_path, json_path, out_dir, scene_dir, device, lpips_net = eval::lpips_net_name(eval::kDefaultLpipsNet);
   cli::PathOptions p;
   bool no_lpips = false;
   po::options_description desc("stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [options]");
@@ -77,7 +77,7 @@ int run_consistency(int argc, char** argv) {
       "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
       "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
-      "lpips-net", po::value(&lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")("json", po::value(&json_path), "write the scores here")(
+      "lpips-net", po::value(&lpips_net)->default_value(lpips_net), "LPIPS trunk: vgg | alex")("json", po::value(&json_path), "write the scores here")(
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
       "scene", po::value(&scene_dir), "scene directory (default: the checkpoint's)")(
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(

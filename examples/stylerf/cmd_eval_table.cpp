@@ -151,7 +151,7 @@ void markdown_rows(std::ostream& md, const std::vector<MethodRows>& methods) {
 // All of eval table's options, as parsed.
 struct TableArgs {
   std::vector<std::string> groups, style_args;
-  std::string out, device, lpips_net = "vgg";
+  std::string out, device, lpips_net = eval::lpips_net_name(eval::kDefaultLpipsNet);
   PathOptions p;
   int max_styles = 5, fps = 8;
   bool no_lpips = false;
@@ -171,7 +171,7 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "size", po::value(&a.p.size)->default_value(0), "longer image side (0: the scene's)")(
       "depth-tol", po::value(&a.p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
       "no-lpips", po::bool_switch(&a.no_lpips), "RMSE only")(
-      "lpips-net", po::value(&a.lpips_net)->default_value("vgg"), "LPIPS trunk: vgg | alex")(
+      "lpips-net", po::value(&a.lpips_net)->default_value(a.lpips_net), "LPIPS trunk: vgg | alex")(
       "fps", po::value(&a.fps)->default_value(8), "side-by-side video frame rate")(
       "output,o", po::value(&a.out), "output directory")(
       "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(

@@ -22,10 +22,10 @@ namespace {
 std::string size_of(const io::Image& im) { return std::to_string(im.width) + "x" + std::to_string(im.height); }
 
 int run_lpips(int argc, char** argv) {
-  std::string a_path, b_path, net = "vgg", mask_path, device;
+  std::string a_path, b_path, net = eval::lpips_net_name(eval::kDefaultLpipsNet), mask_path, device;
   bool profile = false;
   po::options_description desc("stylerf lpips A.png B.png [options]");
-  desc.add_options()("help,h", "show this help")("net", po::value(&net)->default_value("vgg"),
+  desc.add_options()("help,h", "show this help")("net", po::value(&net)->default_value(net),
                                                   "trunk: vgg (VGG-16) or alex (AlexNet)")(
       "mask", po::value(&mask_path), "mask image, same size: compare only where it is bright (masked LPIPS)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(

@@ -67,6 +67,7 @@ json consistency_ratios(const json& table) {
     for (const char* metric : {"rmse", "lpips"})
       r[std::string(range) + "_" + metric + "_ratio"] =
           number((*ours)[range], metric) / number((*adain)[range], metric);
+  r["lpips_net"] = table.value("lpips", std::string("none"));  // the LPIPS trunk (eval table --lpips-net)
   r["stylerf_short_rmse"] = number((*ours)["short"], "rmse");
   r["adain_short_rmse"] = number((*adain)["short"], "rmse");
   return r;
@@ -148,7 +149,8 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
   h << ")</h2>\n<img class=\"grid\" src=\"mix/mix_grid.png\">\n";
   h << "<h2>Consistency against per-frame 2D AdaIN</h2>\n<p>StyleRF / AdaIN: short-range RMSE <b>"
     << fmt(number(sum["consistency"], "short_rmse_ratio"), 3) << "x</b>, long-range RMSE "
-    << fmt(number(sum["consistency"], "long_rmse_ratio"), 3) << "x, short-range LPIPS "
+    << fmt(number(sum["consistency"], "long_rmse_ratio"), 3) << "x, short-range LPIPS ("
+    << html_escape(sum["consistency"].value("lpips_net", std::string("none"))) << ") "
     << fmt(number(sum["consistency"], "short_lpips_ratio"), 3) << "x, long-range LPIPS "
     << fmt(number(sum["consistency"], "long_lpips_ratio"), 3)
     << "x (the paper: RMSE 0.67x short, 0.74x long). Full table: <a href=\"consistency/table.md\">table.md</a>.</p>\n";
@@ -218,7 +220,8 @@ void print_run_summary(const RunSummary& s, std::ostream& os) {
      << "  held-out style loss / 2D AdaIN's: " << fmt(number(j, "style_loss_ratio"), 3) << "x (worst style "
      << fmt(number(j, "max_style_loss_ratio"), 2) << "x)\n"
      << "  consistency, StyleRF / per-frame AdaIN: short RMSE " << fmt(number(j["consistency"], "short_rmse_ratio"), 3)
-     << "x, short LPIPS " << fmt(number(j["consistency"], "short_lpips_ratio"), 3) << "x\n"
+     << "x, short LPIPS (" << j["consistency"].value("lpips_net", std::string("none")) << ") "
+     << fmt(number(j["consistency"], "short_lpips_ratio"), 3) << "x\n"
      << "  mix sheet: closest corners differ by " << fmt(number(j, "mix_corner_min_mean_abs_diff"), 4) << "\n";
   for (const auto& c : j["checks"])
     os << "  [" << (c.value("ok", false) ? "ok" : "FAILS") << "] " << c.value("name", "") << "\n";

@@ -83,10 +83,10 @@ pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, 
 }  // namespace
 
 void bind_eval(pyb::module_& m) {
-  m.def("lpips", &lpips, pyb::arg("a"), pyb::arg("b"), pyb::arg("net") = "vgg",
+  m.def("lpips", &lpips, pyb::arg("a"), pyb::arg("b"), pyb::arg("net") = eval::lpips_net_name(eval::kDefaultLpipsNet),
         "LPIPS (v0.1) between two H x W x 3 images; net: vgg or alex");
   m.def("consistency", &consistency, pyb::arg("model"), pyb::arg("code"), pyb::kw_only(), pyb::arg("frames") = 16,
-        pyb::arg("path_frames") = 120, pyb::arg("size") = 0, pyb::arg("lpips") = "vgg",
+        pyb::arg("path_frames") = 120, pyb::arg("size") = 0, pyb::arg("lpips") = eval::lpips_net_name(eval::kDefaultLpipsNet),
         pyb::arg("supersample") = pyb::none(),
         "short- and long-range consistency of the stylised path (RMSE, LPIPS) as the paper's Table 1");
 }
