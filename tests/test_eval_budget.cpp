@@ -23,9 +23,21 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
     EvalCounts st = n;
     st.scene_stats_views = 3;
     CHECK(eval_seconds(c, st) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 45.75));
-    // Content measured at 2x2 rays a block: the statistics' views render at one ray, a quarter of it:
-    // 3 x (4 x 0.5 + 29 x 0.25) = 27.75, the rest as rendered at 2x2.
+    // The statistics' views render at the frames' rays a block, whatever they are: a content each.
+    CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(eval_seconds(c, st)));
+    // At one ray a block (the runs before 2026-11-30), content measured at 2x2 rays counts a quarter:
+    // 3 x (4 x 0.5 + 29 x 0.25) = 27.75.
+    st.stats_one_ray = true;
     CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 27.75));
+  }
+  {
+    // The table's LPIPS pairs (8 of the floor's, and 2 x 8 for the one style) at u = 0.5: 12 x the pair's
+    // units; AlexNet's pair (the default trunk) is the cheaper.
+    EvalCounts alex = n;
+    alex.lpips_pair = lpips_pair_units(LpipsNet::Alex);
+    CHECK(lpips_pair_units(LpipsNet::Vgg) == 2.0);
+    CHECK(lpips_pair_units(LpipsNet::Alex) < lpips_pair_units(LpipsNet::Vgg));
+    CHECK(eval_seconds(c, n) - eval_seconds(c, alex) == doctest::Approx(12 * (2.0 - alex.lpips_pair)));
   }
   const double base = eval_seconds(c, n);
   for (int which = 0; which < 6; ++which) {
@@ -76,10 +88,12 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
 
 namespace {
 // The counts both 90-minute fern runs' plans cut their evaluations to: eval-style's 3 test views x 12
-// held-out styles, one video of 8 frames, the table's 16 frames, the scene statistics' 6 views.
+// held-out styles, one video of 8 frames, the table's 16 frames, the scene statistics' 6 views, which those
+// runs rendered at one ray a block, with the table's LPIPS through VGG-16.
 EvalCounts fern_run_counts() {
   EvalCounts n;
   n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
+  n.stats_one_ray = true, n.lpips_pair = lpips_pair_units(LpipsNet::Vgg);
   return n;
 }
 }  // namespace
@@ -151,6 +165,7 @@ TEST_CASE("eval budget: the style stage keeps a floor, and the evaluation what i
   const FrameCost horns{4.55, 1.74, 9, 10.96, 504.0 * 378.0};
   EvalCounts wanted;
   wanted.eval_views = 5, wanted.scene_stats_views = 6;
+  wanted.stats_one_ray = true, wanted.lpips_pair = lpips_pair_units(LpipsNet::Vgg);  // as that run's evaluation
   const EvalCounts before = fit_eval(horns, wanted, 0.35 * 2820 / kEvalMargin);
   CHECK(before.video_frames == 8);
   CHECK(before.shown == 1);

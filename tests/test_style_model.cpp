@@ -547,12 +547,15 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   cc.region_mask.assign(size_t(cc.width) * cc.height, 0.0f);
   CHECK(m.stylize_camera_regions(cc, code, other, cam.width, cam.height) == m.stylize_camera(cc, other, cam.width, cam.height));
 
-  // Scene statistics: relu4_1 pooled over the training views' maps under the code, against a double
-  // reference over the same views; then every frame is re-normalised from them (a fixed per-channel
-  // affine), not from its own statistics.
+  // Scene statistics: relu4_1 pooled over the training views' maps under the code, rendered at the rays a
+  // block asked for (the frames'; here 3x3), against a double reference over the same views; then every
+  // frame is re-normalised from them (a fixed per-channel affine), not from its own statistics.
   const auto& sc = testing::small_scene();
-  style::StyleCode tied = code;
-  model::SceneStyleStats(m, sc, 3).attach(tied);
+  constexpr int kRays = 3;
+  style::StyleCode tied = code, one_ray = code;
+  model::SceneStyleStats(m, sc, 3, kRays).attach(tied);
+  model::SceneStyleStats(m, sc, 3, 1).attach(one_ray);
+  CHECK(tied.scene_std.to_host() != one_ray.scene_std.to_host());  // one ray a block: other maps, other statistics
   REQUIRE(tied.scene_mean.defined());
   REQUIRE(tied.scene_mean.shape() == host::Shape{1, 512});
   std::vector<double> sum(512, 0.0), sq(512, 0.0);
@@ -560,7 +563,7 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
   double count = 0;
   const int n = int(sc.train.size());
   for (int i = 0; i < 3; ++i) {
-    const auto view = m.render_camera_content(sc, sc.train[size_t(int64_t(i) * n / 3)].camera);
+    const auto view = m.render_camera_content(sc, sc.train[size_t(int64_t(i) * n / 3)].camera, 4096, nullptr, kRays);
     const Tensor r41 = m.relu4_of(view.content, code, view.height, view.width);
     const int64_t hw = r41.dim(2) * r41.dim(3);
     const auto x = r41.to_host();

@@ -47,9 +47,10 @@ std::vector<stylerf::io::Image> stylised_frames(const model::StyleModel& m, cons
   stylerf::nn::VggEncoder vgg = stylerf::nn::VggEncoder::load_default();
   stylerf::style::StyleEncoder enc(m.dst, vgg, stylerf::style::StyleEncoder::default_cache_dir());
   stylerf::style::StyleCode code = enc.encode(style_path).code;
-  stylerf::model::SceneStyleStats(m, scene).attach(code);
-  return eval::stylerf_frames(m, scene, cams, code, m.features.geo.has_background, p.chunk,
-                              p.supersample != 0 ? p.supersample : m.inference_supersample, p.refine_contrast);
+  const int rays = p.supersample != 0 ? p.supersample : m.inference_supersample;
+  stylerf::model::SceneStyleStats(m, scene, stylerf::model::SceneStyleStats::kDefaultViews, rays, p.refine_contrast)
+      .attach(code);
+  return eval::stylerf_frames(m, scene, cams, code, m.features.geo.has_background, p.chunk, rays, p.refine_contrast);
 }
 
 // The density checkpoint's RGB path, or (with a style image) per-frame 2D AdaIN of it.

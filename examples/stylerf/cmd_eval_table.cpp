@@ -262,7 +262,8 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
   std::vector<MethodRows> rows;
   for (const auto& ck : cks) {
     models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
-    scene_stats.emplace_back(*models.back(), w.scene);
+    scene_stats.emplace_back(*models.back(), w.scene, model::SceneStyleStats::kDefaultViews, w.p.supersample,
+                             w.p.refine_contrast);  // 0: the model's own rays a block, as its frames
     encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
                                                              style::StyleEncoder::default_cache_dir()));
     rows.push_back({style_model_label(ck), {}, {}});

@@ -354,6 +354,7 @@ int run_pipeline(int argc, char** argv) {
   counts.eval_views = std::min(o.eval_views, views_rendered((out / "features_test/metrics.json").string(), o.eval_views));
   counts.holdout = o.holdout, counts.video_frames = o.frames;
   counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
+  counts.lpips_pair = eval::lpips_pair_units(eval::kDefaultLpipsNet);  // eval table's trunk, as run leaves it
   const train::StyleTrainConfig recipe_cfg = train::style_recipe(train::parse_recipe(o.recipe));
   // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
   // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).

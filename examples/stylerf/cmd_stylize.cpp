@@ -465,7 +465,9 @@ int run_stylize(int argc, char** argv) {
   style::StyleEncoder enc(m.dst, vgg,
                           a.cache == "none" ? "" : a.cache.empty() ? style::StyleEncoder::default_cache_dir() : a.cache);
   nlohmann::json style_rows = nlohmann::json::array();
-  const model::SceneStyleStats scene_stats(m, scene);  // the vgg-adain-relu4 decoder's, once per scene
+  // The vgg-adain-relu4 decoder's, once per scene, at the frames' rays a block.
+  const model::SceneStyleStats scene_stats(m, scene, model::SceneStyleStats::kDefaultViews, a.supersample,
+                                           a.refine_contrast);
   const std::vector<style::StyleCode> codes = encode_styles(enc, scene_stats, choice.styles, style_rows);
   const double encode_s = seconds_since(t_work);
   if (!choice.grid.empty()) {

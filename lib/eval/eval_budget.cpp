@@ -12,6 +12,9 @@ constexpr int kMixCells = 25;
 // a smaller frame keeps 504x378's unit, a larger one 1008x756's.
 constexpr double kFullSizePixels = 1008.0 * 756.0, kSmallestFittedPixels = 504.0 * 378.0;
 constexpr double kPixelExponent = 0.4;
+// An AlexNet LPIPS pair over a VGG-16 one, within the table (provisional: `eval consistency` on lego's RGB
+// frames, 24 pairs 1.3 vs 6.4 s).
+constexpr double kAlexOverVgg = 0.2;
 }  // namespace
 
 double aux_unit(const FrameCost& c) {
@@ -33,15 +36,18 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
   // the content of its frames once (eval table shares it between styles); per style our frames and
   // AdaIN's, and LPIPS pairs for both.
   const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
-  const double table = n.table_frames * rgb + pairs * 2.0 * u + n.table_frames * k +
-                       n.shown * (2.0 * n.table_frames * u + 2.0 * pairs * 2.0 * u);
-  // Scene statistics: each of the 4 steps renders its views' content at one ray a block; per style (eval-style's
-  // held-out ones, the videos', the mix sheet's 25 cells, the table's) DST and the tail on each view,
-  // counted as half a unit (no decoder, no losses).
-  const double stats_k = k / std::max(1, c.rays_per_block);
+  const double lp = n.lpips_pair;
+  const double table = n.table_frames * rgb + pairs * lp * u + n.table_frames * k +
+                       n.shown * (2.0 * n.table_frames * u + 2.0 * pairs * lp * u);
+  // Scene statistics: each of the 4 steps renders its views' content at the frames' rays a block (a content
+  // each); per style (eval-style's held-out ones, the videos', the mix sheet's 25 cells, the table's) DST and
+  // the tail on each view, counted as half a unit (no decoder, no losses).
+  const double stats_k = n.stats_one_ray ? k / std::max(1, c.rays_per_block) : k;
   const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + kMixCells) * 0.5 * u);
   return style_eval + videos + mix + table + stats + 4 * kStartupPerStep;
 }
+
+double lpips_pair_units(LpipsNet net) { return net == LpipsNet::Vgg ? 2.0 : 2.0 * kAlexOverVgg; }
 
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds) {
   EvalCounts n = wanted;

@@ -11,14 +11,16 @@
 #pragma once
 #include <string>
 
+#include "lib/eval/lpips.hpp"
+
 namespace stylerf::eval {
 
 // Measured costs on this machine and scene, in seconds.
 struct FrameCost {
   double content = 0;  // one frame's content (SICT output, opacity, depth) at the recipe's rays per block
   double style2d = 0;  // one style's DST and decoder on it, at the frame's size
-  // The rays per block `content` was measured at (n x n): the scene statistics render their views at one
-  // ray a block, content / rays_per_block (fern 1/8 at 3x3: 1.5 s a view, not 13.9).
+  // The rays per block `content` was measured at (n x n). The scene statistics render their views at the
+  // same rays, so each costs a `content` (before 2026-11-30 at one ray a block: EvalCounts::stats_one_ray).
   int rays_per_block = 1;
   // One RGB view of the density stage at the frame's size (the consistency table's floor, whose render
   // also gives every method's warps); 0: not measured, counted as a style2d. Fern at 1008x756: ~30 s, 14x
@@ -47,7 +49,16 @@ struct EvalCounts {
   // vgg-adain-relu4 decoder: model::SceneStyleStats), and under each of its styles runs DST and VGG's
   // tail on; 0 for decoders that read none.
   int scene_stats_views = 0;
+  // Whether those views render at one ray a block, as before 2026-11-30 (the runs the fits below were made
+  // on), rather than at the frames' rays.
+  bool stats_one_ray = false;
+  // Units an LPIPS pair of the table costs (lpips_pair_units; the fits below were made with VGG-16's).
+  double lpips_pair = 2.0;
 };
+// An LPIPS pair of the consistency table in aux_units, by trunk: VGG-16's 2 is the fitted value (the
+// three 90-minute fern runs below); AlexNet's is that times the two trunks' ratio measured on the same
+// table (docs/results.md, the LPIPS trunk row).
+double lpips_pair_units(LpipsNet net);
 
 // Predicted seconds of the evaluation steps after the style stage (eval-style, videos, mix sheet,
 // consistency table), from the frame's costs, with each step's scene statistics where the decoder reads

@@ -9,12 +9,16 @@
 
 namespace stylerf::model {
 
-SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views) : m_(&m) {
+SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views, int supersample,
+                                 float refine_contrast)
+    : m_(&m) {
   if (!m.map_decoder->renormalises_relu4()) return;
   if (scene.train.empty()) throw host::Error("scene style statistics: scene " + scene.root + " has no training views");
   const int n = int(scene.train.size()), k = std::max(1, std::min(views, n));
   for (int i = 0; i < k; ++i)
-    views_.push_back(m.render_camera_content(scene, scene.train[size_t(int64_t(i) * n / k)].camera));
+    views_.push_back(m.render_camera_content(scene, scene.train[size_t(int64_t(i) * n / k)].camera, 4096, nullptr,
+                                             supersample != 0 ? supersample : m.inference_supersample,
+                                             refine_contrast));
 }
 
 void SceneStyleStats::attach(style::StyleCode& code) const {

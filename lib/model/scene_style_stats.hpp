@@ -16,8 +16,12 @@ namespace stylerf::model {
 class SceneStyleStats {
  public:
   static constexpr int kDefaultViews = 6;
-  // Renders the style-independent content of `views` training views, evenly spaced (once).
-  SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views = kDefaultViews);
+  // Renders the style-independent content of `views` training views, evenly spaced (once), at the rays a
+  // block the frames it re-normalises are rendered with (`supersample`; 0: the model's
+  // inference_supersample): a block's content is the mean of its rays', and a mean of 9 varies less than
+  // one ray does, so statistics of one-ray maps would scale 3x3 frames' relu4_1 by a std they do not have.
+  SceneStyleStats(const StyleModel& m, const scene::Scene& scene, int views = kDefaultViews, int supersample = 0,
+                  float refine_contrast = kRefineContrast);
   // Sets code.scene_mean / scene_std: relu4_1 statistics of the views' maps under the code, pooled over
   // every pixel of every view (biased variance + 1e-5, as nn::channel_stats_forward). No-op for decoders
   // that read no relu4_1 statistics.

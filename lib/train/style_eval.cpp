@@ -43,7 +43,8 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
   std::vector<StyleTargets> style_targets_of;  // each style's loss targets, measured once for all views
   std::vector<style::StyleCode> codes;
   std::vector<Tensor> style_imgs;
-  const model::SceneStyleStats scene_stats(m, scene);
+  const model::SceneStyleStats scene_stats(m, scene, model::SceneStyleStats::kDefaultViews, opt.supersample,
+                                          opt.refine_contrast);
   for (const auto& s : styles) {
     style_imgs.push_back(load_style_image(s, 256, 256, nullptr));
     const nn::VggFeatures taps = vgg.forward(style_imgs.back(), 4, false);
