@@ -251,6 +251,40 @@ TEST_CASE("deferred shading: the density model's backward (features, opacity, ML
   }
 }
 
+TEST_CASE("an opacity term (the backdrop's): its gradient through the density model matches FD, both shadings") {
+  // loss = G . colour + A . acc: the density stage's backdrop term is A = weight / R on backdrop rays.
+  for (bool deferred : {false, true}) {
+    CAPTURE(deferred);
+    model::DensityModel m = small_density_model(deferred, true);
+    Tensor o, d;
+    make_rays(o, d);
+    const auto G = testing::to_double(testing::random_normal(7 * 3, 23));
+    const auto A = testing::to_double(testing::random_normal(7, 24));
+    auto loss = [&] {
+      const auto r = m.render(o, d, false, 0, nullptr);
+      return dot_host(r.value, G) + dot_host(r.acc, A);
+    };
+    model::RayContext ctx;
+    m.render(o, d, false, 0, &ctx);
+    m.zero_grad();
+    m.render_backward(ctx, Tensor::from_host(std::vector<float>(G.begin(), G.end()), {7, 3}),
+                      Tensor::from_host(std::vector<float>(A.begin(), A.end()), {7}));
+    check_param_fd(m.density_param(), loss, 24, 1e-2, "d density grid");
+    // The term reaches only the geometry: the colour head's gradients are those of G alone.
+    std::vector<std::vector<float>> with_term;
+    for (nn::Param* p : m.params())
+      if (p->name != "density") with_term.push_back(p->grad.to_host());
+    m.zero_grad();
+    m.render_backward(ctx, Tensor::from_host(std::vector<float>(G.begin(), G.end()), {7, 3}));
+    size_t k = 0;
+    for (nn::Param* p : m.params())
+      if (p->name != "density") {
+        const auto& want = with_term[k++];
+        testing::check_close(p->grad.to_host(), std::vector<double>(want.begin(), want.end()), 1e-6, 1e-6, "d " + p->name);
+      }
+  }
+}
+
 TEST_CASE("deferred shading equals per-sample shading when one sample carries each ray") {
   // A very dense grid stops every ray at its first sample (weight ~1), so shading the weighted mean feature
   // is shading that sample: the two models agree.

@@ -495,6 +495,61 @@ TEST_CASE("plain backdrop: an object capture on a uniform border gets its colour
   CHECK(border_colour(cameras_only.train).pixels == 0);
 }
 
+TEST_CASE("backdrop pixels: alpha below the threshold, or the backdrop colour reached from the border") {
+  // 12 x 8 on white: a 6 x 4 object at (3..8, 2..5) drawn as a red frame around a white label (5..6, 3..4),
+  // plus a near-white pixel of JPEG noise on the backdrop at (0, 7) and a grey one at (11, 0).
+  const int w = 12, h = 8;
+  View v;
+  v.camera.width = w;
+  v.camera.height = h;
+  v.rgb.assign(size_t(w) * h * 3, 1.0f);
+  auto set = [&](int x, int y, std::array<float, 3> c) {
+    for (int k = 0; k < 3; ++k) v.rgb[(size_t(y) * w + x) * 3 + k] = c[size_t(k)];
+  };
+  for (int y = 2; y <= 5; ++y)
+    for (int x = 3; x <= 8; ++x) set(x, y, {0.8f, 0.1f, 0.1f});
+  for (int y = 3; y <= 4; ++y)
+    for (int x = 5; x <= 6; ++x) set(x, y, {1.0f, 1.0f, 1.0f});
+  set(0, 7, {0.96f, 0.97f, 0.99f});
+  set(11, 0, {0.5f, 0.5f, 0.5f});
+  Scene s;
+  s.format = "llff-object";
+  s.train.push_back(v);
+  CHECK(backdrop_pixels(s, v).empty());  // no background: no backdrop
+  s.effects.background = true;
+  s.effects.background_rgb = {1, 1, 1};
+  s.effects.background_reason = "plain backdrop";
+  const auto m = backdrop_pixels(s, v);
+  REQUIRE(m.size() == size_t(w * h));
+  auto at = [&](int x, int y) { return int(m[size_t(y) * w + x]); };
+  CHECK(at(0, 0) == 1);
+  CHECK(at(0, 7) == 1);   // within the tolerance
+  CHECK(at(11, 0) == 0);  // another colour
+  CHECK(at(3, 2) == 0);   // the object
+  CHECK(at(5, 3) == 0);   // white, but enclosed by the object: the label, not the backdrop
+  CHECK(at(6, 4) == 0);
+  CHECK(at(9, 3) == 1);
+  int n = 0;
+  for (uint8_t b : m) n += b;
+  CHECK(n == w * h - 6 * 4 - 1);
+
+  View a = v;  // with alpha, alpha decides, whatever the colour
+  a.alpha.assign(size_t(w) * h, 1.0f);
+  a.alpha[0] = 0.0f;
+  a.alpha[1] = 0.5f * kBackdropAlpha;
+  a.alpha[2] = 2.0f * kBackdropAlpha;
+  const auto ma = backdrop_pixels(s, a);
+  REQUIRE(ma.size() == size_t(w * h));
+  CHECK(ma[0] == 1);
+  CHECK(ma[1] == 1);
+  CHECK(ma[2] == 0);
+  CHECK(ma[size_t(7) * w] == 0);
+
+  View empty = v;  // cameras only: nothing to read
+  empty.rgb.clear();
+  CHECK(backdrop_pixels(s, empty).empty());
+}
+
 TEST_CASE("plain backdrop on the real captures: milk_carton (masked to white) on, cup (a room behind it) off") {
   const std::string root = data_dir();
   REAL_DATA_OR_RETURN(root, "the real object captures' backgrounds");
@@ -502,8 +557,19 @@ TEST_CASE("plain backdrop on the real captures: milk_carton (masked to white) on
   CHECK(milk.format == "llff-object");
   CHECK(milk.effects.background);
   for (float c : milk.effects.background_rgb) CHECK(c > 0.95f);
+  // The backdrop pixels of the masked capture: most of each view, never the whole of it.
+  for (const View& v : {milk.train[0], milk.test[0]}) {
+    const auto m = backdrop_pixels(milk, v);
+    REQUIRE(m.size() == size_t(v.camera.width) * size_t(v.camera.height));
+    double share = 0;
+    for (uint8_t b : m) share += b;
+    share /= double(m.size());
+    CHECK(share > 0.5);
+    CHECK(share < 0.98);
+  }
   Scene cup = load_scene(root + "/scenes/llff/cup", quiet(4));
   CHECK_FALSE(cup.effects.background);
+  CHECK(backdrop_pixels(cup, cup.train[0]).empty());
 }
 
 TEST_CASE("bad Blender inputs give errors naming the file") {

@@ -346,6 +346,36 @@ TEST_CASE("train-density smoke: loss falls and the learned depth matches the gen
   CHECK(median < 0.15);
 }
 
+TEST_CASE("backdrop term: the generated scene's transparent pixels are watched, and they stay emptier with it") {
+  if (testing::small_run()) return;  // judges the trained model (see small_config)
+  Trained& t = trained();
+  const auto& scene = small_scene();
+  REQUIRE(scene.effects.background);
+  CHECK(t.trainer->config().backdrop_weight == train::kDefaultBackdropWeight);
+  CHECK(t.trainer->backdrop_share() > 0.2);  // the objects cover a minority of each view
+  CHECK(t.trainer->backdrop_share() < 0.95);
+  int watched = 0;
+  for (const auto& st : t.stats) watched += st.backdrop_rays;
+  CHECK(watched > 0);
+  // The same run without the term.
+  auto cfg = small_config(150);
+  cfg.backdrop_weight = 0;
+  train::DensityTrainer off(scene, cfg);
+  while (!off.done()) {
+    const auto st = off.step();
+    REQUIRE(st.backdrop_rays == 0);
+  }
+  CHECK(off.backdrop_share() == 0.0);
+  const auto with = train::evaluate_views(t.trainer->model(), scene, 0, false);
+  const auto without = train::evaluate_views(off.model(), scene, 0, false);
+  const double a_with = train::mean_backdrop_acc(with), a_without = train::mean_backdrop_acc(without);
+  std::cout << "backdrop term: held-out backdrop opacity " << a_without << " -> " << a_with << ", PSNR "
+            << train::mean_psnr(without) << " -> " << train::mean_psnr(with) << " dB" << std::endl;
+  REQUIRE(a_with >= 0);
+  CHECK(a_with < 0.8 * a_without);
+  CHECK(train::mean_psnr(with) > train::mean_psnr(without) - 0.5);
+}
+
 TEST_CASE("checkpoint: round trip keeps parameters, alpha mask, optimiser state and rendering identical") {
   Trained& t = trained();
   const std::string path = (work_dir() / "rt.ckpt").string();

@@ -64,7 +64,7 @@ struct DensityArgs {
                     app_rank, shading, recipe;
   int downsample = 0, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
-  float lr_grid = -1, lr_net = -1, ert = 1e-4f;
+  float lr_grid = -1, lr_net = -1, ert = 1e-4f, backdrop_weight = -1;
   double minutes = 0;
   bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
   int64_t vfinal = 0, vinit = 0;  // parsed --final-voxels / --init-voxels (0: the default)
@@ -103,6 +103,9 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "density-rank", po::value(&a.density_rank), "density ranks per mode, e.g. 16,4,4")(
       "app-rank", po::value(&a.app_rank), "appearance ranks per mode, e.g. 48,12,12")(
       "lr-grid", po::value(&a.lr_grid), "grid learning rate (default 0.02)")(
+      "backdrop-weight", po::value(&a.backdrop_weight),
+      "weight of the mean opacity of rays on backdrop pixels (scenes with a background: alpha, or a plain "
+      "backdrop), which keeps a fog of the backdrop's colour out of the box (default 0.1; 0: off)")(
       "lr-net", po::value(&a.lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
       "seed", po::value(&a.seed)->default_value(0), "random seed (init, rays, jitter)")(
       "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
@@ -145,11 +148,12 @@ void check_density_args(DensityArgs& a) {
     probe.batch = a.batch;
     if (a.has("lr-grid")) probe.lr_grid = a.lr_grid;
     if (a.has("lr-net")) probe.lr_net = a.lr_net;
+    if (a.has("backdrop-weight")) probe.backdrop_weight = a.backdrop_weight;
     probe.validate();
   }
   if (a.resume)
     for (const char* o : {"final-voxels", "init-voxels", "upsample-at", "mask-at", "density-rank", "app-rank",
-                          "lr-grid", "lr-net", "density-activation", "shading"})
+                          "lr-grid", "lr-net", "density-activation", "shading", "backdrop-weight"})
       if (a.has(o))
         throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
   a.vfinal = a.final_voxels.empty() ? 0 : parse_voxels(a.final_voxels, "--final-voxels");
@@ -200,6 +204,7 @@ std::unique_ptr<train::DensityTrainer> new_density_trainer(const DensityArgs& a,
   if (!a.app_rank.empty()) cfg.model.app_rank = parse_rank(a.app_rank, "--app-rank");
   if (a.has("lr-grid")) cfg.lr_grid = a.lr_grid;
   if (a.has("lr-net")) cfg.lr_net = a.lr_net;
+  if (a.has("backdrop-weight")) cfg.backdrop_weight = a.backdrop_weight;
   if (!a.shading.empty()) cfg.model.deferred_shading = a.shading == "deferred";
   return std::make_unique<train::DensityTrainer>(scene, cfg);
 }
@@ -216,7 +221,12 @@ void print_density_setup(train::DensityTrainer& trainer, const stylerf::scene::S
             << "  " << cfg.schedule.describe() << "\n"
             << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
             << " betas (" << cfg.beta1 << ", " << cfg.beta2 << "), L1 " << cfg.l1_initial << " -> " << cfg.l1_rest
-            << ", TV density " << cfg.tv_density << " app " << cfg.tv_app << std::endl;
+            << ", TV density " << cfg.tv_density << " app " << cfg.tv_app;
+  if (trainer.backdrop_share() > 0)
+    std::cout << ", backdrop opacity x" << cfg.backdrop_weight << " on " << std::setprecision(1) << std::fixed
+              << 100.0 * trainer.backdrop_share() << "% of the training pixels" << std::defaultfloat
+              << std::setprecision(6);
+  std::cout << std::endl;
 }
 
 // Held-out PSNR, timed apart from training.
@@ -228,6 +238,10 @@ void report_density_psnr(train::DensityTrainer& trainer, const stylerf::scene::S
             << " held-out views (evaluation " << std::setprecision(1)
             << std::chrono::duration<double>(std::chrono::steady_clock::now() - t_eval).count()
             << " s, beside the training time; --eval-views 0 for all " << scene.test.size() << ")" << std::endl;
+  if (const double b = train::mean_backdrop_acc(scores); b >= 0)
+    std::cout << "held-out backdrop opacity " << std::setprecision(4) << b
+              << " (mean over the held-out views' backdrop pixels: fog there is painted by the stylised stages)"
+              << std::endl;
 }
 
 int run_train_density(int argc, char** argv) {

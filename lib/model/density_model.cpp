@@ -181,14 +181,15 @@ RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool t
   return r;
 }
 
-void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb) {
+void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc_term) {
   Tensor& ddensity = density_param().grad_buffer();
   if (!rgb.deferred()) {
-    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity);
+    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity, dacc_term);
     return;
   }
-  Tensor dacc;  // the background's gradient w.r.t. the opacity over all samples
-  if (geo.has_background) render::background_backward(drgb, geo.background_tensor(), dacc, false);
+  Tensor dacc;  // the background's gradient w.r.t. the opacity over all samples, plus the caller's
+  if (dacc_term.defined()) dacc = dacc_term.clone();
+  if (geo.has_background) render::background_backward(drgb, geo.background_tensor(), dacc, dacc.defined());
   Tensor dkept_acc;
   const Tensor dF = rgb.shade_backward(*ctx.shading, drgb, dkept_acc);
   render_rays_backward(geo, rgb, ctx, dF, dkept_acc, &ddensity, dacc);

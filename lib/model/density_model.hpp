@@ -69,8 +69,9 @@ class DensityModel : public nn::Module {
 
   // Renders rays with the scene's background (training: jitter with `seed`).
   RayResult render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed, RayContext* ctx) const;
-  // drgb [R,3] -> gradients accumulated into every parameter.
-  void render_backward(const RayContext& ctx, const Tensor& drgb);
+  // drgb [R,3] -> gradients accumulated into every parameter. dacc [R] (optional): a gradient w.r.t. each
+  // ray's opacity over all samples, from a term on the opacity itself (the density stage's backdrop term).
+  void render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc = Tensor());
   // Chunked rendering of a whole camera: the chunk loop of render_camera around render().
   ViewValues render_camera(const scene::Scene& scene, const scene::Camera& cam, int chunk = 8192) const;
 

@@ -66,4 +66,39 @@ void detect_plain_background(Scene& s) {
   s.notes.push_back(std::string("background colour on: ") + text + " (a plain or masked backdrop; rays leaving the box see it)");
 }
 
+std::vector<uint8_t> backdrop_pixels(const Scene& s, const View& v) {
+  const int w = v.camera.width, h = v.camera.height;
+  const size_t n = size_t(w) * size_t(h);
+  if (!s.effects.background || n == 0 || v.rgb.size() != 3 * n) return {};
+  std::vector<uint8_t> mask(n, 0);
+  if (!v.alpha.empty()) {
+    if (v.alpha.size() != n) return {};
+    for (size_t i = 0; i < n; ++i) mask[i] = v.alpha[i] < kBackdropAlpha;
+    return mask;
+  }
+  const auto& bg = s.effects.background_rgb;
+  auto plain = [&](size_t i) {
+    float d = 0;
+    for (int c = 0; c < 3; ++c) d = std::max(d, std::fabs(v.rgb[3 * i + size_t(c)] - bg[size_t(c)]));
+    return d <= kBorderTolerance;
+  };
+  std::vector<size_t> stack;
+  auto visit = [&](int x, int y) {
+    const size_t i = size_t(y) * size_t(w) + size_t(x);
+    if (!mask[i] && plain(i)) mask[i] = 1, stack.push_back(i);
+  };
+  for (int x = 0; x < w; ++x) visit(x, 0), visit(x, h - 1);
+  for (int y = 0; y < h; ++y) visit(0, y), visit(w - 1, y);
+  while (!stack.empty()) {
+    const size_t i = stack.back();
+    stack.pop_back();
+    const int x = int(i % size_t(w)), y = int(i / size_t(w));
+    if (x > 0) visit(x - 1, y);
+    if (x + 1 < w) visit(x + 1, y);
+    if (y > 0) visit(x, y - 1);
+    if (y + 1 < h) visit(x, y + 1);
+  }
+  return mask;
+}
+
 }  // namespace stylerf::scene

@@ -6,6 +6,7 @@
 // share it in 15-82% of their border pixels, the masked milk_carton in 100%.
 #pragma once
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "lib/scene/scene.hpp"
@@ -27,5 +28,15 @@ BorderColour border_colour(const std::vector<View>& views, float tolerance = kBo
 // For an object-centric scene whose images had no alpha: switches the background colour on (with a note
 // saying why) when the training views' borders are uniform; otherwise leaves the scene as it is.
 void detect_plain_background(Scene& s);
+
+// Which pixels of a view show the backdrop, where a scene has one (effects.background), as 1s in a
+// [height * width] mask; empty when the scene has none or the view no image. With alpha: alpha below
+// kBackdropAlpha. Without (a plain backdrop): the pixels within kBorderTolerance of the background colour
+// that the image border reaches through such pixels (4-connected), so a white label inside the object,
+// enclosed by its print, is not taken for backdrop. The density stage keeps these rays empty
+// (DensityTrainConfig::backdrop_weight): a white fog in front of a white backdrop renders the same white, so
+// the colour loss alone leaves it there, and the later stages would stylise it as a haze of floaters.
+inline constexpr float kBackdropAlpha = 0.02f;
+std::vector<uint8_t> backdrop_pixels(const Scene& s, const View& v);
 
 }  // namespace stylerf::scene

@@ -11,6 +11,7 @@
 #include "host/error.hpp"
 #include "lib/io/json_fields.hpp"
 #include "lib/eval/metrics.hpp"
+#include "lib/scene/masked_background.hpp"
 #include "lib/train/stage_programs.hpp"
 #include "lib/train/trainer_state.hpp"
 #include "lib/train/training_loop.hpp"
@@ -33,6 +34,7 @@ json DensityTrainConfig::to_json() const {
   json j{{"model", model.to_json()}, {"schedule", json::object()}};
   STYLERF_JSON_PUT_FIELDS(j["schedule"], schedule, DENSITY_SCHEDULE_FIELDS);
   STYLERF_JSON_PUT_FIELDS(j, *this, DENSITY_TRAIN_FIELDS);
+  j["backdrop_weight"] = backdrop_weight;
   return j;
 }
 
@@ -41,6 +43,7 @@ DensityTrainConfig DensityTrainConfig::from_json(const json& j) {
   c.model = DensityModelConfig::from_json(j.at("model"));
   STYLERF_JSON_GET_FIELDS(j.at("schedule"), c.schedule, DENSITY_SCHEDULE_FIELDS);
   STYLERF_JSON_GET_FIELDS(j, c, DENSITY_TRAIN_FIELDS);
+  c.backdrop_weight = j.value("backdrop_weight", 0.0f);  // checkpoints from before the term trained without it
   return c;
 }
 
@@ -60,7 +63,8 @@ void DensityTrainConfig::validate() const {
   in_range("beta1", beta1, 0, 0.999999);
   in_range("beta2", beta2, 0, 0.999999);
   for (auto [field, w] : {std::pair{"l1_initial", l1_initial}, std::pair{"l1_rest", l1_rest},
-                          std::pair{"tv_density", tv_density}, std::pair{"tv_app", tv_app}})
+                          std::pair{"tv_density", tv_density}, std::pair{"tv_app", tv_app},
+                          std::pair{"backdrop_weight", backdrop_weight}})
     in_range(field, w, 0, 1e6);
 }
 
@@ -133,6 +137,27 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const DensityTrainConf
   l1_weight_ = cfg_.l1_initial;
   init_optimizer();
   sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, 0));
+  build_backdrop();
+}
+
+double DensityTrainer::backdrop_share() const {
+  if (backdrop_.empty()) return 0.0;
+  size_t n = 0;
+  for (uint8_t b : backdrop_) n += b;
+  return double(n) / double(backdrop_.size());
+}
+
+void DensityTrainer::build_backdrop() {
+  backdrop_.clear();
+  if (cfg_.backdrop_weight <= 0 || !scene_->effects.background) return;
+  for (const auto& v : scene_->train) {
+    const auto m = scene::backdrop_pixels(*scene_, v);
+    if (m.empty()) {  // a view without an image: no term at all rather than a mask out of step with the sampler
+      backdrop_.clear();
+      return;
+    }
+    backdrop_.insert(backdrop_.end(), m.begin(), m.end());
+  }
 }
 
 DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& ck) : scene_(&scene) {
@@ -146,6 +171,7 @@ DensityTrainer::DensityTrainer(const scene::Scene& scene, const io::Checkpoint& 
   init_optimizer();
   adam_.load(ck, "", model_.params());
   sampler_ = std::make_unique<scene::RaySampler>(scene, sampler_seed(cfg_.seed, iteration_));
+  build_backdrop();
 }
 
 void DensityTrainer::refit_schedule(int total_iters) {
@@ -209,8 +235,23 @@ StepStats DensityTrainer::step(bool with_reg) {
 
   // Gradients: data term through the renderer, then the regularisers straight into the grid gradients.
   Tensor drgb = nn::mse_backward(out.value, target, 1.0f);
+  // The backdrop term: weight * mean over the batch of acc on backdrop rays (its gradient is constant).
+  Tensor dacc;
+  if (!backdrop_.empty()) {
+    std::vector<float> g(size_t(R), 0.0f);
+    const auto acc = out.acc.to_host();
+    double sum = 0;
+    for (int64_t r = 0; r < R; ++r)
+      if (backdrop_[size_t(rays.pixel[size_t(r)])]) {
+        g[size_t(r)] = cfg_.backdrop_weight / float(R);
+        sum += acc[size_t(r)];
+        ++st.backdrop_rays;
+      }
+    st.backdrop_acc = st.backdrop_rays ? sum / st.backdrop_rays : 0.0;
+    dacc = Tensor::from_host(g, {R}, "backdrop opacity gradient");
+  }
   model_.zero_grad();
-  model_.render_backward(cache, drgb);
+  model_.render_backward(cache, drgb, dacc);
   Tensor& ddensity = model_.density_param().grad_buffer();
   Tensor& dapp = model_.rgb.app_param().grad_buffer();
   const field::VMGrid app = model_.rgb.app();
@@ -226,6 +267,7 @@ StepStats DensityTrainer::step(bool with_reg) {
     if (l1_weight_ > 0) st.reg += l1_weight_ * field::l1_forward(density);
     if (tvd > 0) st.reg += tvd * field::tv_forward(density);
     if (tva > 0) st.reg += tva * field::tv_forward(app);
+    st.reg += cfg_.backdrop_weight * st.backdrop_acc * st.backdrop_rays / double(R);
   }
 
   adam_.step(model_.params(), cfg_.schedule.lr_scale(k));
@@ -340,9 +382,23 @@ std::vector<ViewScore> evaluate_views(const model::DensityModel& m, const scene:
     if (ssim)
       s.ssim =
           eval::ssim(eval::interleaved_to_planar(r.value, r.width, r.height), eval::interleaved_to_planar(v.rgb, r.width, r.height), r.width, r.height, 3);
+    const auto backdrop = scene::backdrop_pixels(scene, v);
+    double sum = 0;
+    size_t count = 0;
+    for (size_t i = 0; i < backdrop.size(); ++i)
+      if (backdrop[i]) sum += r.acc[i], ++count;
+    if (count > 0) s.backdrop_acc = sum / double(count);
     out.push_back(s);
   }
   return out;
+}
+
+double mean_backdrop_acc(const std::vector<ViewScore>& v) {
+  double s = 0;
+  int n = 0;
+  for (const auto& x : v)
+    if (x.backdrop_acc >= 0) s += x.backdrop_acc, ++n;
+  return n ? s / n : -1.0;
 }
 
 double mean_psnr(const std::vector<ViewScore>& v) {
@@ -365,6 +421,7 @@ class DensityLoopStage : public TrainerLoopStage<DensityTrainer, RunOptions, Ste
   void step(bool report) override {
     last_ = t_.step(report);
     psnr_ += last_.psnr, mse_ += last_.mse, samples_ += last_.samples, kept_ += last_.kept, ++n_;
+    backdrop_acc_ += last_.backdrop_acc * last_.backdrop_rays, backdrop_rays_ += last_.backdrop_rays;
     if (o_.log)
       for (const auto& e : last_.events) *o_.log << "  [" << last_.iteration << "] " << e << std::endl;
   }
@@ -376,6 +433,10 @@ class DensityLoopStage : public TrainerLoopStage<DensityTrainer, RunOptions, Ste
       << std::setprecision(1) << double(samples_) / (double(n_) * batch) << " (kept "
       << 100.0 * double(kept_) / std::max<double>(1.0, double(samples_)) << "%)  " << std::setprecision(0)
       << batch / per_it << " rays/s";
+    if (backdrop_rays_ > 0)
+      l << std::setprecision(4) << "  backdrop opacity " << backdrop_acc_ / double(backdrop_rays_);
+    backdrop_acc_ = 0;
+    backdrop_rays_ = 0;
     last_psnr = psnr_ / n_;
     psnr_ = mse_ = 0;
     samples_ = kept_ = 0;
@@ -398,7 +459,8 @@ class DensityLoopStage : public TrainerLoopStage<DensityTrainer, RunOptions, Ste
   double last_psnr = 0;
 
  private:
-  double psnr_ = 0, mse_ = 0;
+  double psnr_ = 0, mse_ = 0, backdrop_acc_ = 0;
+  int64_t backdrop_rays_ = 0;
   int64_t samples_ = 0, kept_ = 0;
   int n_ = 0;
 };

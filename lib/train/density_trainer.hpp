@@ -33,6 +33,8 @@ using model::DensityModel;
 using model::DensityModelConfig;
 using host::Tensor;
 
+inline constexpr float kDefaultBackdropWeight = 0.1f;
+
 struct DensityTrainConfig {
   DensityModelConfig model;
   Schedule schedule;
@@ -41,6 +43,10 @@ struct DensityTrainConfig {
   float l1_initial = 8e-5f, l1_rest = 4e-5f;  // TensoRF Blender; LLFF 0
   float tv_density = 0.0f, tv_app = 0.0f;     // TensoRF LLFF: 1.0 and 1.0 (times its 1e-2 and TVLoss's 2)
   bool alpha_mask = true;
+  // Weight of the backdrop term: the mean over a batch's rays of the opacity of those whose pixel shows
+  // the scene's backdrop (scene::backdrop_pixels; scenes with a background only). Without it a fog of the
+  // backdrop's colour costs nothing, and the stylised stages paint it (docs/results.md, "backdrop").
+  float backdrop_weight = kDefaultBackdropWeight;
   bool reset_optimizer_on_upsample = true;
   uint64_t seed = 0;
   // Every this many steps (and before every checkpoint) the parameters are checked for NaN/inf: the
@@ -65,6 +71,8 @@ struct StepStats {
   int iteration = 0;         // completed steps
   double mse = 0, psnr = 0;  // of the batch
   double reg = -1;           // regulariser value (computed only when asked for; -1 otherwise)
+  int backdrop_rays = 0;     // rays of the batch on backdrop pixels, and their mean opacity
+  double backdrop_acc = 0;
   int64_t samples = 0, kept = 0;
   double seconds = 0;        // wall time of the step (events included)
   std::vector<std::string> events;  // "alpha mask ...", "upsampled to ..."
@@ -83,6 +91,8 @@ class DensityTrainer {
   const DensityModel& model() const { return model_; }
   DensityModel& model() { return model_; }
   const DensityTrainConfig& config() const { return cfg_; }
+  // The share of training pixels the backdrop term watches (0: the term is off).
+  double backdrop_share() const;
   // Changes the run's length (a resumed run extended or shortened; the lr decay horizon moves with it).
   void set_total_iters(int iters) {
     cfg_.schedule.iters = iters;
@@ -114,15 +124,20 @@ class DensityTrainer {
   int iteration_ = 0;
   float l1_weight_ = 0;
   std::unique_ptr<scene::RaySampler> sampler_;
+  // 1 for each training pixel (RaySampler's pixel index) on the backdrop; empty: no backdrop term.
+  std::vector<uint8_t> backdrop_;
+  void build_backdrop();
 };
 
 // PSNR (and optionally SSIM) of rendered held-out views; `max_views` > 0 takes that many evenly spaced.
 struct ViewScore {
   int view = 0;
   double psnr = 0, ssim = -1;
+  double backdrop_acc = -1;  // mean opacity over the view's backdrop pixels (-1: the scene has no backdrop)
 };
 std::vector<ViewScore> evaluate_views(const DensityModel& m, const scene::Scene& scene, int max_views, bool ssim);
 double mean_psnr(const std::vector<ViewScore>& v);  // mean of per-view PSNR (as the NeRF papers report)
+double mean_backdrop_acc(const std::vector<ViewScore>& v);  // over the views that have one; -1: none
 
 
 // The training loop (lib/train/training_loop.hpp) around step(): progress lines (iteration, loss, batch
