@@ -2,7 +2,8 @@
 // checkpoints with the optimiser state for --resume.
 //
 // One step: 4096 random rays over every training pixel -> render_rays (jittered marching) -> loss =
-// MSE(rgb, target) + L1 * density-grid L1 + TV terms -> render_rays_backward -> Adam (betas 0.9, 0.99) with
+// MSE(rgb, target) + L1 * density-grid L1 + TV terms (+ the backdrop term where the scene has a background:
+// backdrop_weight below) -> render_rays_backward -> Adam (betas 0.9, 0.99) with
 // grid lr 0.02 and network lr 1e-3 (TensoRF's lr_basis; docs/design.md quotes 1e-4 for StyleRF's later network
 // stages, the density stage follows TensoRF), both scaled by Schedule::lr_scale.
 // Events after step k: alpha-mask update (the first one also shrinks the box to the occupied region,
