@@ -226,3 +226,18 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   expect("devices --device accelerator", "no OpenCL accelerator device was found");
   expect("devices --device 99", "no OpenCL device 99");
 }
+
+TEST_CASE("the command line flushes denormal floats on a CPU device (PoCL's threads inherit the mode)") {
+  // Without the mode, x86 CPUs take a slow path for every value below 1e-38: a backdrop-free scene's style
+  // steps ran 1.7x slower (docs/results.md). `stylerf devices` multiplies 1e-20 by 1e-20 on the device.
+  const testing::CliRun r = testing::run_cli("devices");
+  REQUIRE(r.code == 0);
+  // The chosen device's index, then its own line in the list ("[N] cpu ...").
+  const size_t at = r.output.find("chosen: [");
+  REQUIRE(at != std::string::npos);
+  const std::string index = r.output.substr(at + 9, r.output.find(']', at) - at - 9);
+  const bool cpu = r.output.rfind("[" + index + "] cpu ", 0) == 0 ||
+                   r.output.find("\n[" + index + "] cpu ") != std::string::npos;
+  if (cpu) CHECK(r.output.find("denormals: flushed to zero") != std::string::npos);
+  CHECK(r.output.find("denormals: ") != std::string::npos);
+}
