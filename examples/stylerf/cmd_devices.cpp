@@ -6,7 +6,6 @@
 #include "lib/field/vm_grid.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/nn/reduce_path.hpp"
-#include "examples/stylerf/cli_checks.hpp"
 
 namespace {
 int run_devices(int argc, char** argv) {
