@@ -128,7 +128,7 @@ void Lpips::load(const std::string& path) {
       b[c] = (-1.0f - kShift[c]) / kScale[c];
     }
     convs.push_back(
-        {Tensor::from_host(w, {3, 3, 1, 1}, "lpips input.w"), Tensor::from_host(b, {3}, "lpips input.b"), 1, 0});
+        {Tensor::from_host(w, {3, 3, 1, 1}, "lpips input.w"), Tensor::from_host(b, {3}, "lpips input.b"), 1, 0, {}});
   }
   // The trunk, from the first conv's kernel: 11x11 is AlexNet; anything else must be VGG-16's 3x3 (a
   // mis-shaped VGG tensor is then reported by st.get with its expected shape).
@@ -138,7 +138,7 @@ void Lpips::load(const std::string& path) {
     const auto& w = st.get(key + ".weight", {cout, cin, k, k});
     const auto& b = st.get(key + ".bias", {cout});
     convs.push_back({Tensor::from_host(w.data, w.shape, "lpips " + key + ".w"),
-                     Tensor::from_host(b.data, b.shape, "lpips " + key + ".b"), stride, pad});
+                     Tensor::from_host(b.data, b.shape, "lpips " + key + ".b"), stride, pad, {}});
   };
   std::vector<Tensor> lin;
   auto add_lin = [&](int l, int channels) {

@@ -54,7 +54,7 @@ void VggEncoder::load(const std::string& path) {
   std::vector<Conv> convs;
   if (adain) {
     convs.push_back({"conv0", host::Tensor::from_host(st.get("0.weight", {3, 3, 1, 1}).data, {3, 3, 1, 1}, "vgg conv0.w"),
-                     host::Tensor::from_host(st.get("0.bias", {3}).data, {3}, "vgg conv0.b")});
+                     host::Tensor::from_host(st.get("0.bias", {3}).data, {3}, "vgg conv0.b"), {}});
   } else {
     // The ImageNet normalisation as a fixed diagonal 1x1 conv, so both variants run the same program.
     std::vector<float> w(9, 0.0f), b(3);
@@ -63,14 +63,14 @@ void VggEncoder::load(const std::string& path) {
       b[c] = -kImagenetMean[c] / kImagenetStd[c];
     }
     convs.push_back({"imagenet_normalise", host::Tensor::from_host(w, {3, 3, 1, 1}, "vgg normalise.w"),
-                     host::Tensor::from_host(b, {3}, "vgg normalise.b")});
+                     host::Tensor::from_host(b, {3}, "vgg normalise.b"), {}});
   }
   for (const ConvSpec& c : kConvs) {
     std::string key = prefix + std::to_string(adain ? c.adain_index : c.torchvision_index);
     const auto& w = st.get(key + ".weight", {c.cout, c.cin, 3, 3});
     const auto& b = st.get(key + ".bias", {c.cout});
     convs.push_back({c.name, host::Tensor::from_host(w.data, w.shape, std::string("vgg ") + c.name + ".w"),
-                     host::Tensor::from_host(b.data, b.shape, std::string("vgg ") + c.name + ".b")});
+                     host::Tensor::from_host(b.data, b.shape, std::string("vgg ") + c.name + ".b"), {}});
   }
   convs_ = std::move(convs);
 

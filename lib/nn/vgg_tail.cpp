@@ -14,7 +14,7 @@ VggTail::VggTail(const VggEncoder& vgg) {
   if (!vgg.loaded()) throw Error("VggTail: the encoder has no weights loaded");
   for (const char* name : {"conv3_2", "conv3_3", "conv3_4", "conv4_1"}) {
     auto [w, b] = vgg.conv_weights(name);
-    convs_.push_back({w, b});
+    convs_.push_back({w, b, {}});
   }
   pad_ = vgg.padding();
 }
