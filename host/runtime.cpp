@@ -153,8 +153,13 @@ cl_program Runtime::build_program(const std::string& program, const std::string&
   // STYLERF_CL_OPTIONS adds build options for every program, e.g. "-Drestrict=" for Oclgrind, whose
   // LLVM cannot build kernels with restrict pointers (scripts/oclgrind.sh).
   const char* extra = std::getenv("STYLERF_CL_OPTIONS");
-  const std::string full_options =
-      "-cl-std=CL1.2 -cl-mad-enable " + options + (extra && *extra ? std::string(" ") + extra : std::string());
+  // -cl-denorms-are-zero: x86 CPUs take a slow path (microcode assists) for every float below 1e-38 unless
+  // the thread flushes them, and training on mostly empty space produces such values (one model's steps ran
+  // 1.7x slower with them kept; docs/results.md). Nothing we compute means anything below 1e-38. PoCL sets
+  // the flush mode on whichever thread runs one of these kernels, for that kernel only, so a caller's own
+  // arithmetic keeps its mode; GPUs flush in hardware.
+  const std::string full_options = "-cl-std=CL1.2 -cl-mad-enable -cl-denorms-are-zero " + options +
+                                   (extra && *extra ? std::string(" ") + extra : std::string());
   cl_int err = CL_SUCCESS;
   cl_program prog = nullptr;
 

@@ -20,9 +20,12 @@
 
 #include "host/error.hpp"
 #include "host/files.hpp"
+#include "host/runtime.hpp"
+#include "host/tensor.hpp"
 #include "lib/io/image.hpp"
 #include "lib/io/safetensors.hpp"
 #include "lib/io/sha256.hpp"
+#include "lib/nn/ops.hpp"
 #include "lib/nn/weights.hpp"
 #include "lib/scene/make_scene.hpp"
 #include "lib/style/adain.hpp"
@@ -227,7 +230,7 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   expect("devices --device 99", "no OpenCL device 99");
 }
 
-TEST_CASE("the command line flushes denormal floats on a CPU device (PoCL's threads inherit the mode)") {
+TEST_CASE("stylerf devices reports that a CPU device flushes denormal floats") {
   // Without the mode, x86 CPUs take a slow path for every value below 1e-38: a backdrop-free scene's style
   // steps ran 1.7x slower (docs/results.md). `stylerf devices` multiplies 1e-20 by 1e-20 on the device.
   const testing::CliRun r = testing::run_cli("devices");
@@ -240,4 +243,25 @@ TEST_CASE("the command line flushes denormal floats on a CPU device (PoCL's thre
                    r.output.find("\n[" + index + "] cpu ") != std::string::npos;
   if (cpu) CHECK(r.output.find("denormals: flushed to zero") != std::string::npos);
   CHECK(r.output.find("denormals: ") != std::string::npos);
+}
+
+TEST_CASE("the library's kernels flush denormals, and the caller's thread keeps its own mode") {
+  // This process never sets the mode itself: the kernels are built with -cl-denorms-are-zero
+  // (host/runtime.cpp), which PoCL applies to the thread running each kernel, for that kernel only.
+  // The option allows a device to flush; PoCL on x86 does (a GPU's compiler may or may not).
+  const bool x86_cpu = (stylerf::host::Runtime::instance().device().type & CL_DEVICE_TYPE_CPU) != 0 &&
+#if defined(__x86_64__)
+                       true;
+#else
+                       false;
+#endif
+  if (x86_cpu) CHECK(stylerf::nn::device_flushes_denormals());
+  volatile float tiny = 1e-20f;
+  CHECK(tiny * tiny > 0.0f);  // the host thread still computes denormals after the device ran
+  // And a value the device keeps: the probe's kernel is not one that always writes 0.
+  stylerf::host::Tensor y = stylerf::host::Tensor::from_host(std::vector<float>{0.5f}, {1}, "y");
+  stylerf::nn::axpby(1e-10f, stylerf::host::Tensor::from_host(std::vector<float>{1e-10f}, {1}, "x"), 0.0f, y);
+  const float kept = y.to_host()[0];
+  CHECK(kept > 0.99e-20f);
+  CHECK(kept < 1.01e-20f);
 }

@@ -2,9 +2,6 @@
 #include <sys/resource.h>
 
 #include <cstring>
-#if defined(__SSE__) || defined(__x86_64__)
-#include <xmmintrin.h>
-#endif
 #include <exception>
 #include <iostream>
 
@@ -52,19 +49,7 @@ void usage() {
 }
 }  // namespace
 
-// Flush-to-zero and denormals-are-zero for this process, set before PoCL starts its worker threads, which
-// inherit the mode on Linux. A scene whose backdrop the density stage keeps empty leaves values below 1e-38
-// in the style step, and x86 CPUs take a slow path for each of them: milk_carton 1/4's 2D style steps took
-// 2.9-3.1 s a step without the mode and 1.76-1.83 s with it (docs/results.md). Nothing we compute means
-// anything below 1e-38. The library leaves an embedding caller's mode alone; this is the command line's choice.
-void flush_denormals() {
-#if defined(__SSE__) || defined(__x86_64__)
-  _mm_setcsr(_mm_getcsr() | 0x8040);  // FTZ (bit 15) | DAZ (bit 6)
-#endif
-}
-
 int main(int argc, char** argv) {
-  flush_denormals();
   if (argc < 2 || !std::strcmp(argv[1], "help") || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
     usage();
     return argc < 2 ? 2 : 0;

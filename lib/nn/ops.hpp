@@ -156,6 +156,9 @@ Tensor style_loss_backward(const Tensor& a, const StyleTarget& b, float dloss, f
 Tensor sum(const Tensor& x);                       // [1]
 float sum_value(const Tensor& x);                  // sum, read back to host
 void axpby(float a, const Tensor& x, float b, Tensor& y);  // y = a*x + b*y
+// Whether the device's kernels flush denormal floats to zero: 1e-20 * 1e-20 through axpby (every program is
+// built with -cl-denorms-are-zero, host/runtime.cpp says why; `stylerf devices` and stylerf.device() report it).
+bool device_flushes_denormals();
 
 // ---- Adam ------------------------------------------------------------------------------------
 struct AdamConfig {

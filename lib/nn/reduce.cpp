@@ -67,4 +67,10 @@ void axpby(float a, const Tensor& x, float b, Tensor& y) {
   launch("elementwise", "axpby64", {size_t((n + 63) / 64)}, x, y, a, b, n);
 }
 
+bool device_flushes_denormals() {
+  Tensor y = Tensor::from_host(std::vector<float>{0.0f}, {1}, "denormal probe");
+  axpby(1e-20f, Tensor::from_host(std::vector<float>{1e-20f}, {1}, "denormal probe"), 0.0f, y);
+  return y.to_host()[0] == 0.0f;  // 1e-40 is a denormal: kept, or flushed to 0
+}
+
 }  // namespace stylerf::nn

@@ -3,6 +3,7 @@
 #include "host/device.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
+#include "lib/nn/ops.hpp"
 #include "python/src/handles.hpp"
 
 namespace stylerf::py {
@@ -37,12 +38,17 @@ void bind_runtime(pyb::module_& m) {
         "(default: $STYLERF_DEVICE, else the first GPU, else the first device); once chosen it stays");
   m.def("device", [] {
     host::DeviceInfo d;
+    bool flushes = false;
     {
       LibraryCall call;
       d = host::Runtime::instance().device();
+      flushes = nn::device_flushes_denormals();
     }
-    return device_dict(d);
-  }, "the device in use (choosing the default one if none was chosen yet)");
+    pyb::dict out = device_dict(d);
+    out["denormals_flushed"] = flushes;
+    return out;
+  }, "the device in use (choosing the default one if none was chosen yet); denormals_flushed: whether its "
+     "kernels flush floats below 1e-38 to zero (the library sets that up on CPU devices: x86 runs them slowly)");
   m.def("_shutdown", [] {
     LibraryCall call;
     if (host::Runtime::initialised()) host::Runtime::shutdown();

@@ -93,6 +93,16 @@ def test_devices_and_version():
     assert os.path.basename(stylerf.__file__) == "__init__.py"
 
 
+def test_kernels_flush_denormals_and_numpy_keeps_them():
+    # The kernels are built with -cl-denorms-are-zero (x86 runs values below 1e-38 slowly); PoCL applies it
+    # to each kernel's thread for that kernel only, so NumPy here still computes denormals.
+    dev = stylerf.device()
+    if dev["type"] == "cpu":
+        assert dev["denormals_flushed"] is True
+    tiny = np.float32(1e-20)
+    assert tiny * tiny > 0
+
+
 def test_threads_take_turns_in_the_library(stages, model):
     # The GIL is released during compute, so threads reach the library together; it serialises them.
     import threading
