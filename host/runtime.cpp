@@ -157,7 +157,8 @@ cl_program Runtime::build_program(const std::string& program, const std::string&
   // the thread flushes them, and training on mostly empty space produces such values (one model's steps ran
   // 1.7x slower with them kept; docs/results.md). Nothing we compute means anything below 1e-38. PoCL sets
   // the flush mode on whichever thread runs one of these kernels, for that kernel only, so a caller's own
-  // arithmetic keeps its mode; GPUs flush in hardware.
+  // arithmetic keeps its mode (the host-BLAS engine flushes on its own threads: host/fp_mode.hpp). A GPU's
+  // compiler may flush too; the option allows it and requires nothing.
   const std::string full_options = "-cl-std=CL1.2 -cl-mad-enable -cl-denorms-are-zero " + options +
                                    (extra && *extra ? std::string(" ") + extra : std::string());
   cl_int err = CL_SUCCESS;

@@ -24,7 +24,7 @@ int run_devices(int argc, char** argv) {
             << (stylerf::nn::detail::group_reductions_by_default(chosen) ? "work-group" : "per-item")
             << "; 64-bit atomics: " << yes("cl_khr_int64_base_atomics")
             << ", float atomics: " << yes("cl_ext_float_atomics") << ", fp64: " << yes("cl_khr_fp64") << "\n";
-  // Whether the device's threads flush denormal floats (the library loads the driver in that mode).
+  // Whether the device's kernels flush denormal floats (the library builds them with -cl-denorms-are-zero).
   stylerf::cli::init_runtime(std::to_string(chosen.index), false);
   std::cout << "  denormals: "
             << (stylerf::nn::device_flushes_denormals() ? "flushed to zero" : "kept (x86 CPUs run them slowly)") << "\n";
