@@ -35,7 +35,7 @@ struct FeatureArgs {
   std::string density_path, dir, out, profile_name, recipe, device;
   int downsample = 0, iters = 0, log_every = 50, ckpt_every = 500, eval_views = 5, batch = 4096, patch = 256;
   double minutes = 0;
-  float tv = -1, lr_grid = -1, lr_basis = -1, lr_decoder = -1;
+  float tv = -1, content_weight = -1, lr_grid = -1, lr_basis = -1, lr_decoder = -1;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   std::set<std::string> given;
@@ -58,6 +58,9 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
       "batch", po::value(&a.batch)->default_value(4096), "rays per ray step")(
       "patch", po::value(&a.patch)->default_value(256), "patch side in pixels (multiple of 8)")(
       "tv", po::value(&a.tv), "feature TV weight (default: 10 Blender, 80 LLFF)")(
+      "content-weight", po::value(&a.content_weight),
+      "patch steps' (relu3_1 + relu4_1 MSE) weight beside the pixel MSE; 0: pixels alone, no VGG pass "
+      "(default: 0 fast profile, 0.1 paper)")(
       "lr-grid", po::value(&a.lr_grid), "feature grid learning rate (default 0.02)")(
       "lr-basis", po::value(&a.lr_basis), "basis matrix (and background feature) learning rate (default 1e-2)")(
       "lr-decoder", po::value(&a.lr_decoder), "decoder learning rate (default 2e-4 fast, 5e-4 paper)")(
@@ -88,6 +91,7 @@ void apply_feature_flags(const FeatureArgs& a, train::FeatureTrainConfig& cfg) {
   cfg.patch = a.patch;
   cfg.seed = a.seed;
   if (a.given.count("tv")) cfg.tv = a.tv;
+  if (a.given.count("content-weight")) cfg.content_weight = a.content_weight;
   if (a.given.count("lr-grid")) cfg.lr_grid = a.lr_grid;
   if (a.given.count("lr-basis")) cfg.lr_basis = a.lr_basis;
   if (a.given.count("lr-decoder")) cfg.lr_decoder = a.lr_decoder;

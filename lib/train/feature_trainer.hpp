@@ -42,7 +42,7 @@ struct FeatureTrainConfig {
   float beta1 = 0.9f, beta2 = 0.99f;
   float lr_decay_ratio = 0.1f;
   float tv = 10.0f;               // StyleRF: Blender 10, LLFF 80
-  float content_weight = 0.1f;    // (relu4_1 MSE + relu3_1 MSE) x this in patch steps
+  float content_weight = 0.1f;    // (relu4_1 MSE + relu3_1 MSE) x this in patch steps (the paper's 0.1; fast: 0)
   uint64_t seed = 0;
   int finite_check_every = 50;
 
@@ -52,7 +52,7 @@ struct FeatureTrainConfig {
   static FeatureTrainConfig from_json(const nlohmann::json& j);
 };
 
-// StyleRF's settings for the scene's format (ranks, TV) and the profile (decoder lr).
+// StyleRF's settings for the scene's format (ranks, TV) and the profile (decoder lr, patch loss).
 FeatureTrainConfig default_feature_config(const scene::Scene& scene, model::DecoderProfile profile);
 
 struct FeatureStepStats {

@@ -1,7 +1,8 @@
 // Recipes: the named sets of settings a user picks instead of a dozen flags (`--recipe` on `stylerf run`
 // and on each stage's command; a flag given as well overrides the recipe's value).
 //   fast  the best measured on a CPU (docs/results.md): the fast feature profile (features at 1/4
-//         resolution, an upsampling decoder) and the style stage's measured best settings;
+//         resolution, an upsampling decoder, its patch loss the pixel MSE alone) and the style stage's
+//         measured best settings;
 //   paper the paper's settings exactly: full-resolution features and the PlainDecoder, stage 2's decoder
 //         fine-tuned in stage 3, no warm start, the paper's learning rates.
 #pragma once

@@ -13,7 +13,8 @@ struct ReconstructionLoss {
 };
 
 // rgb, target [1, 3, H, W]; target_taps = vgg.forward(target, 4, ...). Runs VGG forward and backward on rgb
-// (its activations are released before returning).
+// (its activations are released before returning). feature_weight 0 is pixel MSE alone: VGG is not run,
+// target_taps are not read (may be empty) and feature_mse is 0.
 ReconstructionLoss reconstruction_loss(nn::VggEncoder& vgg, const host::Tensor& rgb, const host::Tensor& target,
                                        const nn::VggFeatures& target_taps, float feature_weight);
 
