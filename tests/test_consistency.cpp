@@ -146,7 +146,7 @@ TEST_CASE("warping the true images by the true depth leaves near-zero error on v
         const auto colour = textured.shade(hit);
         double colour_error = 0;
         for (int a = 0; a < 3; ++a) {
-          worst_point = std::max(worst_point, std::abs(double(hit.point[a]) - X[a]));
+          worst_point = testing::max_or_nan(worst_point, std::abs(double(hit.point[a]) - X[a]));
           colour_error = std::max(colour_error, std::abs(double(colour[a]) - t.image.data[a * kSize * kSize + i]));
         }
         colour_flips += colour_error > 1e-3;

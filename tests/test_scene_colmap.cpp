@@ -205,8 +205,8 @@ double max_ray_difference(const Scene& a, const Camera& ca, const Scene& b, cons
   REQUIRE(ra.size() == rb.size());
   double worst = 0;
   for (size_t k = 0; k < ra.origins.size(); ++k) {
-    worst = std::max(worst, double(std::fabs(ra.origins[k] - rb.origins[k])));
-    worst = std::max(worst, double(std::fabs(ra.directions[k] - rb.directions[k])));
+    worst = testing::max_or_nan(worst, double(std::fabs(ra.origins[k] - rb.origins[k])));
+    worst = testing::max_or_nan(worst, double(std::fabs(ra.directions[k] - rb.directions[k])));
   }
   return worst;
 }

@@ -94,7 +94,7 @@ void check_same_stylized_view(const model::StyleModel& m, const model::StyleMode
 
 double max_abs(const std::vector<float>& v) {
   double m = 0;
-  for (float x : v) m = std::max(m, double(std::abs(x)));
+  for (float x : v) m = testing::max_or_nan(m, double(std::abs(x)));
   return m;
 }
 
@@ -168,7 +168,7 @@ TEST_CASE("deferred style transformation equals per-point transformation then co
   const auto per_point = pp.value.to_host();
   REQUIRE(per_point.size() == deferred.size());
   double err = 0;
-  for (size_t i = 0; i < deferred.size(); ++i) err = std::max(err, std::abs(double(deferred[i]) - per_point[i]));
+  for (size_t i = 0; i < deferred.size(); ++i) err = testing::max_or_nan(err, std::abs(double(deferred[i]) - per_point[i]));
   const double rel = err / max_abs(per_point);
   INFO("max |deferred - per-point| / max |per-point| = " << rel << " over " << R << " rays, " << content.kept
                                                           << " kept samples");
@@ -437,7 +437,7 @@ static void check_grid_phases(model::StyleDecoderKind kind) {
         for (int yy = 0; yy < HI; ++yy)
           for (int xx = 12 * s; xx < (W - 13) * s; ++xx) {
             const size_t i = (size_t(c) * HI + size_t(yy)) * WI + size_t(xx);
-            worst = std::max(worst, double(std::abs(y1[i] - y0[i + size_t(s)])));
+            worst = testing::max_or_nan(worst, double(std::abs(y1[i] - y0[i + size_t(s)])));
             scale = std::max(scale, double(std::abs(y0[i])));
           }
       MESSAGE(std::string(model::style_decoder_name(kind)) << " decoder " << std::string(phases ? "with" : "without")
@@ -630,8 +630,8 @@ TEST_CASE("the vgg-adain-relu4 style decoder: relu4_1 re-normalised to the style
     double worst_wild = 0, worst_kept = 0, scale = 0;
     for (size_t i = 0; i < calm.size(); ++i) {
       REQUIRE(std::isfinite(wild[i]));
-      worst_wild = std::max(worst_wild, double(std::abs(wild[i] - calm[i])));
-      worst_kept = std::max(worst_kept, double(std::abs(kept[i] - calm[i])));
+      worst_wild = testing::max_or_nan(worst_wild, double(std::abs(wild[i] - calm[i])));
+      worst_kept = testing::max_or_nan(worst_kept, double(std::abs(kept[i] - calm[i])));
       scale = std::max(scale, double(std::abs(calm[i])));
     }
     MESSAGE("a dead channel firing at 5: the picture moves by " << worst_wild / scale << " of its largest value "
@@ -772,7 +772,7 @@ TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr
     REQUIRE_FALSE(t.step().skipped);
     const auto w1 = t.model().dst.fc_w.value.to_host();
     double m = 0;
-    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    for (size_t i = 0; i < w0.size(); ++i) m = testing::max_or_nan(m, double(std::fabs(w1[i] - w0[i])));
     return m;
   };
   const double full = first_move(1.0f, 1.0), decayed = first_move(0.01f, 1.0), half = first_move(0.01f, 0.5);
@@ -841,7 +841,7 @@ TEST_CASE("after a decoder warm-up the stylizer's lr decays from lr_stylizer at 
     REQUIRE_FALSE(t.step().skipped);
     const auto w1 = p.value.to_host();
     double m = 0;
-    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    for (size_t i = 0; i < w0.size(); ++i) m = testing::max_or_nan(m, double(std::fabs(w1[i] - w0[i])));
     return m;
   };
   nn::Param& fc = t.model().dst.fc_w;
@@ -866,7 +866,7 @@ TEST_CASE("the decoder warm-up steps the decoder only; it and the steps after it
     REQUIRE_FALSE(t.step().skipped);
     const auto w1 = t.model().features.decoder.layers().front().w.value.to_host();
     double m = 0;
-    for (size_t i = 0; i < w0.size(); ++i) m = std::max(m, double(std::fabs(w1[i] - w0[i])));
+    for (size_t i = 0; i < w0.size(); ++i) m = testing::max_or_nan(m, double(std::fabs(w1[i] - w0[i])));
     return m;
   };
   const std::string stylizer = t.model().dst.fc_w.name, decoder = t.model().features.decoder.layers().front().w.name;

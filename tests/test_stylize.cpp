@@ -75,7 +75,7 @@ int mismatches(const std::vector<float>& pos, const std::vector<float>& got, con
 double worst_rel(const std::vector<float>& got, const std::vector<double>& want) {
   double scale = 1e-12, worst = 0;
   for (double v : want) scale = std::max(scale, std::abs(v));
-  for (size_t i = 0; i < got.size(); ++i) worst = std::max(worst, std::abs(got[i] - want[i]));
+  for (size_t i = 0; i < got.size(); ++i) worst = testing::max_or_nan(worst, std::abs(got[i] - want[i]));
   return got.size() == want.size() ? worst / scale : 1e9;
 }
 
@@ -202,7 +202,7 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
       cam.width, cam.height);
   REQUIRE(direct.size() == composed.size());
   double worst = 0;
-  for (size_t i = 0; i < direct.size(); ++i) worst = std::max(worst, double(std::abs(direct[i] - composed[i])));
+  for (size_t i = 0; i < direct.size(); ++i) worst = testing::max_or_nan(worst, double(std::abs(direct[i] - composed[i])));
   CHECK(worst < 1e-4);
   // All inside: the single-style render.
   const auto inside_all = m.stylize_camera_regions(all, a, b, cam.width, cam.height);
@@ -210,7 +210,7 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
   double worst_single = 0;
   for (size_t i = 0; i < single.size(); ++i) {
     // Rays with nothing kept are all "outside"; they carry only the background there, the same either way.
-    worst_single = std::max(worst_single, double(std::abs(single[i] - inside_all[i])));
+    worst_single = testing::max_or_nan(worst_single, double(std::abs(single[i] - inside_all[i])));
   }
   CHECK(worst_single < 1e-4);
   const auto plain = m.render_camera_content(sc, cam);
@@ -411,7 +411,7 @@ TEST_CASE("centre rays shaded per depth slab after a first call that keeps many 
     for (int e = 0; e < E; ++e) {
       const double d = std::abs(ce[r * E + size_t(e)] - cs[r * E + size_t(e)]);
       double& worst = r < size_t(kChunk) ? first : later;
-      worst = std::max(worst, d);
+      worst = testing::max_or_nan(worst, d);
     }
   }
   CHECK(geometry < 1e-5);     // the same samples and weights
@@ -453,7 +453,7 @@ TEST_CASE("inference's march step: NDC scenes a sample a voxel, others as traine
   const auto af = fine.content.acc.to_host(), ah = half.content.acc.to_host();
   double worst = 0, mean = 0;
   for (size_t r = 0; r < af.size(); ++r) {
-    worst = std::max(worst, double(std::abs(af[r] - ah[r])));
+    worst = testing::max_or_nan(worst, double(std::abs(af[r] - ah[r])));
     mean += std::abs(af[r] - ah[r]) / double(af.size());
   }
   CHECK(worst > 0.0);  // a coarser quadrature: not the same numbers...
@@ -550,7 +550,7 @@ TEST_CASE("pixel opacity rendered near silhouettes only equals one ray a pixel e
     double worst = 0;
     int settled = 0, rendered = 0;
     for (size_t i = 0; i < full.size(); ++i) {
-      worst = std::max(worst, double(std::abs(cc.pixel_acc[i] - full[i])));
+      worst = testing::max_or_nan(worst, double(std::abs(cc.pixel_acc[i] - full[i])));
       (cc.pixel_acc[i] == 0.0f || cc.pixel_acc[i] == 1.0f ? settled : rendered) += 1;
     }
     CHECK(worst < 2e-3);  // settled blocks take 0 or 1 where the truth is within 1e-3 of it

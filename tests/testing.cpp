@@ -2,7 +2,10 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <unistd.h>
@@ -40,8 +43,8 @@ void check_close(const std::vector<float>& got, const std::vector<double>& want,
   double worst = 0.0;
   size_t worst_i = 0;
   for (size_t i = 0; i < got.size(); ++i) {
-    if (!std::isfinite(got[i])) {
-      FAIL(what << ": non-finite value " << got[i] << " at index " << i << " (reference " << want[i] << ")");
+    if (!std::isfinite(got[i]) || !std::isfinite(want[i])) {
+      FAIL(what << ": non-finite value at index " << i << ": got " << got[i] << ", reference " << want[i]);
     }
     double r = std::fabs(got[i] - want[i]) / (atol + rtol * std::fabs(want[i]));
     if (r > worst) {
@@ -88,6 +91,25 @@ bool all_finite(const std::vector<float>& v) {
   for (float x : v)
     if (!std::isfinite(x)) return false;
   return true;
+}
+
+double max_or_nan(double a, double b) {
+  if (std::isnan(a) || std::isnan(b)) return std::numeric_limits<double>::quiet_NaN();
+  return std::max(a, b);
+}
+
+double max_abs_error(const std::vector<float>& got, const std::vector<double>& want) {
+  REQUIRE_MESSAGE(got.size() == want.size(), "size " << got.size() << " vs reference " << want.size());
+  double err = 0;
+  for (size_t i = 0; i < got.size(); ++i) err = max_or_nan(err, std::abs(double(got[i]) - want[i]));
+  return err;
+}
+
+void report_skipped(const std::string& why) {
+  // Standard output, where CTest looks for the marker; the doctest message keeps it in the case's report.
+  std::printf("%s %s\n", kSkippedMarker, why.c_str());
+  std::fflush(stdout);
+  MESSAGE(kSkippedMarker << " " << why);
 }
 
 std::string error_of(const std::function<void()>& f) {

@@ -14,6 +14,7 @@ std::vector<float> random_uniform(size_t n, uint64_t seed, float lo, float hi);
 std::vector<double> to_double(const std::vector<float>& v);
 
 // Largest |got - want| / (atol + rtol * |want|) over all elements; <= 1 means within tolerance.
+// A NaN or Inf on either side fails (a NaN compares false with everything, so a plain maximum would skip it).
 // On failure the doctest message names the worst index and both values.
 void check_close(const std::vector<float>& got, const std::vector<double>& want, double rtol, double atol,
                  const std::string& what);
@@ -31,6 +32,19 @@ std::vector<double> finite_difference_at(const std::function<double(const std::v
 double dot(const std::vector<double>& a, const std::vector<double>& b);
 
 bool all_finite(const std::vector<float>& v);
+
+// The larger of two error measures, NaN if either is NaN. std::max(err, NaN) returns err, which lets a NaN
+// result pass an error-maximum check; with this one `CHECK(err <= tol)` fails on it.
+double max_or_nan(double a, double b);
+// Largest |got[i] - want[i]|: NaN when any element on either side is NaN, Inf when one is infinite.
+double max_abs_error(const std::vector<float>& got, const std::vector<double>& want);
+
+// Cases that need ../shared are in doctest's test suite "shared" (decorator `* doctest::test_suite("shared")`);
+// CTest runs them as their own entry, <suite>_shared. Where the data is absent such a case calls this and
+// returns: it prints the marker CTest's SKIP_REGULAR_EXPRESSION matches, so the entry reads as skipped, never
+// as passed.
+void report_skipped(const std::string& why);
+constexpr const char* kSkippedMarker = "[stylerf test skipped]";
 
 // A fresh folder <temp>/stylerf_test_<suite>_<tag>_<pid>, removed at scope exit.
 struct TempDir {
