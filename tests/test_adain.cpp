@@ -91,7 +91,7 @@ TEST_CASE("adain: a small run gives finite output in [0,1] of the content's size
   CHECK(std::sqrt(q / out.data.size()) > 0.05);
 }
 
-TEST_CASE("adain: alpha = 0 reproduces dec(enc(content)); alpha = 1 moves the style statistics") {
+TEST_CASE("adain wiring: alpha = 0 reproduces the library's own dec(enc(content)); alpha = 1 moves the style statistics") {
   Tensor c = io::to_tensor(style::load_image_for_adain(data_file(kContent), kSize));
   Tensor s = io::to_tensor(style::load_image_for_adain(data_file(kStyle), kSize));
   auto& m = model();
