@@ -74,10 +74,25 @@ std::string join_names(const std::map<std::string, ParamSet>& m) {
   return s;
 }
 
+// CLBlast builds its programs itself, without the -cl-denorms-are-zero that every program of ours gets
+// (host/runtime.cpp); its CLBLAST_BUILD_OPTIONS variable adds it, so every engine keeps the numerical
+// contract (docs/design.md: exact down to FLT_MIN, 0 below). Set before CLBlast's first build, kept where
+// the caller already asks for it.
+void clblast_flush_denormals() {
+  constexpr const char* kFlush = "-cl-denorms-are-zero";
+  const char* env = std::getenv("CLBLAST_BUILD_OPTIONS");
+  const std::string options = env ? env : "";
+  if (options.find(kFlush) != std::string::npos) return;
+  // CLBlast joins its options without separators (so "-cl-std=..." would follow ours directly): end with a space.
+  const std::string with_flush = options + " " + kFlush + " ";
+  setenv("CLBLAST_BUILD_OPTIONS", with_flush.c_str(), 1);
+}
+
 void prepare_clblast_params() {
   ClblastState& cp = clblast_state();
   if (cp.prepared) return;
   cp.prepared = true;
+  clblast_flush_denormals();
   const DeviceInfo& dev = Runtime::instance().device();
   const DeviceTuning* t = current_device_tuning();
   if (!t || t->clblast.empty()) {

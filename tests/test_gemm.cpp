@@ -331,3 +331,128 @@ TEST_CASE("the tuning database entry for this device applies to CLBlast") {
     CHECK(status.find("no CLBlast entry") != std::string::npos);
   CHECK(status.find("skipped") == std::string::npos);
 }
+
+// ---- the flush and overflow (docs/design.md's numerical contract: exact down to FLT_MIN, 0 below) ---------
+namespace {
+
+// C = A B for A [M, K] and B [K, N] given row-major, through `engine`; an operand passed as transposed is
+// stored transposed. beta 0 over a C of NaN (nothing of the old C may show).
+std::vector<float> gemm_of(GemmEngine engine, Trans ta, Trans tb, const std::vector<float>& a,
+                           const std::vector<float>& b, int M, int N, int K) {
+  std::vector<float> sa(a.size()), sb(b.size());
+  for (int i = 0; i < M; ++i)
+    for (int k = 0; k < K; ++k) sa[ta == Trans::Yes ? size_t(k) * M + i : size_t(i) * K + k] = a[size_t(i) * K + k];
+  for (int k = 0; k < K; ++k)
+    for (int j = 0; j < N; ++j) sb[tb == Trans::Yes ? size_t(j) * K + k : size_t(k) * N + j] = b[size_t(k) * N + j];
+  Tensor ta_ = Tensor::from_host(sa, {int64_t(sa.size())}), tb_ = Tensor::from_host(sb, {int64_t(sb.size())});
+  Tensor tc = Tensor::full({int64_t(M) * N}, std::numeric_limits<float>::quiet_NaN());
+  gemm(ta, tb, M, N, K, 1.0f, ta_.mem(), 0, ta == Trans::Yes ? M : K, tb_.mem(), 0, tb == Trans::Yes ? K : N, 0.0f,
+       tc.mem(), 0, N, engine);
+  return tc.to_host();
+}
+
+// The contract's model of a float GEMM: every input and every product of magnitude below FLT_MIN is 0, the
+// rest is exact float arithmetic. The cases below are built so that any summation order, fused or not,
+// gives the same float: the products of one output are exact, their partial sums exact or rounded alike,
+// and a product below FLT_MIN is either among zeros only (flushed however it is summed) or under half an
+// ulp of the rest (an FMA adds it to a normal sum unflushed, and it must not show).
+float flushed(double x) { return std::fabs(x) < double(std::numeric_limits<float>::min()) ? 0.0f : float(x); }
+
+std::vector<float> contract_product(const std::vector<float>& a, const std::vector<float>& b, int M, int N, int K) {
+  std::vector<float> c(size_t(M) * N);
+  for (int i = 0; i < M; ++i)
+    for (int j = 0; j < N; ++j) {
+      double s = 0;
+      for (int k = 0; k < K; ++k) s += double(flushed(double(flushed(a[size_t(i) * K + k])) * flushed(b[size_t(k) * N + j])));
+      c[size_t(i) * N + j] = flushed(s);
+    }
+  return c;
+}
+
+// Compares bitwise up to the sign of 0 (Inf must be Inf of the right sign; NaN is never expected).
+void check_exactly(const std::vector<float>& got, const std::vector<float>& want, const std::string& what) {
+  REQUIRE(got.size() == want.size());
+  int wrong = 0;
+  for (size_t i = 0; i < got.size(); ++i)
+    if (!(got[i] == want[i])) {
+      if (++wrong <= 4) FAIL_CHECK(what << ": element " << i << " got " << got[i] << ", want " << want[i]);
+    }
+  CHECK_MESSAGE(wrong == 0, what << ": " << wrong << " elements differ");
+}
+
+// Tiles a [rows, cols] pattern to [rows * tr, cols * tc] (sizes past the engines' small-size paths).
+std::vector<float> tiled(const std::vector<float>& p, int rows, int cols, int tr, int tc) {
+  std::vector<float> out(size_t(rows) * tr * cols * tc);
+  for (int i = 0; i < rows * tr; ++i)
+    for (int j = 0; j < cols * tc; ++j) out[size_t(i) * cols * tc + j] = p[size_t(i % rows) * cols + j % cols];
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("subnormal inputs and products flush to 0, FLT_MIN is kept exactly: every engine, every transpose") {
+  const float tiny = std::numeric_limits<float>::min();  // 2^-126
+  const float dmin = std::numeric_limits<float>::denorm_min();
+  auto p2 = [](int e) { return std::ldexp(1.0f, e); };
+  const int M = 6, N = 4, K = 3;
+  // Rows of A: subnormal inputs; normal inputs whose products with B's columns land on, above and below
+  // FLT_MIN; small integers; FLT_MIN itself; cancelling signs.
+  const std::vector<float> a = {dmin,     p2(-130), -p2(-127),  // all subnormal: read as 0
+                                p2(-64),  p2(-64),  p2(-64),   //
+                                1,        2,        3,         //
+                                tiny,     tiny,     0,         //
+                                -p2(-63), p2(-63),  p2(-62),   //
+                                p2(-100), -p2(-100), p2(-27)};
+  // Columns of B: ones; 2^-63 (products 2^-126 kept, 2^-127 and below flushed); mixed; a subnormal input.
+  const std::vector<float> b = {1, p2(-63), p2(-64), dmin,  //
+                                1, p2(-63), 1,       p2(-140),
+                                1, p2(-63), p2(-63), 1};
+  const std::vector<float> want = contract_product(a, b, M, N, K);
+  // The model itself, at a few entries worked by hand.
+  CHECK(want[0 * N + 0] == 0.0f);                     // subnormal inputs: 0, not their subnormal sum
+  CHECK(want[1 * N + 0] == 3 * p2(-64));              // normal
+  CHECK(want[1 * N + 1] == 0.0f);                     // three products of 2^-127: 0, not 1.5 FLT_MIN
+  CHECK(want[3 * N + 0] == 2 * tiny);                 // FLT_MIN + FLT_MIN
+  CHECK(want[3 * N + 2] == tiny);                     // FLT_MIN * 1 kept exactly
+  CHECK(want[3 * N + 1] == 0.0f);                     // FLT_MIN * 2^-63: below FLT_MIN
+  CHECK(want[4 * N + 1] == 2 * tiny);                 // -2^-126 + 2^-126 + 2^-125, exact in any order
+  CHECK(want[5 * N + 1] == flushed(std::ldexp(1.0, -90)));  // 2^-163 flushed twice, 2^-90 kept
+  for (GemmEngine e : engines())
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans) {
+        const std::string what = std::string(gemm_engine_name(e)) + (ta == Trans::Yes ? " T" : " N") +
+                                 (tb == Trans::Yes ? "T" : "N");
+        check_exactly(gemm_of(e, ta, tb, a, b, M, N, K), want, what + " 6x4x3");
+        // The same pattern tiled to 66 x 68 (K stays 3: each output is still one of the sums above).
+        check_exactly(gemm_of(e, ta, tb, tiled(a, M, K, 11, 1), tiled(b, K, N, 1, 17), 11 * M, 17 * N, K),
+                      tiled(want, M, N, 11, 17), what + " 66x68x3");
+      }
+}
+
+TEST_CASE("inputs of ~1e19 overflow to Inf exactly where the exact result does, and nowhere else") {
+  const float big = std::ldexp(1.0f, 63);  // 9.2e18; big * big = 2^126 = 8.5e37, FLT_MAX = 3.4e38
+  const float inf = std::numeric_limits<float>::infinity();
+  const int M = 5, N = 3, K = 4;
+  const std::vector<float> a = {big,  big, big,  big,    // four products of 2^126: 2^128 > FLT_MAX
+                                big,  big, big,  0,      // three: 3 * 2^126 = 2.6e38, finite
+                                -big, -big, -big, -big,  // -2^128: -Inf
+                                big,  -big, big, -big,   // +-2^126 twice: 0 in any order (partial sums <= 2^127)
+                                1,    2,   0,    big};
+  const std::vector<float> b = {1, big, 0,  //
+                                1, big, 0,  //
+                                1, big, 0,  //
+                                1, big, std::ldexp(1.0f, 66)};  // big * 2^66 = 2^129: one product overflows
+  // Expected values worked by hand (the exact result, rounded; Inf where it exceeds FLT_MAX).
+  const std::vector<float> want = {4 * big, inf,  inf,           //
+                                   3 * big,  3 * std::ldexp(1.0f, 126), 0,  //
+                                   -4 * big, -inf, -inf,         //
+                                   0,        0,    -inf,         //
+                                   big,      std::ldexp(1.0f, 126), inf};  // 3 + big and 3 big + 2^126 round
+  for (GemmEngine e : engines())
+    for (Trans ta : kTrans)
+      for (Trans tb : kTrans) {
+        const std::string what = std::string(gemm_engine_name(e)) + (ta == Trans::Yes ? " T" : " N") +
+                                 (tb == Trans::Yes ? "T" : "N");
+        check_exactly(gemm_of(e, ta, tb, a, b, M, N, K), want, what);
+      }
+}

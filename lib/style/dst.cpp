@@ -6,6 +6,7 @@
 #include "host/error.hpp"
 #include "host/gemm.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/checks.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/nn/linear.hpp"
 #include "lib/nn/ops.hpp"
@@ -75,6 +76,14 @@ StyleCode Dst::style_code(const Tensor& s, StyleContext* ctx) const {
   Tensor cov({1, E * E}, "style covariance");
   host::gemm(Trans::Yes, Trans::No, E, E, L, 1.0f / float(L), e.mem(), 0, E, e.mem(), 0, E, 0.0f, cov.mem(), 0, E);
   code.T = nn::linear_forward(cov, fc_w.value, fc_b.value).reshape({E, E});
+  // A NaN or Inf in s, or features too large for float (the variance and the covariance hold their
+  // squares), would leave a style code of NaN that silently turns every styled map NaN. Checked on the
+  // small outputs; the input is read only to say which.
+  if (nn::has_nonfinite(code.std) || nn::has_nonfinite(code.T)) {
+    if (nn::has_nonfinite(s)) throw Error("dst style_code: the style features hold a NaN or an infinity");
+    throw Error("dst style_code: the style's statistics overflow float (std or T is not finite): the style features "
+                "are too large");
+  }
   if (ctx) *ctx = {s, centred, h1, h2, e, cov, code};
   return code;
 }
@@ -122,6 +131,13 @@ Tensor Dst::apply(const Tensor& c, const Tensor& acc, const StyleCode& code, App
   Tensor y({R, C}, "dst output");
   host::gemm(Trans::No, Trans::No, R, C, E, 1.0f, c.mem(), 0, E, Wp.mem(), 0, C, 0.0f, y.mem(), 0, C);
   if (bias) host::gemm(Trans::No, Trans::No, R, C, 1, 1.0f, acc.mem(), 0, 1, code.mean.mem(), 0, C, 1.0f, y.mem(), 0, C);
+  // As in style_code: a NaN or Inf in, or an overflow (y grows as the cube of the style features' scale),
+  // is an error here rather than a NaN map downstream.
+  if (nn::has_nonfinite(y)) {
+    if (nn::has_nonfinite(c) || (bias && nn::has_nonfinite(acc)))
+      throw Error("dst apply: the content features c (or the opacities acc) hold a NaN or an infinity");
+    throw Error("dst apply: the styled features overflow float: the style's T and std are too large");
+  }
   if (ctx) *ctx = {c, acc, M, Wp, code};
   return y;
 }

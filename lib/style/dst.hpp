@@ -56,6 +56,10 @@ class Dst : public nn::Module {
     StyleCode code;
   };
   // s [L, 256] (L >= 2 positions). ctx null: inference.
+  // A constant channel has std exactly 0 (its styled channel is w_r * mean) and no std gradient (the
+  // subgradient 0, kernels/dst.cl). Under the flush (docs/design.md) a channel whose deviations from its
+  // mean are all below ~1e-19 has squares below FLT_MIN and so std 0 too. Throws an Error naming DST when
+  // s holds a NaN or Inf, or when the std or T overflow float (features of ~1e18 and above).
   StyleCode style_code(const Tensor& s, StyleContext* ctx) const;
   // Gradients of T, mean, std (any undefined = none); accumulates into the style branch's parameters;
   // returns ds [L, 256] when need_ds.
@@ -66,7 +70,8 @@ class Dst : public nn::Module {
     Tensor c, acc, M, Wp;  // M = T^T U [32, 256], Wp = M diag(std)
     StyleCode code;
   };
-  // c [R, 32], acc [R] -> [R, 256].
+  // c [R, 32], acc [R] -> [R, 256]. Throws an Error naming DST when c or acc hold a NaN or Inf, or when the
+  // output overflows float (it grows as the cube of the style features' scale: ~1e14 and above).
   Tensor apply(const Tensor& c, const Tensor& acc, const StyleCode& code, ApplyContext* ctx) const;
   struct ApplyGrads {
     Tensor dc, dT, dmean, dstd;  // dc only when asked for; dmean undefined without the bias
