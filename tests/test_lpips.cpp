@@ -1,8 +1,10 @@
 // LPIPS (v0.1 heads; VGG-16 and AlexNet trunks): the distance-map kernel against a double-precision
 // reference (zero features, huge and tiny magnitudes, odd channel counts, 1x1 maps) and its backward against
 // central differences; the whole metric, for both trunks, against a double CPU reference built from the
-// weights file and against the official values in ../shared/reference/lpips (lpips 0.1.4); properties that
-// need no shared data (identity, symmetry, the mask, odd sizes, refused sizes).
+// weights file, against the official lpips 0.1.4 values of tests/data/lpips_official.json (small pairs: the
+// distance, each tap, and the masked distance under tests/data/lpips_mask.png) and of
+// ../shared/reference/lpips (256x256 pairs); properties (identity, symmetry, the mask, odd sizes, refused
+// sizes).
 //
 // The weights come from the set-up command `bash scripts/fetch_weights.sh`; without them these tests FAIL
 // (they do not skip) with a message naming that command.
@@ -248,12 +250,12 @@ MaskedNoise masked_noise(const io::Image& a) {
 }
 
 // `net`'s distances against the official lpips 0.1.4 values (`key` of each pair in pairs.json) in
-// ../shared/reference/lpips; says so and checks nothing when that folder is absent.
+// ../shared/reference/lpips; reported as skipped when that folder is absent.
 void check_official_values(LpipsNet net, const char* key) {
   const std::string dir = testing::shared_reference_dir("lpips");
   if (dir.empty()) {
-    MESSAGE("../shared/reference/lpips is absent (no ../shared on this machine, or STYLERF_TEST_DATA unset): the "
-            "comparison with the official lpips values is not run; the other LPIPS tests still are");
+    testing::report_skipped("../shared/reference/lpips is absent: the 256x256 official lpips values are not "
+                            "compared (the small pairs of tests/data are)");
     return;
   }
   const auto j = nlohmann::json::parse(host::read_file(dir + "/pairs.json"));
@@ -264,8 +266,65 @@ void check_official_values(LpipsNet net, const char* key) {
     const double got = lpips(net).distance(io::load_image(dir + "/" + fa), io::load_image(dir + "/" + fb));
     MESSAGE(std::setprecision(7) << fa << " vs " << fb << ": ours " << got << ", official " << want << ", |diff| "
                                  << std::fabs(got - want));
-    CHECK(std::fabs(got - want) <= 1e-3);
+    // pairs.json holds 6 decimals (rounding 5e-7); float32 against the official float32 is ~1e-6.
+    CHECK(std::fabs(got - want) <= 1e-5);
   }
+}
+
+// ---- the official values of tests/data/lpips_official.json (tests/data/make_lpips_official.py) --------------
+
+// The official distance, its five taps' spatial means and (where the pair has them) the masked distance
+// and its taps, all in float64, against ours (float32). Both are sums of ~10^4 products of magnitude <= 1:
+// float32 accumulation keeps ~1e-6.
+constexpr double kOfficialTol = 1e-5;
+
+std::string fixture(const std::string& name) { return std::string(STYLERF_TEST_FIXTURES) + "/" + name; }
+
+const nlohmann::json& official_pairs() {
+  static const nlohmann::json j = nlohmann::json::parse(host::read_file(fixture("lpips_official.json")));
+  return j;
+}
+
+// Plane 0 of tests/data/lpips_mask.png, a grey PNG of weights.
+std::vector<float> official_mask() {
+  const io::Image m = io::load_image(fixture(official_pairs()["mask"].get<std::string>()));
+  return std::vector<float>(m.data.begin(), m.data.begin() + size_t(m.width) * m.height);
+}
+
+void check_official_small_pairs(LpipsNet net) {
+  const eval::Lpips& l = lpips(net);
+  const char* key = eval::lpips_net_name(net);
+  const std::vector<float> mask = official_mask();
+  int masked_pairs = 0;
+  for (const auto& pair : official_pairs()["pairs"]) {
+    const std::string name = pair["name"];
+    CAPTURE(name);
+    const io::Image a = io::load_image(fixture(pair["a"])), b = io::load_image(fixture(pair["b"]));
+    const auto& want = pair[key];
+    const double got = l.distance(a, b);
+    INFO(std::setprecision(9) << "ours " << got << ", official " << want["lpips"].get<double>());
+    CHECK(std::fabs(got - want["lpips"].get<double>()) <= kOfficialTol);
+    const auto maps = l.distance_maps(io::to_tensor(a), io::to_tensor(b));
+    REQUIRE(maps.size() == want["taps"].size());
+    for (size_t t = 0; t < maps.size(); ++t) {
+      CAPTURE(t);
+      REQUIRE(maps[t].numel() == want["tap_sizes"][t][0].get<int64_t>() * want["tap_sizes"][t][1].get<int64_t>());
+      double sum = 0;
+      for (float v : maps[t].to_host()) sum += v;
+      const double mean = sum / double(maps[t].numel()), want_tap = want["taps"][t];
+      INFO("tap mean: ours " << mean << ", official " << want_tap);
+      CHECK(std::fabs(mean - want_tap) <= kOfficialTol);
+    }
+    if (pair["a"] == pair["b"]) CHECK(got == 0.0);
+    if (!want.contains("masked")) continue;
+    ++masked_pairs;
+    const double got_masked = l.distance(a, b, mask), want_masked = want["masked"];
+    INFO("masked: ours " << got_masked << ", official maps under the mask " << want_masked);
+    CHECK(std::fabs(got_masked - want_masked) <= kOfficialTol);
+    // The mask changes the value, so the comparison says something about the mask's pooling.
+    if (want_masked > 0) CHECK(std::fabs(want_masked - want["lpips"].get<double>()) > 100 * kOfficialTol);
+  }
+  CHECK(masked_pairs >= 3);
 }
 
 // The pair's size: 64x48, or 40x32 under STYLERF_TEST_SMALL (the simulator; AlexNet needs 31x31).
@@ -436,7 +495,12 @@ TEST_CASE("lpips: matches a double-precision CPU reference (odd sizes floor at e
   CHECK(std::fabs(got - want) <= 1e-5 + 1e-4 * want);
 }
 
-TEST_CASE("lpips: the official values of ../shared/reference/lpips (lpips 0.1.4, VGG)") {
+TEST_CASE("lpips: the official values of tests/data (lpips 0.1.4, VGG): distance, each tap, masked") {
+  require_weights();
+  check_official_small_pairs(LpipsNet::Vgg);
+}
+
+TEST_CASE("lpips: the official values of ../shared/reference/lpips (lpips 0.1.4, VGG)" * doctest::test_suite("shared")) {
   require_weights();
   check_official_values(LpipsNet::Vgg, "lpips_vgg");
 }
@@ -583,7 +647,13 @@ TEST_CASE("lpips alex: matches a double-precision CPU reference (odd sizes floor
   }
 }
 
-TEST_CASE("lpips alex: the official values of ../shared/reference/lpips (lpips 0.1.4, AlexNet)") {
+TEST_CASE("lpips alex: the official values of tests/data (lpips 0.1.4, AlexNet): distance, each tap, masked") {
+  require_weights(LpipsNet::Alex);
+  check_official_small_pairs(LpipsNet::Alex);
+}
+
+TEST_CASE("lpips alex: the official values of ../shared/reference/lpips (lpips 0.1.4, AlexNet)" *
+          doctest::test_suite("shared")) {
   require_weights(LpipsNet::Alex);
   check_official_values(LpipsNet::Alex, "lpips_alex");
 }

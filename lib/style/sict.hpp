@@ -7,7 +7,7 @@
 //   2. q, k, v = 1x1 convs 256 -> 32 (one GEMM to [K, 96] here);
 //   3. channel self-attention per point: out_i = sum_j softmax_j(q_i k_j) v_j over its 32 channels.
 // The authors' numerics (docs/design.md): eps 1e-5, no affine, running variance updated with the unbiased
-// batch variance. Checked against ../shared/reference/stylerf in tests/test_sict_dst.cpp.
+// batch variance. Checked against values from the authors' module (tests/data, tests/test_sict_dst.cpp).
 //
 // forward_factored: stage 3 feeds SICT x = comps B, the feature field's F grid components per point times
 // its basis [F, 256] (no bias, frozen). Normalisation and q/k/v are then linear in comps, so they fold into
