@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "lib/eval/consistency.hpp"
+#include "lib/eval/lpips.hpp"
 #include "lib/eval/path_consistency.hpp"
 #include "lib/eval/path_frames.hpp"
 #include "lib/model/density_model.hpp"
@@ -233,6 +234,152 @@ TEST_CASE("a known per-frame flicker raises RMSE by the expected amount") {
   CHECK(j["long"]["k"] == 7);
 }
 
+namespace {
+
+// A hand-computable path: 4x4 frames of one plane z = -40, seen by cameras that differ by a translation
+// only (no rotation; fx = fy = 40 = the plane's distance, so a camera moved by (o, -o, 0) sees the plane
+// shifted by exactly o pixels right and down). Pixel (x, y) of frame i shows the plane's point at global
+// position (x + o_i, y + o_i), where a linear texture T = 0.1 + 0.02 u + 0.01 v is painted, and the whole
+// frame is brightened by b_i per channel. Bilinear sampling reproduces a linear texture exactly, so on every
+// valid pixel the warped difference is b_t - b_s, whatever the sample position.
+constexpr int kHand = 4;
+constexpr double kHandOffsets[4] = {0.0, 0.25, 1.75, 12.5};
+constexpr double kHandBrightness[4][3] = {{0, 0, 0}, {0.1, 0.2, 0.2}, {0.4, 0.5, 0.5}, {0, 0, 0}};
+
+FrameGeometry hand_geometry(int i) {
+  FrameGeometry f;
+  f.camera.fx = f.camera.fy = 40;
+  f.camera.cx = f.camera.cy = 0.5f * kHand;
+  f.camera.width = f.camera.height = kHand;
+  f.camera.c2w[0][3] = float(kHandOffsets[i]);
+  f.camera.c2w[1][3] = float(-kHandOffsets[i]);
+  for (int y = 0; y < kHand; ++y)
+    for (int x = 0; x < kHand; ++x) {
+      const double u = (x + 0.5 - f.camera.cx) / 40.0, v = (y + 0.5 - f.camera.cy) / 40.0;
+      f.depth.push_back(float(40.0 * std::sqrt(1 + u * u + v * v)));  // distance along the unit ray
+      f.opacity.push_back(1.0f);
+    }
+  return f;
+}
+
+io::Image hand_image(int i) {
+  io::Image im{kHand, kHand, std::vector<float>(size_t(3) * kHand * kHand)};
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < kHand; ++y)
+      for (int x = 0; x < kHand; ++x)
+        im.at(c, y, x) = float(0.1 + 0.02 * (x + kHandOffsets[i]) + 0.01 * (y + kHandOffsets[i]) + kHandBrightness[i][c]);
+  return im;
+}
+
+}  // namespace
+
+TEST_CASE("hand-computed path: per-pair RMSE, the range's mean over pairs, and a pair with no valid pixel") {
+  std::vector<FrameGeometry> geos;
+  std::vector<io::Image> frames;
+  for (int i = 0; i < 4; ++i) geos.push_back(hand_geometry(i)), frames.push_back(hand_image(i));
+  eval::ConsistencyOptions opt;
+  opt.short_range = 1;
+  opt.long_range = 2;
+  const auto warps = eval::path_warps(geos, RaySpace{false, 1.0f}, opt);
+  int lpips_calls = 0;
+  // A stand-in for LPIPS that returns the fraction of the frame the mask keeps: 9/16, 4/16 and 4/16 below.
+  eval::MaskedDistance kept = [&](const io::Image&, const io::Image&, const std::vector<float>& mask) {
+    ++lpips_calls;
+    double sum = 0;
+    for (float m : mask) sum += m;
+    return sum / double(mask.size());
+  };
+  const eval::ConsistencyScore score = eval::score_frames(frames, warps, &kept);
+  const eval::RangeScore& sr = score.short_range;
+  const eval::RangeScore& lr = score.long_range;
+  REQUIRE(sr.pairs.size() == 3);
+  REQUIRE(lr.pairs.size() == 2);
+
+  // Landing positions x + 0.5 + (o_t - o_s), kept inside the pixel centres [0.5, 3.5] in x and in y:
+  //   1 -> 0: shift 0.25, x, y in 0..2: 9 pixels;   2 -> 1: shift 1.5, x, y in 0..1: 4 pixels;
+  //   3 -> 2: shift 10.75: none (all 16 off the image);
+  //   2 -> 0: shift 1.75, x, y in 0..1: 4 pixels;   3 -> 1: shift 12.25: none.
+  const int64_t valid[3] = {9, 4, 0}, valid_long[2] = {4, 0};
+  for (int p = 0; p < 3; ++p) {
+    CAPTURE(p);
+    CHECK(sr.pairs[size_t(p)].t == p + 1);
+    CHECK(sr.pairs[size_t(p)].s == p);
+    CHECK(sr.pairs[size_t(p)].stats.valid == valid[p]);
+    CHECK(sr.pairs[size_t(p)].stats.off_image == 16 - valid[p]);
+  }
+  for (int p = 0; p < 2; ++p) CHECK(lr.pairs[size_t(p)].stats.valid == valid_long[p]);
+
+  // Per pair, RMSE = sqrt(mean over the 3 channels of (b_t - b_s)^2), by hand:
+  //   1 -> 0: (0.1, 0.2, 0.2): sqrt(0.09 / 3) = sqrt(0.03);   2 -> 1: (0.3, 0.3, 0.3): 0.3;
+  //   2 -> 0: (0.4, 0.5, 0.5): sqrt(0.66 / 3) = sqrt(0.22).
+  const double r10 = 0.17320508075688773, r21 = 0.3, r20 = 0.46904157598234297;
+  CHECK(sr.pairs[0].rmse == doctest::Approx(r10).epsilon(1e-5));
+  CHECK(sr.pairs[1].rmse == doctest::Approx(r21).epsilon(1e-5));
+  CHECK(lr.pairs[0].rmse == doctest::Approx(r20).epsilon(1e-5));
+  // The empty pairs: NaN scores of their own, left out of the mean and counted as skipped.
+  CHECK(std::isnan(sr.pairs[2].rmse));
+  CHECK(std::isnan(sr.pairs[2].lpips));
+  CHECK(std::isnan(lr.pairs[1].rmse));
+  CHECK(sr.skipped == 1);
+  CHECK(lr.skipped == 1);
+
+  // The range's score is the plain mean over the pairs with valid pixels: (sqrt(0.03) + 0.3) / 2 =
+  // 0.236603. Pooling the pixels (sqrt((9 x 0.03 + 4 x 0.09) / 13) = 0.220140) or dividing by all three
+  // pairs (0.157735) gives other values.
+  CHECK(sr.rmse == doctest::Approx(0.23660254037844387).epsilon(1e-5));
+  CHECK(lr.rmse == doctest::Approx(r20).epsilon(1e-5));  // one pair with pixels; not r20 / 2
+  // LPIPS is averaged the same way, and never called for an empty pair.
+  CHECK(lpips_calls == 3);
+  CHECK(sr.lpips == doctest::Approx((9.0 / 16 + 4.0 / 16) / 2).epsilon(1e-12));
+  CHECK(lr.lpips == doctest::Approx(4.0 / 16).epsilon(1e-12));
+  // The valid fraction is the mean over every pair, the empty ones included: 13 / 48 and 4 / 32.
+  CHECK(sr.valid_fraction == doctest::Approx(13.0 / 48).epsilon(1e-12));
+  CHECK(lr.valid_fraction == doctest::Approx(4.0 / 32).epsilon(1e-12));
+
+  // What `eval consistency --json` writes: the empty pair's scores as null, and the count.
+  const auto j = score.to_json();
+  CHECK(j["short"]["skipped"] == 1);
+  CHECK(j["short"]["pairs"][2]["rmse"].is_null());
+  CHECK(j["short"]["pairs"][2]["left_out"]["off_image"] == 16);
+  CHECK(double(j["short"]["rmse"]) == doctest::Approx(0.23660254037844387).epsilon(1e-5));
+
+  // Without a single valid pair the range has no score (NaN), not 0.
+  const std::vector<io::Image> far_apart{frames[0], frames[3], frames[0]};
+  const auto none = eval::score_frames(
+      far_apart, eval::path_warps({geos[0], geos[3], geos[0]}, RaySpace{false, 1.0f}, opt), nullptr);
+  CHECK(none.short_range.skipped == 2);
+  CHECK(std::isnan(none.short_range.rmse));
+}
+
+TEST_CASE("NaN or infinite pixels reaching the consistency score or LPIPS are errors naming the pixel") {
+  std::vector<FrameGeometry> geos;
+  std::vector<io::Image> frames;
+  for (int i = 0; i < 4; ++i) geos.push_back(hand_geometry(i)), frames.push_back(hand_image(i));
+  eval::ConsistencyOptions opt;
+  opt.long_range = 2;
+  const auto warps = eval::path_warps(geos, RaySpace{false, 1.0f}, opt);
+  frames[2].at(1, 3, 2) = std::numeric_limits<float>::quiet_NaN();
+  testing::expect_error([&] { eval::score_frames(frames, warps, nullptr); },
+                        "consistency: frame 2 has a NaN value at pixel 2,3, channel 1");
+  frames[2] = hand_image(2);
+  frames[3].at(0, 0, 1) = std::numeric_limits<float>::infinity();  // frame 3 takes part in empty pairs only
+  testing::expect_error([&] { eval::score_frames(frames, warps, nullptr); },
+                        "consistency: frame 3 has an infinite value at pixel 1,0, channel 0");
+  const std::vector<uint8_t> all(size_t(kHand) * kHand, 1);
+  testing::expect_error([&] { eval::masked_rmse(hand_image(0), frames[3], all); },
+                        "masked_rmse: image b has an infinite value at pixel 1,0");
+
+  // LPIPS (AlexNet's weights, from the set-up command), both overloads, before any network runs.
+  const eval::Lpips lpips = eval::Lpips::load_default(eval::LpipsNet::Alex);
+  const int n = lpips.min_side();
+  io::Image ok{n, n, std::vector<float>(size_t(3) * n * n, 0.5f)}, bad = ok;
+  bad.at(2, 7, 4) = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<float> mask(size_t(n) * n, 1.0f);
+  testing::expect_error([&] { lpips.distance(bad, ok); }, "LPIPS: image a has a NaN value at pixel 4,7, channel 2");
+  testing::expect_error([&] { lpips.distance(ok, bad, mask); }, "LPIPS: image b has a NaN value at pixel 4,7, channel 2");
+  CHECK(lpips.distance(ok, ok, mask) == 0.0);  // the same images are still scored
+}
+
 TEST_CASE("masks: background, image borders and occlusion") {
   const Frame t = analytic_frame(orbit_camera(7)), s = analytic_frame(orbit_camera(0));
   const Correspondence c = eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, object_options());
@@ -272,16 +419,30 @@ TEST_CASE("masks: background, image borders and occlusion") {
   CHECK(eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, loose).stats.valid >= c.stats.valid);
 }
 
-TEST_CASE("depth 0, infinite and NaN depths, and the NDC far end, are never warped") {
+TEST_CASE("depth 0, infinite depths and the NDC far end are never warped; a NaN depth or opacity is an error") {
   Frame t = analytic_frame(orbit_camera(1));
   const Frame s = analytic_frame(orbit_camera(0));
   eval::WarpOptions opt;  // no background masking: only the depth decides
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
   std::fill(t.geo.opacity.begin(), t.geo.opacity.end(), 1.0f);
-  for (size_t i = 0; i < t.geo.depth.size(); ++i) t.geo.depth[i] = i % 3 == 0 ? 0.0f : i % 3 == 1 ? inf : nan;
+  for (size_t i = 0; i < t.geo.depth.size(); ++i) t.geo.depth[i] = i % 2 == 0 ? 0.0f : inf;
   const Correspondence c = eval::correspond(t.geo, s.geo, RaySpace{false, 1.0f}, opt);
   CHECK(c.stats.valid == 0);
   CHECK(c.stats.no_depth == int64_t(kSize) * kSize);
+  // NaN is no renderer's empty ray (those are 0): a failed render, refused in either frame, naming the pixel.
+  Frame broken = analytic_frame(orbit_camera(1));
+  broken.geo.depth[size_t(5) * kSize + 9] = nan;
+  testing::expect_error([&] { eval::correspond(broken.geo, s.geo, RaySpace{false, 1.0f}, opt); },
+                        "warp: frame t has a NaN depth at pixel 9,5");
+  testing::expect_error([&] { eval::correspond(s.geo, broken.geo, RaySpace{false, 1.0f}, opt); },
+                        "warp: frame s has a NaN depth at pixel 9,5");
+  broken = analytic_frame(orbit_camera(1));
+  broken.geo.opacity[3] = nan;
+  testing::expect_error([&] { eval::correspond(broken.geo, s.geo, RaySpace{false, 1.0f}, object_options()); },
+                        "warp: frame t has a NaN opacity at pixel 3,0");
+  std::vector<FrameGeometry> path(8, s.geo);
+  path[4] = broken.geo;
+  testing::expect_error([&] { eval::path_warps(path, RaySpace{false, 1.0f}, {}); }, "NaN opacity at pixel 3,0");
 
   // NDC: depth 0 is the near plane (a real point); t >= ndc_far is at infinity.
   scene::Camera fwd;

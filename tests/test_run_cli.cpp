@@ -1,7 +1,8 @@
 // `stylerf run` end to end on a tiny generated scene: every step's output, summary.json and index.html,
 // resuming (a second run keeps every step; a changed option reruns its step and what reads it), the
-// --minutes plan (a measured frame sizes the style stage and the evaluation; a resumed run plans the same),
-// and bad input refused before any work.
+// --minutes plan (a measured frame sizes the evaluation; a resumed run plans the same), and bad input
+// refused before any work. Every stage trains a fixed number of iterations (--stage-iters): what a run
+// does never depends on how fast this machine is.
 #include <doctest/doctest.h>
 
 #include <filesystem>
@@ -97,13 +98,13 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(testing::read_json(out / "summary.json")["per_style"].size() == 3);
 }
 
-TEST_CASE("run --minutes: the style stage planned from a measured frame, the same plan on resume") {
-  const auto& in = inputs();
+TEST_CASE("run --minutes: the evaluation planned from a measured frame, the same plan on resume") {
   const fs::path out = testing::small_work_dir() / "run_minutes";
   fs::remove_all(out);
-  const std::string cmd = "run --scene '" + in.scene.string() + "' --styles '" + in.styles.string() + "' -o '" +
-                          out.string() + "' --holdout-styles 2 --minutes 2 --frames 3 --eval-views 1 " +
-                          "--table-frames 8 --max-videos 1";
+  // The planning path of --minutes (frame probe, predicted evaluation, plan in summary.json) with the
+  // stages' lengths in iterations. The budget is generous so that the plan cuts nothing whatever the
+  // measured seconds: they are recorded, but do not decide pass or fail.
+  const std::string cmd = run_args(out, 2) + " --minutes 600";
   auto r = testing::run_cli(cmd);
   INFO(r.output);
   REQUIRE(r.code == 0);
@@ -117,10 +118,13 @@ TEST_CASE("run --minutes: the style stage planned from a measured frame, the sam
   CHECK(summary["plan"]["frame_content_s"].get<double>() > 0);
   CHECK(summary["plan"]["frame_rgb_s"].get<double>() > 0);  // the density_test render timed its views
   CHECK(summary["plan"]["style_minutes"].get<double>() > 0);
+  CHECK(summary["plan"]["style_iters"] == 6);  // --stage-iters' style length, kept under the plan
+  CHECK(summary["plan"]["cuts"] == "");
+  CHECK(r.output.find("the style stage trains its 6 iterations (--stage-iters)") != std::string::npos);
   // The rays a block the probe's frames took, read off their metrics: the recipe's 3x3 on this small scene.
   CHECK(summary["plan"]["frame_rays_per_block"].get<int>() == 9);
 
-  // Resumed: the recorded seconds give the same plan, so the style stage keeps its key and nothing runs.
+  // Resumed: the recorded seconds give the same plan, so every step keeps its key and nothing runs.
   r = testing::run_cli(cmd);
   INFO(r.output);
   REQUIRE(r.code == 0);
@@ -144,7 +148,7 @@ TEST_CASE("run: bad input is refused before any work, naming the problem") {
   expect(ok + " --stage-minutes 1,2", "--stage-minutes");
   expect(ok + " --stage-iters 10,20,2.5", "whole numbers");
   expect(ok + " --stage-iters 10,20,5 --stage-minutes 1,1,1", "exclude each other");
-  expect(ok + " --minutes 0", "--minutes");
+  expect(ok + " --minutes 0", "--minutes");  // refused before any timing: no clock involved
   expect(ok + " --holdout-styles 8", "held out leaves none");
   expect(ok + " --stylize /no/such.png", "/no/such.png");
 }

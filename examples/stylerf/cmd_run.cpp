@@ -13,7 +13,9 @@
 // run resumes (examples/stylerf/pipeline_steps.hpp).
 // Under --minutes the run keeps to its budget at any image size: after the features it times one frame of
 // this scene (OUT/probe), predicts the evaluation (lib/eval/eval_budget.hpp), gives the style stage what is
-// left and, when the evaluation would not fit its share, renders fewer video frames or styles.
+// left and, when the evaluation would not fit its share, renders fewer video frames or styles. With
+// --stage-iters the stages train their iterations instead; given --minutes too, the evaluation is still
+// fitted to it the same way (the plan's style minutes then only size the evaluation's share).
 #include <boost/program_options.hpp>
 #include <algorithm>
 #include <cmath>
@@ -73,13 +75,11 @@ std::vector<double> three_numbers(const std::string& text, const char* flag) {
 Budget split_budget(double minutes, const std::string& stage_minutes, const std::string& stage_iters) {
   Budget b;
   if (!stage_minutes.empty() && !stage_iters.empty()) throw Error("--stage-minutes and --stage-iters exclude each other");
-  if (!stage_iters.empty()) {
+  if (!stage_iters.empty())
     for (double v : three_numbers(stage_iters, "--stage-iters")) {
       if (v != std::floor(v) || v > 1e7) throw Error("--stage-iters takes whole numbers of iterations, got '" + stage_iters + "'");
       b.iters.push_back(int(v));
     }
-    return b;
-  }
   if (!stage_minutes.empty()) {
     const auto v = three_numbers(stage_minutes, "--stage-minutes");
     b.density = v[0], b.features = v[1], b.style = v[2];
@@ -89,7 +89,7 @@ Budget split_budget(double minutes, const std::string& stage_minutes, const std:
   const double train = minutes * 0.9;  // the last tenth: evaluation, videos and the report
   b.density = train * 10.0 / 85.0;
   b.features = train * 30.0 / 85.0;
-  b.style = train * 45.0 / 85.0;
+  b.style = train * 45.0 / 85.0;  // with --stage-iters: the style share the evaluation's plan assumes
   return b;
 }
 
@@ -98,6 +98,7 @@ struct RunOptions {
   std::vector<std::string> stylize;
   int downsample = 0, holdout = 12, frames = 60, eval_views = 5, table_frames = 16, max_videos = 3;
   double minutes = 90;
+  bool minutes_given = false;  // --minutes on the command line (with --stage-iters: fit the evaluation to it)
   bool check = false;
 };
 
@@ -121,7 +122,8 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
       "minutes", po::value(&o.minutes)->default_value(90), "the whole run's time budget")(
       "stage-minutes", po::value(&o.stage_minutes), "D,F,S: each training stage's minutes (replaces --minutes' split)")(
       "stage-iters", po::value(&o.stage_iters),
-      "D,F,S: each training stage's iterations instead of minutes (the same result on any machine)")(
+      "D,F,S: each training stage's iterations instead of minutes (the same result on any machine; with "
+      "--minutes, the evaluation is still fitted to it)")(
       "recipe", po::value(&o.recipe)->default_value("fast"),
       "fast: the best measured recipe (fast feature profile; docs/results.md) | paper: the paper's settings")(
       "downsample", po::value(&o.downsample)->default_value(0), "image downsample (0: the scene's default, the paper's resolution: Blender 1, LLFF 4)")(
@@ -138,6 +140,7 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
+  o.minutes_given = !vm["minutes"].defaulted();
   if (vm.count("help") || o.scene.empty() || o.styles.empty() || o.out.empty()) {
     std::cout << desc;
     rc = vm.count("help") ? 0 : 2;
@@ -278,8 +281,9 @@ struct EvalPlan {
   std::string cuts;             // what fit_eval cut ("" when nothing)
 };
 
+// style_iters > 0: the style stage trains that many iterations (--stage-iters) whatever its planned minutes.
 EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wanted, double minutes, double spent_s,
-                         double nominal_style_min, double style_fixed_s) {
+                         double nominal_style_min, double style_fixed_s, int style_iters) {
   const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
   EvalPlan plan;
   const double share = eval::eval_share_seconds(left, nominal_style);
@@ -292,10 +296,14 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   std::cout << "stylerf run: a frame here costs " << std::fixed << std::setprecision(2) << c.content
             << " s of content + " << c.style2d << " s a style (an RGB view " << c.rgb << " s; other 2D work "
             << eval::aux_unit(c) << " s a unit); evaluation predicted " << std::setprecision(1)
-            << eval_s / 60.0 << " min, so the style stage gets " << plan.style_minutes << " min of training";
+            << eval_s / 60.0 << " min, ";
+  if (style_iters > 0)
+    std::cout << "the style stage trains its " << style_iters << " iterations (--stage-iters)";
+  else
+    std::cout << "so the style stage gets " << plan.style_minutes << " min of training";
   if (!plan.cuts.empty()) std::cout << " (to fit: " << plan.cuts << ")";
   std::cout << std::endl;
-  if (style_train_s < 0.25 * nominal_style)
+  if (style_iters == 0 && style_train_s < 0.25 * nominal_style)
     std::cout << "stylerf run: warning: --minutes " << minutes << " is too short for this scene here; the run will "
               << "end about " << std::setprecision(0) << (0.25 * nominal_style - style_train_s) * (1 + kHeldOutShare) / 60.0
               << " min late" << std::endl;
@@ -322,7 +330,8 @@ int run_pipeline(int argc, char** argv) {
               << std::endl;
   else
     std::cout << "stylerf run: recipe " << o.recipe << "; training iterations: density " << budget.iters[0]
-              << ", features " << budget.iters[1] << ", style " << budget.iters[2] << std::endl;
+              << ", features " << budget.iters[1] << ", style " << budget.iters[2]
+              << (o.minutes_given ? "; the evaluation fitted to --minutes from a measured frame" : "") << std::endl;
   // Each stage trains for its minutes or its iterations.
   auto length = [&](int stage, double minutes) {
     return budget.iters.empty() ? std::vector<std::string>{"--minutes", num(minutes)}
@@ -360,7 +369,9 @@ int run_pipeline(int argc, char** argv) {
   // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).
   if (model::map_decoder_for(recipe_cfg.style_decoder).renormalises_relu4())
     counts.scene_stats_views = model::SceneStyleStats::kDefaultViews;
-  const bool by_minutes = budget.iters.empty() && o.stage_minutes.empty();
+  // The evaluation is planned under --minutes alone, and under --stage-iters given --minutes as well.
+  const bool by_minutes = o.stage_minutes.empty() && (budget.iters.empty() || o.minutes_given);
+  const int style_iters = budget.iters.empty() ? 0 : budget.iters[2];
   double style_minutes = budget.style;
   eval::FrameCost cost;
   nlohmann::json plan_json;  // for summary.json
@@ -368,7 +379,7 @@ int run_pipeline(int argc, char** argv) {
     double style_fixed_s = 0;
     cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent, style_fixed_s);
     cost.rgb = render_seconds_per_view((out / "density_test/metrics.json").string());
-    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style, style_fixed_s);
+    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style, style_fixed_s, style_iters);
     style_minutes = plan.style_minutes;
     plan_json = {{"frame_content_s", cost.content},
                  {"frame_style_s", cost.style2d},
@@ -379,6 +390,7 @@ int run_pipeline(int argc, char** argv) {
                  {"predicted_eval_s", plan.predicted_eval_s},
                  {"style_minutes", style_minutes},
                  {"cuts", plan.cuts}};
+    if (style_iters > 0) plan_json["style_iters"] = style_iters;
     counts = plan.counts;
   }
   std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",

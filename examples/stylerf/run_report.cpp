@@ -114,7 +114,11 @@ std::string page(const RunReportInput& in, const json& sum, const json& videos, 
       << " s of content and " << fmt(number(in.plan, "frame_style_s"), 2) << " s a style here (probe_*), an RGB "
       << "view of the density stage " << fmt(number(in.plan, "frame_rgb_s"), 2) << " s (density_test); the "
       << "evaluation was predicted at " << fmt(number(in.plan, "predicted_eval_s") / 60.0, 1)
-      << " min, the style stage given " << fmt(number(in.plan, "style_minutes"), 1) << " min.";
+      << " min, the style stage ";
+    if (in.plan.contains("style_iters"))
+      h << "trained its " << in.plan["style_iters"].get<int>() << " iterations (--stage-iters).";
+    else
+      h << "given " << fmt(number(in.plan, "style_minutes"), 1) << " min.";
     for (const char* k : {"cuts", "late_cuts"})
       if (!in.plan.value(k, std::string()).empty())
         h << " To fit the budget: " << html_escape(in.plan.value(k, std::string())) << ".";

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "host/error.hpp"
+#include "lib/eval/finite_image.hpp"
 
 namespace stylerf::eval {
 
@@ -104,6 +105,9 @@ ConsistencyScore score_frames(const std::vector<io::Image>& frames, const PathWa
       throw Error("consistency: frame " + std::to_string(i) + " is " + std::to_string(frames[i].width) + "x" +
                   std::to_string(frames[i].height) + ", the geometry's frames " + std::to_string(c.width) + "x" +
                   std::to_string(c.height));
+  for (size_t i = 0; i < frames.size(); ++i)
+    if (const std::string bad = non_finite_at(frames[i]); !bad.empty())
+      throw Error("consistency: frame " + std::to_string(i) + " has " + bad + " (a failed render cannot be scored)");
   ConsistencyScore s;
   s.short_range = score_range(frames, warps.short_range, lpips);
   s.long_range = score_range(frames, warps.long_range, lpips);

@@ -7,7 +7,10 @@
 //    warped image filled from frame t (no difference where nothing is compared), and each LPIPS layer's
 //    distance map averaged with the validity mask area-pooled to that layer (lib/eval/lpips.hpp), so only
 //    valid pixels count; with every pixel valid it is plain LPIPS.
-// A range's score is the mean over its pairs (pairs without a valid pixel are left out and counted).
+// A range's score is the mean over its pairs of each pair's score (not pooled over the pairs' pixels: every
+// pair weighs the same, however many pixels it has); pairs without a valid pixel are left out of the mean
+// and counted (RangeScore::skipped), with NaN scores of their own. The range's valid fraction is the mean
+// over all its pairs, the empty ones included.
 // The warps depend only on the geometry: computed once per path, they score every method's frames.
 #pragma once
 #include <functional>
@@ -57,6 +60,7 @@ struct ConsistencyScore {
 };
 
 // frames: the method's images of the path, one per warp frame, same sizes. lpips may be null (RMSE only).
+// A NaN or infinite pixel in any frame is an Error naming the frame and pixel, never a NaN score.
 ConsistencyScore score_frames(const std::vector<io::Image>& frames, const PathWarps& warps,
                               const MaskedDistance* lpips);
 

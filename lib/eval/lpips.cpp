@@ -5,6 +5,7 @@
 #include <string>
 
 #include "host/error.hpp"
+#include "lib/eval/finite_image.hpp"
 #include "lib/eval/lpips_map.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/nn/weights.hpp"
@@ -54,6 +55,9 @@ void check_images(LpipsNet net, const io::Image& a, const io::Image& b) {
   const size_t n = size_t(3) * a.width * a.height;
   if (a.data.size() != n || b.data.size() != n)
     throw Error("LPIPS: image data does not match its size " + size_str(a) + " (expected 3 planes)");
+  for (const io::Image* im : {&a, &b})
+    if (const std::string bad = non_finite_at(*im); !bad.empty())
+      throw Error(std::string("LPIPS: image ") + (im == &a ? "a" : "b") + " has " + bad);
 }
 
 // The mask at the next tap: 2x2 block means, floored like the pooling.

@@ -89,7 +89,8 @@ class Lpips {
   LpipsNet net() const { return net_; }
   int min_side() const { return lpips_min_side(net_); }
 
-  // Images RGB in [0,1], the same size, each side >= min_side(); otherwise an Error naming the sizes.
+  // Images RGB in [0,1], the same size, each side >= min_side(); otherwise an Error naming the sizes. A NaN
+  // or infinite pixel is an Error naming the image and the pixel (never a NaN distance).
   double distance(const io::Image& a, const io::Image& b) const;
   // Masked LPIPS (above); mask [H*W] (row-major), weights in [0,1].
   double distance(const io::Image& a, const io::Image& b, const std::vector<float>& mask) const;

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "host/error.hpp"
+#include "lib/eval/finite_image.hpp"
 
 namespace stylerf::eval {
 
@@ -47,6 +49,13 @@ void check_frame(const FrameGeometry& f, const char* which) {
     throw Error(std::string("warp: frame ") + which + " needs depth and opacity of " + std::to_string(n) +
                 " pixels (" + std::to_string(f.camera.width) + "x" + std::to_string(f.camera.height) + "), got " +
                 std::to_string(f.depth.size()) + " and " + std::to_string(f.opacity.size()));
+  // A renderer reports empty rays as depth 0 and opacity 0; NaN is a numerical failure upstream, and
+  // leaving such pixels out would score a broken render on whatever is left.
+  for (size_t i = 0; i < n; ++i)
+    if (std::isnan(f.depth[i]) || std::isnan(f.opacity[i]))
+      throw Error(std::string("warp: frame ") + which + " has a NaN " + (std::isnan(f.depth[i]) ? "depth" : "opacity") +
+                  " at pixel " + std::to_string(i % size_t(f.camera.width)) + "," +
+                  std::to_string(i / size_t(f.camera.width)) + " (a failed render, not empty space)");
 }
 
 }  // namespace
@@ -181,6 +190,9 @@ double masked_rmse(const io::Image& a, const io::Image& b, const std::vector<uin
     throw Error("masked_rmse: images of " + std::to_string(a.width) + "x" + std::to_string(a.height) + " and " +
                 std::to_string(b.width) + "x" + std::to_string(b.height) + " with a mask of " +
                 std::to_string(valid.size()) + " pixels");
+  for (const io::Image* im : {&a, &b})
+    if (const std::string bad = non_finite_at(*im); !bad.empty())
+      throw Error(std::string("masked_rmse: image ") + (im == &a ? "a" : "b") + " has " + bad);
   double sum = 0;
   int64_t n = 0;
   const size_t plane = size_t(a.width) * a.height;

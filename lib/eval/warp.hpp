@@ -5,7 +5,7 @@
 // Validity of a pixel p of frame t (each reason is counted in WarpStats):
 //  - background: on scenes with a background colour, p's opacity is below min_opacity (empty space has
 //    no depth), or the opacity of frame s at any of the 2x2 pixels the bilinear sample reads is;
-//  - no depth: the depth is not finite, or 0 (world space: a point at the camera centre, which is what a
+//  - no depth: the depth is infinite, or 0 (world space: a point at the camera centre, which is what a
 //    renderer reports for an empty ray), or at the NDC far end (t >= ndc_far: a point at infinity, where
 //    depth no longer pins down a 3D point);
 //  - off image: X lies behind camera s, or lands outside the pixel centres of frame s (bilinear sampling
@@ -13,6 +13,9 @@
 //  - occluded: at one of those 2x2 pixels, the distance from camera s to frame s's own rendered surface
 //    differs from the distance to X by more than depth_tolerance x the latter (X is hidden there, or
 //    the sample would straddle a depth edge and mix two surfaces).
+//
+// A NaN depth or opacity is not a reason to leave a pixel out but an Error naming the pixel: renderers
+// report empty rays as 0, so NaN means the render failed.
 //
 // Depths are in the scene's ray space (scene.hpp): the distance along unit rays, or the NDC parameter in
 // [0, 1] for NDC scenes, which world_point maps back to the world (the inverse of rays.hpp's to_ndc).
@@ -76,7 +79,8 @@ Correspondence correspond(const FrameGeometry& t, const FrameGeometry& s, const 
 // is compared).
 io::Image warp_image(const io::Image& s, const Correspondence& c, const io::Image& fill);
 
-// sqrt(mean over valid pixels and the 3 channels of (a - b)^2); NaN when no pixel is valid.
+// sqrt(mean over valid pixels and the 3 channels of (a - b)^2); NaN when no pixel is valid. A NaN or
+// infinite value in either image is an Error naming its pixel (a failed render must not score).
 double masked_rmse(const io::Image& a, const io::Image& b, const std::vector<uint8_t>& valid);
 
 // The validity mask as weights [H*W] (1 / 0), for masked LPIPS.
