@@ -109,7 +109,8 @@ void report_skipped(const std::string& why) {
   // Standard output, where CTest looks for the marker; the doctest message keeps it in the case's report.
   std::printf("%s %s\n", kSkippedMarker, why.c_str());
   std::fflush(stdout);
-  MESSAGE(kSkippedMarker << " " << why);
+  const std::string line = std::string(kSkippedMarker) + " " + why;
+  MESSAGE(line);
 }
 
 std::string error_of(const std::function<void()>& f) {
