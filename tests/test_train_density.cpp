@@ -102,7 +102,7 @@ struct Trained {
 Trained& trained() {
   static Trained t = [] {
     Trained r;
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = std::chrono::steady_clock::now();  // printed below, never checked
     r.trainer = std::make_unique<train::DensityTrainer>(small_scene(), small_config(150));
     while (!r.trainer->done()) r.stats.push_back(r.trainer->step());
     double a = 0, b = 0;
