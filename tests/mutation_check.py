@@ -159,6 +159,9 @@ def main():
         return 2
     print(f"built in {time.time() - t0:.0f} s", flush=True)
 
+    # A reused build may hold a mutant from an interrupted run: stamp every mutated file so it is rebuilt.
+    for m in MUTATIONS:
+        os.utime(os.path.join(src, m["file"]))
     chosen = [m for m in MUTATIONS if not args.only or m["name"] in args.only]
     results, bad = [], 0
     for m in chosen:
@@ -195,6 +198,9 @@ def main():
                   f"({time.time() - t0:.0f} s)", flush=True)
         finally:
             shutil.move(path + ".orig", path)
+            # The restored text is older than the objects just built from the mutant: stamp it new, or make
+            # would keep the mutant in the build for every later mutation.
+            os.utime(path)
 
     print("\n| mutation | file | caught by | first failing assertion |\n|---|---|---|---|")
     for m, failed, errors in results:
