@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Issue-11 floors in one run: PyTorch-CPU (../shared/anchors/torch_step.py) against
+# The decoder step against PyTorch in one run: PyTorch-CPU (../shared/anchors/torch_step.py) against
 # `stylerf bench decoder-step`, paper and fast decoders at SIZE (default 256), alternating the two
 # engines so that both see the same machine state; prints each median and the ratio ours / PyTorch.
 #   usage: bench/decoder_step_vs_torch.sh PYTHON_WITH_TORCH [SIZE] [STEPS]
 # PyTorch is never a dependency of the project: make a throw-away environment for it, e.g.
-#   python3 -m venv /tmp/torchenv && /tmp/torchenv/bin/pip install torch
+#   python3 -m venv TORCH_ENV && TORCH_ENV/bin/pip install torch
 set -euo pipefail
 py=${1:?usage: $0 PYTHON_WITH_TORCH [SIZE] [STEPS]}
 size=${2:-256}

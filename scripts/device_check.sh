@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# The device check of issue 42: the test suite, the benches and a short lego density run on one OpenCL
+# The device check: the test suite, the benches and a short lego density run on one OpenCL
 # device, in at most 8 minutes, into ONE JSON ($OUT/device_check.json) and one log ($OUT/device_check.log),
 # with a table at the end and a projection of the paper's schedule (density 30k, features 25k, style 25k
 # steps) from the measured step times.
 #
 #   bash scripts/device_check.sh --bundle .devcarry --device gpu --out $OUT     # on a GPU machine
-#   bash scripts/device_check.sh --build build --device cpu --out /tmp/dc       # here (implies --quick)
+#   bash scripts/device_check.sh --build build --device cpu --out $OUT         # on a CPU (implies --quick)
 #
 # Options:
-#   --bundle DIR   what scripts/device_bundle.sh made: unpacked into /tmp, its libraries on LD_LIBRARY_PATH,
-#                  the paths the tests were built at recreated by symlinks, NVIDIA's OpenCL library
+#   --bundle DIR   what scripts/device_bundle.sh made: unpacked into a temporary folder, its libraries on
+#                  LD_LIBRARY_PATH, the paths the tests were built at recreated by symlinks, NVIDIA's OpenCL library
 #                  registered as an ICD when one is found
 #   --build DIR    a local build (the CPU case); the scene from ../shared/data/scenes/blender/lego
 #   --device D     gpu (default) | cpu: passed to every command (and STYLERF_DEVICE for the tests)

@@ -16,8 +16,8 @@ namespace stylerf::testing {
 
 namespace fs = std::filesystem;
 
-// Removed when the test process exits (each run wrote a few hundred MB of scenes and checkpoints that
-// piled up in /tmp); STYLERF_KEEP_TEST_DIRS=1 keeps it for a look after a failure.
+// Removed when the test process exits (each run writes a few hundred MB of scenes and checkpoints that
+// would pile up in the temporary folder); STYLERF_KEEP_TEST_DIRS=1 keeps it for a look after a failure.
 struct WorkDir {
   fs::path path;
   ~WorkDir() {

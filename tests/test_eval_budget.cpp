@@ -31,7 +31,7 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
     CHECK(eval_seconds({2.0, 0.5, 4}, st) == doctest::Approx(6 + 25 + 14.5 + 52 + 32 + 27.75));
   }
   {
-    // The table's LPIPS pairs (8 of the floor's, and 2 x 8 for the one style) at u = 0.5: 12 x the pair's
+    // The table's LPIPS pairs (8 of the RGB floor's, and 2 x 8 for the one style) at u = 0.5: 12 x the pair's
     // units; AlexNet's pair (the default trunk) is the cheaper.
     EvalCounts alex = n;
     alex.lpips_pair = lpips_pair_units(LpipsNet::Alex);
@@ -74,7 +74,7 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   CHECK(b.video_frames == 24);
   CHECK(describe_cuts(wanted, b) == "video frames 60 -> 24, styles shown 3 -> 1");
 
-  const EvalCounts d = fit_eval(c, wanted, 1.0);  // nothing fits: the floor of every cut, never below
+  const EvalCounts d = fit_eval(c, wanted, 1.0);  // nothing fits: the least of every cut, never below
   CHECK(d.shown == 1);
   CHECK(d.video_frames == 8);
   CHECK(d.table_frames == wanted.table_frames);
@@ -145,12 +145,12 @@ TEST_CASE("eval budget: the unit of other 2D work shrinks below 1008x756 only") 
   CHECK(eval_seconds(quarter, n) < eval_seconds(full, n));
 }
 
-TEST_CASE("eval budget: the style stage keeps a floor, and the evaluation what it needs beyond it") {
+TEST_CASE("eval budget: the style stage keeps a minimum, and the evaluation what it needs beyond it") {
   const double nominal = 42.9 * 60;  // a 90-minute run's nominal style minutes
   // A 90-minute run at 504x378 has ~47 minutes left after the features: the style stage keeps 35% of them
-  // (above the 15-minute floor), so the evaluation may take 65%.
+  // (above the 15-minute minimum), so the evaluation may take 65%.
   CHECK(eval_share_seconds(2820, nominal) == doctest::Approx(0.65 * 2820));
-  // ~30 minutes left: the floor itself.
+  // ~30 minutes left: the minimum itself.
   CHECK(eval_share_seconds(1800, nominal) == doctest::Approx(1800 - kStyleSecondsEnough));
   // A short run: the style stage keeps 65% (its loss still falls steeply), the evaluation 35%.
   CHECK(eval_share_seconds(900, nominal) == doctest::Approx(0.35 * 900));
@@ -161,7 +161,7 @@ TEST_CASE("eval budget: the style stage keeps a floor, and the evaluation what i
 
   // Horns 1/8's 90-minute run of 2026-11-29 (recorded, not timed here): its probe measured content 4.55 s,
   // 1.74 s a style, an RGB view 10.96 s; ~2820 s were left. With 35% of them for the evaluation
-  // (the rule before) the videos were cut to 8 frames of one style; with the floor, 3 styles of 40-odd.
+  // (the rule before) the videos were cut to 8 frames of one style; with the minimum, 3 styles of 40-odd.
   const FrameCost horns{4.55, 1.74, 9, 10.96, 504.0 * 378.0};
   EvalCounts wanted;
   wanted.eval_views = 5, wanted.scene_stats_views = 6;

@@ -1,4 +1,4 @@
-// Issue 13's reproductions, each a test that would have caught its defect:
+// Hardening tests, each the reproduction of a defect it would have caught:
 //  - SHA-256 against the FIPS 180-4 vectors; weights refused when their sum differs from manifest.json or
 //    a value is not finite (naming the file and tensor);
 //  - atomic writes: the temporary file is removed when SIGTERM arrives mid-write, stale ones of dead

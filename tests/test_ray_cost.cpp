@@ -1,4 +1,4 @@
-// The ray-cost cuts of issue 12, each against a plain reference:
+// The ray-cost cuts, each against a plain reference:
 // - early ray termination (render::march with a DensityMarch, kernels/march_density.cl): each ray's samples
 //   are the prefix of the plain march up to and including the first sample whose optical depth, summed in
 //   double on the host from density_forward at the plain samples, exceeds -log(threshold); sigma equals

@@ -138,9 +138,9 @@ TEST_CASE("a ray's content does not depend on the other rays of its call: row-ma
     for (int y = 0; y < h; ++y) cols.push_back(int64_t(y) * w + x);
   const std::vector<float> want = render(rows, R);
   REQUIRE(*std::max_element(want.end() - R, want.end()) > 0.5f);  // some rays hit the object
-  // The same work in another order: equal to rounding. Bit for bit held until 2026-11-28, when a fresh
-  // machine (PoCL 3.1 on an AMD EPYC) differed in the last bits with this session's kernels and the older
-  // ones alike (cause not found: a GEMM's or the vectoriser's tail path); a leak between rays is far larger.
+  // The same work in another order: equal to rounding. Not bit for bit: on PoCL 3.1 on an AMD EPYC the
+  // two orders differ in the last bits, with the current kernels and older ones alike (cause not found: a
+  // GEMM's or the vectoriser's tail path); a leak between rays is far larger.
   testing::check_close(render(cols, R), testing::to_double(want), 1e-6, 1e-7, "column-major, the same call");
   // Other chunk sizes may take other GEMM paths (another summation order): rounding only.
   testing::check_close(render(cols, 7), testing::to_double(want), 1e-5, 1e-5, "column-major, 7 rays a call");

@@ -53,7 +53,7 @@ std::string num(double v) {
 }
 
 // How a run's minutes are spent. The training stages share what evaluation leaves, in the proportions of
-// the runs that met the stages' floors on lego and fern (10 + 30 + 45 minutes: density, features, style).
+// the runs with the best measured results on lego and fern (10 + 30 + 45 minutes: density, features, style).
 // 10 : 20 : 55 measured neutral on fern 1/8's style loss and cost 0.5 dB of its decoded views
 // (docs/experiments.md).
 struct Budget {

@@ -61,8 +61,8 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
 
 double eval_share_seconds(double left_s, double nominal_style_s) {
   if (!(left_s > 0)) return 0;
-  const double style_floor = std::clamp(kStyleSecondsEnough, 0.35 * left_s, 0.65 * left_s);
-  return std::max(left_s - nominal_style_s, left_s - style_floor);
+  const double style_minimum = std::clamp(kStyleSecondsEnough, 0.35 * left_s, 0.65 * left_s);
+  return std::max(left_s - nominal_style_s, left_s - style_minimum);
 }
 
 std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got) {

@@ -22,9 +22,9 @@ struct FrameCost {
   // The rays per block `content` was measured at (n x n). The scene statistics render their views at the
   // same rays, so each costs a `content` (before 2026-11-30 at one ray a block: EvalCounts::stats_one_ray).
   int rays_per_block = 1;
-  // One RGB view of the density stage at the frame's size (the consistency table's floor, whose render
-  // also gives every method's warps); 0: not measured, counted as a style2d. Fern at 1008x756: ~30 s, 14x
-  // its style2d, so counting it as one left 8 minutes of the table out of the plan.
+  // One RGB view of the density stage at the frame's size (the consistency table's RGB floor, whose
+  // render also gives every method's warps); 0: not measured, counted as a style2d. Fern at 1008x756:
+  // ~30 s, 14x its style2d, so counting it as one left 8 minutes of the table out of the plan.
   double rgb = 0;
   // The frame's pixels (width x height); 0: unknown, the 2D work beyond the frame counted at full style2d.
   double pixels = 0;
@@ -77,11 +77,11 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
 
 // The most of `left_s` (the run's seconds left when the style stage is planned) the evaluation may take;
 // the style stage gets the rest. The style stage keeps `nominal_style_s` (the --minutes split's share)
-// where that leaves the evaluation more, and otherwise a floor: kStyleSecondsEnough, held between 35% and
-// 65% of what is left. Why a floor and not a share: the held-out style loss gains at most ~3% after ~300 steps
-// (checked every 100 steps in three 90-minute runs at 504x378: fern 15.24 at step 300 -> 14.73 at 719 and
-// 14.81 -> 14.40 at 676, horns 17.00 at 300 -> 16.81 at 608), while the evaluation's cuts take what a user
-// sees: with 35% of what was left, horns 1/8's videos were cut to 8 frames of one style.
+// where that leaves the evaluation more, and otherwise a minimum: kStyleSecondsEnough, held between 35%
+// and 65% of what is left. Why a minimum and not a share: the held-out style loss gains at most ~3% after
+// ~300 steps (checked every 100 steps in three 90-minute runs at 504x378: fern 15.24 at step 300 -> 14.73
+// at 719 and 14.81 -> 14.40 at 676, horns 17.00 at 300 -> 16.81 at 608), while the evaluation's cuts take
+// what a user sees: with 35% of what was left, horns 1/8's videos were cut to 8 frames of one style.
 double eval_share_seconds(double left_s, double nominal_style_s);
 // `stylerf run` plans with its predictions x this: the probe's two timed frames are noisy (see above).
 constexpr double kEvalMargin = 1.15;

@@ -37,7 +37,7 @@ StyleTrainConfig style_recipe(Recipe r) {
   c.warm_start = 1600;
   // ...or 65% of a --minutes budget if that comes first. Fern 1/8, 26 minutes on the fern90 features: all
   // 1430 steps 2D (the count never ended) 1.517x 2D AdaIN's style loss; 860 2D steps (71% of the minutes)
-  // then 204 rendered 1.372x, held-out patch style loss 17.6 -> 15.2. The runs that met fern's floor spent
+  // then 204 rendered 1.372x, held-out patch style loss 17.6 -> 15.2. Fern's best 45-minute runs spent
   // ~65% of 45 minutes on the warm start (1600 2D then ~340 rendered); lego's 30 minutes ~67%.
   c.warm_share = 0.65f;
   c.warm_maps = WarmMaps::Rendered;

@@ -1,4 +1,4 @@
-// The style stage's yardstick (issue floors): for held-out styles and test views, the content and style
+// The style stage's yardstick: for held-out styles and test views, the content and style
 // losses (lib/train/style_losses.hpp, the training weights) of our stylised renders and, measured by the
 // same VGG with the same mask, of 2D AdaIN applied to the ground-truth views (the per-frame baseline).
 // On scenes with a background both are masked by the rendered opacity. Images are cut to multiples of 8

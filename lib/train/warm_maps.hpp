@@ -1,6 +1,6 @@
 // The style stage's 2D warm start reads a 256-channel map per training view at relu3_1's resolution (one
 // pixel per 4x4 block, the fast profile's rays). Two sources:
-//  - vgg: stage 2's cached relu3_1 targets, VGG of the photographs (the warm start; free when the
+//  - vgg: stage 2's cached relu3_1 targets, VGG of the photographs (the trainer's default; free when the
 //    feature stage left its cache);
 //  - rendered: stage 2's feature field rendered at the block centres of every training view, i.e. what the
 //    rendered steps and inference feed the stylizer. The field's maps are blurrier and of lower contrast
