@@ -324,6 +324,7 @@ def page(root):
     style = load(root, "docs/results/style.json")["records"]
     cons = load(root, "docs/results/consistency.json")["records"]
     gpu = load(root, "docs/results/gpu.json")["records"]
+    knobs = load(root, "docs/results/knobs.json")["records"]
     machines = load(root, "docs/results/runs.json")["machines"]
     style_all = style_candidates(style, runs)
     h100 = load(root, "docs/device/h100_device_check.json")
@@ -374,7 +375,7 @@ def page(root):
 
     L += density_section(density) + feature_section(features) + style_section(style_all)
     L += consistency_section(cons) + resolution_section(runs) + demo_section(demo)
-    L += gpu_section(gpu, h100, h200, root) + machines_section(machines)
+    L += knobs_section(knobs) + gpu_section(gpu, h100, h200, root) + machines_section(machines)
     return "\n".join(L) + "\n", svgs
 
 
@@ -526,6 +527,18 @@ def gpu_section(gpu, h100, h200, root):
     L += table(["device", "commit", "date", "weights", "tests", "lego 800x800 density, 2 min",
                 "the paper's schedule projected (density + features + style)", "data"], drows)
     return L + [""]
+
+
+KNOB_FAMILIES = ["import", "density", "features", "stylize", "evaluate", "compute"]
+
+
+def knobs_section(knobs):
+    L = ["## Other knobs, and choices that are always on", "",
+         "What each buys and what it costs, one measurement each (the text as recorded with its run).", ""]
+    esc = lambda t: t.replace("|", "\\|") if t else "—"
+    rows = [[r["family"], esc(r["knob"]), esc(r["buys"]), esc(r["costs"]), cmd_cell(r["command"]), commit_cell(r)]
+            for r in sorted(knobs, key=lambda r: KNOB_FAMILIES.index(r["family"]))]
+    return L + table(["for", "knob", "buys", "costs", "command", "commit"], rows) + [""]
 
 
 def machines_section(machines):

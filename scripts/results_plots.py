@@ -168,6 +168,7 @@ def _plot_area(p, x0, y0, w, h):
             out.append("<line x1=\"%s\" y1=\"%s\" x2=\"%s\" y2=\"%s\" stroke=\"#888\" stroke-dasharray=\"5,4\"/>"
                        % (_f(x0), _f(Y(yv)), _f(x0 + w), _f(Y(yv))))
             out.append(_text(x0 + w - 4, Y(yv) - 4, label, 10, "end", fill="#666"))
+    labels, placed = [], []
     for s in p["series"]:
         pts = s["points"]
         if s.get("line") and len(pts) > 1:
@@ -176,9 +177,24 @@ def _plot_area(p, x0, y0, w, h):
                 " ".join("%s,%s" % (_f(X(q["x"])), _f(Y(q["y"]))) for q in path), s["colour"]))
         for q in pts:
             out.append(_marker(s["marker"], X(q["x"]), Y(q["y"]), s["colour"], q.get("hollow", False)))
+            placed.append((X(q["x"]) - 5, Y(q["y"]) - 5, X(q["x"]) + 5, Y(q["y"]) + 5))
             if q.get("label"):
-                out.append(_text(X(q["x"]) + 7, Y(q["y"]) - 6, q["label"], 10, fill="#333"))
+                labels.append((X(q["x"]), Y(q["y"]), q["label"]))
+    for x, y, label in labels:  # after every marker, clear of the markers and of each other
+        out.append(_place_label(placed, x, y, label))
     return out
+
+
+def _place_label(placed, x, y, label, size=10):
+    """A point's label above-right of it, or the first other corner where it overlaps no label placed yet."""
+    w, h = len(label) * size * CHAR_W, size
+    for dx, dy, anchor in ((7, -6, "start"), (7, 14, "start"), (-7, -6, "end"), (-7, 14, "end")):
+        x0 = x + dx if anchor == "start" else x + dx - w
+        box = (x0, y + dy - h, x0 + w, y + dy)
+        if not any(box[0] < b[2] and b[0] < box[2] and box[1] < b[3] and b[1] < box[3] for b in placed):
+            break
+    placed.append(box)
+    return _text(x + dx, y + dy, label, size, anchor, fill="#333")
 
 
 def _style_series(series):
