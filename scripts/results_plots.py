@@ -201,7 +201,7 @@ def _style_series(series):
     """Gives each series a colour and a marker, in order, unless it names its own."""
     for i, s in enumerate(series):
         s.setdefault("colour", COLOURS[i % len(COLOURS)])
-        s.setdefault("marker", MARKERS[i % len(MARKERS)])
+        s.setdefault("marker", MARKERS[(i + i // len(MARKERS)) % len(MARKERS)])
     return series
 
 
