@@ -310,19 +310,13 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   return plan;
 }
 
-int run_pipeline(int argc, char** argv) {
-  RunOptions o;
-  int rc = 0;
-  if (!parse_run_options(argc, argv, o, rc)) return rc;
-  const Budget budget = split_budget(o.minutes, o.stage_minutes, o.stage_iters);
-  const Shown picked = shown_styles(o);
-  const std::vector<std::string>& shown = picked.styles;
-  const std::vector<std::string>& corners = picked.corners;
+// Each training stage trains for its minutes or, under --stage-iters, its iterations.
+std::vector<std::string> stage_length(const Budget& budget, int stage, double minutes) {
+  return budget.iters.empty() ? std::vector<std::string>{"--minutes", num(minutes)}
+                              : std::vector<std::string>{"--iters", std::to_string(budget.iters[size_t(stage)])};
+}
 
-  fs::create_directories(o.out);
-  const fs::path out(o.out);
-  const std::string self = fs::read_symlink("/proc/self/exe").string();
-  PipelineSteps steps(o.out, self);
+void print_training_plan(const RunOptions& o, const Budget& budget) {
   if (budget.iters.empty())
     std::cout << "stylerf run: recipe " << o.recipe << "; training minutes: density " << std::fixed
               << std::setprecision(1) << budget.density << ", features " << budget.features << ", style "
@@ -332,110 +326,166 @@ int run_pipeline(int argc, char** argv) {
     std::cout << "stylerf run: recipe " << o.recipe << "; training iterations: density " << budget.iters[0]
               << ", features " << budget.iters[1] << ", style " << budget.iters[2]
               << (o.minutes_given ? "; the evaluation fitted to --minutes from a measured frame" : "") << std::endl;
-  // Each stage trains for its minutes or its iterations.
-  auto length = [&](int stage, double minutes) {
-    return budget.iters.empty() ? std::vector<std::string>{"--minutes", num(minutes)}
-                                : std::vector<std::string>{"--iters", std::to_string(budget.iters[size_t(stage)])};
-  };
-  const std::string scene_fp = folder_fingerprint(o.scene), styles_fp = folder_fingerprint(o.styles);
-  const std::string d_ck = (out / "density.ckpt").string(), f_ck = (out / "features.ckpt").string(),
-                    s_ck = (out / "style.ckpt").string();
+}
 
+// The run's checkpoints, and the steps that made the first two (their keys are what later steps depend on).
+struct Checkpoints {
+  std::string density, features, style;
+  PipelineSteps::Result d, f;
+};
+
+// Stages 1 and 2 and their held-out renders; returns the seconds they took. The held-out renders come
+// before the style stage, whose minutes are planned from the seconds spent so far (a skipped step counts
+// its recorded seconds, so a resumed run plans the same minutes and the style step keeps its key).
+double train_density_and_features(PipelineSteps& steps, const RunOptions& o, const Budget& budget,
+                                  const fs::path& out, Checkpoints& ck) {
   std::vector<std::string> density = args(o, "train-density", "--scene", o.scene, "--recipe", o.recipe, "--force",
-                                          "-o", d_ck);
+                                          "-o", ck.density);
   if (o.downsample > 0) density.insert(density.end(), {"--downsample", std::to_string(o.downsample)});
-  for (const auto& a : length(0, budget.density)) density.push_back(a);
-  auto d = steps.run("density", density, d_ck, scene_fp);
-  std::vector<std::string> features = args(o, "train-features", "--density", d_ck, "--recipe", o.recipe, "--force",
-                                           "-o", f_ck);
-  for (const auto& a : length(1, budget.features)) features.push_back(a);
-  auto f = steps.run("features", features, f_ck, d.key);
-  // The held-out renders of the first two stages come before the style stage, whose minutes are planned
-  // from the seconds spent so far (a skipped step counts its recorded seconds, so a resumed run plans the
-  // same minutes and the style step keeps its key).
-  double spent = d.seconds + f.seconds;
-  spent += steps.run("density_test", args(o, "render", "--ckpt", d_ck, "--views", "test", "-o", (out / "density_test").string()),
-            (out / "density_test/metrics.json").string(), d.key).seconds;
+  for (const auto& a : stage_length(budget, 0, budget.density)) density.push_back(a);
+  ck.d = steps.run("density", density, ck.density, folder_fingerprint(o.scene));
+  std::vector<std::string> features = args(o, "train-features", "--density", ck.density, "--recipe", o.recipe,
+                                           "--force", "-o", ck.features);
+  for (const auto& a : stage_length(budget, 1, budget.features)) features.push_back(a);
+  ck.f = steps.run("features", features, ck.features, ck.d.key);
+  double spent = ck.d.seconds + ck.f.seconds;
+  spent += steps.run("density_test", args(o, "render", "--ckpt", ck.density, "--views", "test", "-o", (out / "density_test").string()),
+            (out / "density_test/metrics.json").string(), ck.d.key).seconds;
   spent += steps.run("features_test",
-            args(o, "render", "--ckpt", f_ck, "--views", "test", "-o", (out / "features_test").string()),
-            (out / "features_test/metrics.json").string(), f.key).seconds;
+            args(o, "render", "--ckpt", ck.features, "--views", "test", "-o", (out / "features_test").string()),
+            (out / "features_test/metrics.json").string(), ck.f.key).seconds;
+  return spent;
+}
+
+// What the evaluation would do given all the time it wants.
+eval::EvalCounts wanted_evaluation(const RunOptions& o, const fs::path& out, size_t shown,
+                                   const train::StyleTrainConfig& recipe_cfg) {
   eval::EvalCounts counts;
   counts.eval_views = std::min(o.eval_views, views_rendered((out / "features_test/metrics.json").string(), o.eval_views));
   counts.holdout = o.holdout, counts.video_frames = o.frames;
-  counts.shown = int(shown.size()), counts.table_frames = o.table_frames;
+  counts.shown = int(shown), counts.table_frames = o.table_frames;
   counts.lpips_pair = eval::lpips_pair_units(eval::kDefaultLpipsNet);  // eval table's trunk, as run leaves it
-  const train::StyleTrainConfig recipe_cfg = train::style_recipe(train::parse_recipe(o.recipe));
   // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
   // every evaluation step (horns 1/8: 6 views of ~10 s content each, a minute a step).
   if (model::map_decoder_for(recipe_cfg.style_decoder).renormalises_relu4())
     counts.scene_stats_views = model::SceneStyleStats::kDefaultViews;
-  // The evaluation is planned under --minutes alone, and under --stage-iters given --minutes as well.
-  const bool by_minutes = o.stage_minutes.empty() && (budget.iters.empty() || o.minutes_given);
-  const int style_iters = budget.iters.empty() ? 0 : budget.iters[2];
-  double style_minutes = budget.style;
-  eval::FrameCost cost;
-  nlohmann::json plan_json;  // for summary.json
-  if (by_minutes) {
-    double style_fixed_s = 0;
-    cost = probe_frame_cost(steps, o, out, f_ck, shown.front(), f.key + styles_fp, spent, style_fixed_s);
-    cost.rgb = render_seconds_per_view((out / "density_test/metrics.json").string());
-    const EvalPlan plan = plan_evaluation(cost, counts, o.minutes, spent, budget.style, style_fixed_s, style_iters);
-    style_minutes = plan.style_minutes;
-    plan_json = {{"frame_content_s", cost.content},
-                 {"frame_style_s", cost.style2d},
-                 {"frame_rays_per_block", cost.rays_per_block},
-                 {"frame_rgb_s", cost.rgb},
-                 {"frame_pixels", cost.pixels},
-                 {"eval_views", counts.eval_views},
-                 {"predicted_eval_s", plan.predicted_eval_s},
-                 {"style_minutes", style_minutes},
-                 {"cuts", plan.cuts}};
-    if (style_iters > 0) plan_json["style_iters"] = style_iters;
-    counts = plan.counts;
-  }
-  std::vector<std::string> style = args(o, "train-style", "--features", f_ck, "--styles", o.styles, "--holdout-styles",
-                                        std::to_string(o.holdout), "--recipe", o.recipe, "--force", "-o", s_ck);
-  for (const auto& a : length(2, style_minutes)) style.push_back(a);
-  // The recipe's settings are in the key too: a later build whose recipe differs (say its content weight)
-  // trains the style stage again instead of keeping a checkpoint of the old recipe.
-  auto s = steps.run("style", style, s_ck, f.key + styles_fp + recipe_cfg.to_json().dump());
+  return counts;
+}
 
-  const std::string upstream = s.key + d.key;
-  const double eval_style_s =
-      steps.run("style_eval",
-                args(o, "eval-style", "--ckpt", s_ck, "--views", std::to_string(o.eval_views), "--images",
-                     (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
-                (out / "style_eval.json").string(), upstream)
-          .seconds;
-  if (by_minutes) {
-    // The style stage and eval-style may have run past their plan: what is left now sizes the rest.
-    const double left = o.minutes * 60.0 - (spent + s.seconds + eval_style_s);
-    eval::EvalCounts rest = counts;
-    rest.eval_views = 0;  // done
-    const eval::EvalCounts fitted = eval::fit_eval(cost, rest, left / eval::kEvalMargin);
-    const std::string cuts = eval::describe_cuts(rest, fitted);
-    if (!cuts.empty()) {
-      std::cout << "stylerf run: " << std::fixed << std::setprecision(1) << left / 60.0
-                << " min left for the videos, mix sheet and table: " << cuts << std::endl;
-      plan_json["late_cuts"] = cuts;
-    }
-    counts.video_frames = fitted.video_frames, counts.shown = fitted.shown;
+// The style stage's minutes and the evaluation's counts: under --minutes (and under --stage-iters given
+// --minutes as well) planned from a measured frame, otherwise the budget's and all that is wanted.
+struct StylePlan {
+  bool by_minutes = false;
+  double style_minutes = 0;
+  eval::FrameCost cost;
+  eval::EvalCounts counts;
+  nlohmann::json json;  // for summary.json
+};
+
+StylePlan plan_style_stage(PipelineSteps& steps, const RunOptions& o, const Budget& budget, const fs::path& out,
+                           const Checkpoints& ck, const std::string& probe_style, const std::string& styles_fp,
+                           const eval::EvalCounts& wanted, double& spent) {
+  StylePlan sp;
+  sp.by_minutes = o.stage_minutes.empty() && (budget.iters.empty() || o.minutes_given);
+  sp.style_minutes = budget.style;
+  sp.counts = wanted;
+  if (!sp.by_minutes) return sp;
+  const int style_iters = budget.iters.empty() ? 0 : budget.iters[2];
+  double style_fixed_s = 0;
+  sp.cost = probe_frame_cost(steps, o, out, ck.features, probe_style, ck.f.key + styles_fp, spent, style_fixed_s);
+  sp.cost.rgb = render_seconds_per_view((out / "density_test/metrics.json").string());
+  const EvalPlan plan = plan_evaluation(sp.cost, wanted, o.minutes, spent, budget.style, style_fixed_s, style_iters);
+  sp.style_minutes = plan.style_minutes;
+  sp.json = {{"frame_content_s", sp.cost.content},
+             {"frame_style_s", sp.cost.style2d},
+             {"frame_rays_per_block", sp.cost.rays_per_block},
+             {"frame_rgb_s", sp.cost.rgb},
+             {"frame_pixels", sp.cost.pixels},
+             {"eval_views", wanted.eval_views},
+             {"predicted_eval_s", plan.predicted_eval_s},
+             {"style_minutes", sp.style_minutes},
+             {"cuts", plan.cuts}};
+  if (style_iters > 0) sp.json["style_iters"] = style_iters;
+  sp.counts = plan.counts;
+  return sp;
+}
+
+// Under a planned budget: the style stage and eval-style may have run past their plan, so what is left of
+// --minutes now sizes the videos, the mix sheet and the table.
+void refit_after_style(const RunOptions& o, double spent_s, StylePlan& sp) {
+  const double left = o.minutes * 60.0 - spent_s;
+  eval::EvalCounts rest = sp.counts;
+  rest.eval_views = 0;  // done
+  const eval::EvalCounts fitted = eval::fit_eval(sp.cost, rest, left / eval::kEvalMargin);
+  const std::string cuts = eval::describe_cuts(rest, fitted);
+  if (!cuts.empty()) {
+    std::cout << "stylerf run: " << std::fixed << std::setprecision(1) << left / 60.0
+              << " min left for the videos, mix sheet and table: " << cuts << std::endl;
+    sp.json["late_cuts"] = cuts;
   }
-  const std::vector<std::string> shown_now(shown.begin(), shown.begin() + counts.shown);
-  std::vector<std::string> vid = args(o, "stylize", "--ckpt", s_ck, "--views", "path", "--frames",
-                                      std::to_string(counts.video_frames), "--no-losses", "-o", (out / "videos").string());
+  sp.counts.video_frames = fitted.video_frames, sp.counts.shown = fitted.shown;
+}
+
+// The zero-shot videos of the shown styles, the mix sheet of the four corners and the consistency table.
+void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, const fs::path& out,
+                                 const Checkpoints& ck, const std::string& upstream,
+                                 const std::vector<std::string>& shown_now, const std::vector<std::string>& corners,
+                                 int video_frames) {
+  std::vector<std::string> vid = args(o, "stylize", "--ckpt", ck.style, "--views", "path", "--frames",
+                                      std::to_string(video_frames), "--no-losses", "-o", (out / "videos").string());
   for (const auto& st : shown_now) vid.insert(vid.end(), {"--style", st});
   steps.run("videos", vid, (out / "videos/metrics.json").string(), upstream);
   steps.run("mix",
-                      args(o, "stylize", "--ckpt", s_ck, "--views", "test", "--mix-grid",
+                      args(o, "stylize", "--ckpt", ck.style, "--views", "test", "--mix-grid",
                            corners[0] + "," + corners[1] + "," + corners[2] + "," + corners[3], "-o",
                            (out / "mix").string()),
                       (out / "mix/metrics.json").string(), upstream);
-  std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", d_ck + "," + s_ck, "--frames",
+  std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", ck.density + "," + ck.style, "--frames",
                                         std::to_string(o.table_frames), "-o", (out / "consistency").string(),
                                         "--styles");
   for (const auto& st : shown_now) table.push_back(st);
   steps.run("consistency", table, (out / "consistency/table.json").string(), upstream);
+}
+
+int run_pipeline(int argc, char** argv) {
+  RunOptions o;
+  int rc = 0;
+  if (!parse_run_options(argc, argv, o, rc)) return rc;
+  const Budget budget = split_budget(o.minutes, o.stage_minutes, o.stage_iters);
+  const Shown picked = shown_styles(o);
+  const std::vector<std::string>& shown = picked.styles;
+
+  fs::create_directories(o.out);
+  const fs::path out(o.out);
+  const std::string self = fs::read_symlink("/proc/self/exe").string();
+  PipelineSteps steps(o.out, self);
+  print_training_plan(o, budget);
+  const std::string styles_fp = folder_fingerprint(o.styles);
+  Checkpoints ck;
+  ck.density = (out / "density.ckpt").string();
+  ck.features = (out / "features.ckpt").string();
+  ck.style = (out / "style.ckpt").string();
+  double spent = train_density_and_features(steps, o, budget, out, ck);
+  const train::StyleTrainConfig recipe_cfg = train::style_recipe(train::parse_recipe(o.recipe));
+  StylePlan sp = plan_style_stage(steps, o, budget, out, ck, shown.front(), styles_fp,
+                                  wanted_evaluation(o, out, shown.size(), recipe_cfg), spent);
+  std::vector<std::string> style = args(o, "train-style", "--features", ck.features, "--styles", o.styles, "--holdout-styles",
+                                        std::to_string(o.holdout), "--recipe", o.recipe, "--force", "-o", ck.style);
+  for (const auto& a : stage_length(budget, 2, sp.style_minutes)) style.push_back(a);
+  // The recipe's settings are in the key too: a later build whose recipe differs (say its content weight)
+  // trains the style stage again instead of keeping a checkpoint of the old recipe.
+  auto s = steps.run("style", style, ck.style, ck.f.key + styles_fp + recipe_cfg.to_json().dump());
+
+  const std::string upstream = s.key + ck.d.key;
+  const double eval_style_s =
+      steps.run("style_eval",
+                args(o, "eval-style", "--ckpt", ck.style, "--views", std::to_string(o.eval_views), "--images",
+                     (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
+                (out / "style_eval.json").string(), upstream)
+          .seconds;
+  if (sp.by_minutes) refit_after_style(o, spent + s.seconds + eval_style_s, sp);
+  const std::vector<std::string> shown_now(shown.begin(), shown.begin() + sp.counts.shown);
+  render_videos_mix_and_table(steps, o, out, ck, upstream, shown_now, picked.corners, sp.counts.video_frames);
 
   RunReportInput in;
   in.out = o.out;
@@ -444,8 +494,8 @@ int run_pipeline(int argc, char** argv) {
   in.minutes = !budget.iters.empty() ? 0.0 : o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
   in.steps = steps.record();
   in.shown_styles = shown_now;
-  in.plan = plan_json;
-  in.corners = corners;
+  in.plan = sp.json;
+  in.corners = picked.corners;
   const RunSummary summary = write_run_report(in);
   print_run_summary(summary, std::cout);
   if (o.check && !summary.failures.empty()) {
