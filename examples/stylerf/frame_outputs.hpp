@@ -1,11 +1,12 @@
 // What the rendering commands write: numbered frame names, PNGs from interleaved RGB, and an mp4 of a
-// numbered PNG sequence through ffmpeg when it is on PATH (written atomically).
+// numbered PNG sequence through ffmpeg when it is on PATH (the library's writer, lib/io/video.hpp).
 #pragma once
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "lib/io/image.hpp"
+#include "lib/io/video.hpp"
 
 namespace stylerf::cli {
 
@@ -16,10 +17,8 @@ std::string numbered(const std::filesystem::path& dir, const std::string& stem, 
 io::Image interleaved_image(const std::vector<float>& rgb, int w, int h);
 // Grey [h][w] in [0, 1] -> an RGB image.
 io::Image grey_image(const std::vector<float>& v, int w, int h);
-bool have_ffmpeg();
 // pattern e.g. "frame_%04d.png" inside dir -> dir/name. Returns false (and says how to make it) without
 // ffmpeg; throws when ffmpeg fails.
-bool write_video(const std::string& dir, const std::string& pattern, const std::string& name, int fps,
-                 std::ostream& log);
+using io::write_video;
 
 }  // namespace stylerf::cli
