@@ -5,6 +5,9 @@
 //         and their means);
 //   path: a camera path (spiral for forward-facing scenes, orbit for object scenes) -> frame_NNNN.png,
 //         depth_NNNN.exr / .png, [features_NNNN.png], and video.mp4 when ffmpeg is on PATH.
+//   --camera-path FILE: the same outputs along the cameras of a nerfstudio camera_path.json (at its render
+//         size, the video at its fps); --export-camera-path FILE writes the built-in path in that format
+//         and renders nothing (lib/scene/camera_path_json.hpp).
 // Feature checkpoints: depth and the PCA picture are at the feature map's resolution (1/4 for the fast
 // profile); one PCA, fitted to the first frame, colours every frame.
 // Every file is written atomically (temporary file + rename); rays go through the renderer in chunks.
@@ -27,6 +30,7 @@
 #include "lib/io/exr.hpp"
 #include "lib/io/image.hpp"
 #include "lib/scene/camera_path.hpp"
+#include "lib/scene/camera_path_json.hpp"
 #include "lib/model/density_model.hpp"
 #include "lib/model/feature_model.hpp"
 #include "lib/scene/scene_meta.hpp"
@@ -141,14 +145,58 @@ class FrameRenderer {
   std::unique_ptr<stylerf::eval::FeaturePca> pca_;
 };
 
+// --camera-path FILE, read before any work so that a bad file, or a flag that does not go with it, is
+// refused at once (no cameras without the flag).
+stylerf::scene::CameraPathFile camera_path_option(const po::variables_map& vm, const std::string& file,
+                                                  const std::string& export_path) {
+  if (file.empty()) return {};
+  if (!export_path.empty()) throw Error("--camera-path and --export-camera-path: give one of them");
+  if (vm.count("views") && !vm["views"].defaulted() && vm["views"].as<std::string>() != "path")
+    throw Error("--camera-path renders a path: it does not combine with --views " + vm["views"].as<std::string>());
+  if (vm.count("frames") && !vm["frames"].defaulted())
+    throw Error("--frames does not apply to --camera-path (the file gives the frames)");
+  return stylerf::scene::read_camera_path_json(file);
+}
+
+// The path outputs along the --camera-path file's cameras (`file` not empty; the video at its fps) or the
+// built-in path of `frames` frames: frame_NNNN.png, depth_NNNN.exr / .png, [features_NNNN.png], video.mp4.
+void render_path(FrameRenderer& renderer, const stylerf::scene::Scene& scene, const std::string& file,
+                 const stylerf::scene::CameraPathFile& from_file, int frames, int chunk, const std::string& out) {
+  const bool spiral = scene.effects.ndc || scene.format.find("-forward") != std::string::npos;
+  const auto path = file.empty() ? stylerf::scene::default_path(scene, frames) : from_file.cameras;
+  const int fps = file.empty() ? 30 : std::max(1, int(std::lround(from_file.fps)));
+  std::cout << (file.empty() ? spiral ? "spiral path" : "orbit path" : "camera path " + file) << ", " << path.size()
+            << " frames\n";
+  for (size_t i = 0; i < path.size(); ++i) {
+    const Frame r = renderer.render(scene, path[i], chunk);
+    save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(out, "depth_", int(i), 4, ".exr"),
+                 numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
+    if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
+  }
+  stylerf::cli::write_video(out, "frame_%04d.png", "video.mp4", fps, std::cout);
+}
+
+// --export-camera-path FILE: the built-in path of `frames` frames in nerfstudio's format. Returns the exit code.
+int export_camera_path(const stylerf::scene::Scene& scene, int frames, const std::string& file) {
+  stylerf::scene::write_camera_path_json(file, stylerf::scene::default_path(scene, frames));
+  std::cout << "camera path (" << frames << " frames, nerfstudio's camera_path.json) -> " << file << "\n";
+  return 0;
+}
+
 int run_render(int argc, char** argv) {
-  std::string ckpt, views = "test", out, scene_dir, device;
+  std::string ckpt, views = "test", out, scene_dir, device, camera_path_file, export_path;
   int frames = 120, chunk = 8192, max_views = 0;
   float ert = -1.0f;
   po::options_description desc("stylerf render --ckpt CKPT --views test|path [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "density- or feature-stage checkpoint")(
       "views", po::value(&views)->default_value("test"), "test (held-out views + metrics) or path (camera path)")(
       "frames", po::value(&frames)->default_value(120), "frames of the camera path")(
+      "camera-path", po::value(&camera_path_file)->value_name("FILE"),
+      "render along the cameras of FILE, a nerfstudio camera_path.json, in the scene's world frame (implies the "
+      "path outputs: frame_NNNN.png, video.mp4 at the file's fps)")(
+      "export-camera-path", po::value(&export_path)->value_name("FILE"),
+      "write the scene's built-in camera path (--frames frames) to FILE as a nerfstudio camera_path.json, "
+      "then exit without rendering")(
       "output,o", po::value(&out), "output directory (default: <ckpt>_render_<views>)")(
       "scene", po::value(&scene_dir), "scene directory (default: the one the checkpoint was trained on)")(
       "max-views", po::value(&max_views)->default_value(0), "test: render this many evenly spaced views (0: all)")(
@@ -166,6 +214,8 @@ int run_render(int argc, char** argv) {
   }
   if (views != "test" && views != "path") throw Error("--views must be test or path (got '" + views + "')");
   if (frames < 1 || chunk < 1) throw Error("--frames and --chunk must be positive");
+  const stylerf::scene::CameraPathFile path_file = camera_path_option(vm, camera_path_file, export_path);
+  if (!camera_path_file.empty()) views = "path";
   if (vm.count("ert")) stylerf::cli::check_range("--ert", ert, 0.0, 0.5);
   stylerf::cli::init_runtime(device, false);
 
@@ -175,9 +225,10 @@ int run_render(int argc, char** argv) {
   const nlohmann::json smeta = ck.meta.value("scene", nlohmann::json::object());
   stylerf::scene::SceneOverrides o;
   o.dir = scene_dir;
-  o.load_images = views == "test";
+  o.load_images = views == "test" && export_path.empty();
   o.log = &std::cout;
   const auto scene = stylerf::scene::open_scene_for(smeta, ckpt, o).scene;
+  if (!export_path.empty()) return export_camera_path(scene, frames, export_path);  // nothing rendered
   std::cout << renderer.describe() << "\n";
   if (out.empty()) out = ckpt + "_render_" + views;
   fs::create_directories(out);
@@ -220,16 +271,7 @@ int run_render(int argc, char** argv) {
     std::cout << "mean PSNR " << std::setprecision(2) << sp / m << " dB, mean SSIM " << std::setprecision(4) << ss / m
               << " over " << m << " views; " << jpath << "\n";
   } else {
-    const auto path = stylerf::scene::default_path(scene, frames);
-    std::cout << (scene.effects.ndc || scene.format.find("-forward") != std::string::npos ? "spiral" : "orbit") << " path, "
-              << path.size() << " frames\n";
-    for (size_t i = 0; i < path.size(); ++i) {
-      const Frame r = renderer.render(scene, path[i], chunk);
-      save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(out, "depth_", int(i), 4, ".exr"),
-                   numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
-      if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
-    }
-    stylerf::cli::write_video(out, "frame_%04d.png", "video.mp4", 30, std::cout);
+    render_path(renderer, scene, camera_path_file, path_file, frames, chunk, out);
   }
   std::cout << "rendered in " << std::fixed << std::setprecision(1)
             << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s -> " << out << "\n";

@@ -5,6 +5,8 @@
 //   - --mix w1,w2,...: the styles' transforms interpolated into one set (DIR);
 //   - --mix-grid A,B,C,D: the paper's 4-corner sheet of one view (DIR/mix_grid.png, 5 x 5 bilinear mix);
 //   - --region SPEC --style-inside A --style-outside B: compositional transfer, plus the mask PNGs.
+// --camera-path FILE: the path's outputs along the cameras of a nerfstudio camera_path.json (at its render
+// size, or --size; the video at its fps unless --fps is given) instead of the built-in path.
 // Per view, once for all styles: the content render (SICT, composited), depth_NNNN.exr (depth along the
 // ray in ray-space units, at the rendered map's resolution). DIR/metrics.json: the styles (cache keys),
 // the time to encode the styles, to the first frame, frames/s after it, and per view and style the content
@@ -32,6 +34,7 @@
 #include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/scene/camera_path.hpp"
+#include "lib/scene/camera_path_json.hpp"
 #include "lib/scene/scene_meta.hpp"
 #include "lib/style/style_encoder.hpp"
 #include "lib/style/style_image.hpp"
@@ -156,6 +159,9 @@ struct StylizeArgs {
   std::string supersample_text = "0";  // --supersample, parsed into supersample (0: the checkpoint's)
   float refine_contrast = model::kRefineContrast;
   bool no_losses = false, decoded_background = false;
+  std::string camera_path;                   // --camera-path FILE (empty: the built-in path)
+  stylerf::scene::CameraPathFile path_file;  // its cameras, read before any loading
+  bool fps_from_path = false;                // no --fps: the video plays at the file's fps
   bool test() const { return views == "test"; }
 };
 
@@ -167,6 +173,9 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "views", po::value(&a.views)->default_value("path"),
       "test (held-out views, with losses beside 2D AdaIN) or path")(
       "frames", po::value(&a.frames)->default_value(120), "frames of the camera path")(
+      "camera-path", po::value(&a.camera_path)->value_name("FILE"),
+      "stylise along the cameras of FILE, a nerfstudio camera_path.json, in the scene's world frame, instead of "
+      "the built-in path (frames and video named as for it)")(
       "max-views", po::value(&a.max_views)->default_value(0), "render this many evenly spaced views (0: all)")(
       "size", po::value(&a.size)->default_value(0), "longer image side in pixels (0: the scene's)")(
       "mix", po::value(&a.mix), "weights w1,w2,... (one per --style, sum 1): interpolate the styles")(
@@ -180,7 +189,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "no-losses", po::bool_switch(&a.no_losses), "skip the per-view VGG losses")(
       "decoded-background", po::bool_switch(&a.decoded_background),
       "scenes with a background colour: keep the decoder's empty space instead of compositing over the colour")(
-      "fps", po::value(&a.fps)->default_value(30), "video frame rate")(
+      "fps", po::value(&a.fps)->default_value(30), "video frame rate (with --camera-path: the file's unless given)")(
       "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
       "supersample", stylerf::cli::supersample_value(&a.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.refine_contrast), stylerf::cli::kRefineContrastHelp)(
@@ -191,6 +200,10 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
   if (vm.count("help") || a.ckpt.empty()) {
     std::cout << desc;
     return vm.count("help") ? 0 : 2;
+  }
+  if (!a.camera_path.empty()) {
+    if (!vm["frames"].defaulted()) throw Error("--frames does not apply to --camera-path (the file gives the frames)");
+    a.fps_from_path = vm["fps"].defaulted();
   }
   return -1;
 }
@@ -207,6 +220,8 @@ struct StyleChoice {
 StyleChoice check_stylize_args(const StylizeArgs& a) {
   if (a.views != "test" && a.views != "path") throw Error("--views must be test or path (got '" + a.views + "')");
   if (a.frames < 1 || a.frames > 100000) throw Error("--frames must be in [1, 100000]");
+  if (!a.camera_path.empty() && a.test())
+    throw Error("--camera-path renders a path: it does not combine with --views test");
   if (a.max_views < 0) throw Error("--max-views must be >= 0");
   if (a.size < 0 || a.size > 8192) throw Error("--size must be in [0, 8192] (0: the scene's size)");
   if (a.chunk < 1) throw Error("--chunk must be >= 1");
@@ -250,7 +265,7 @@ std::vector<stylerf::scene::Camera> pick_cameras(const StylizeArgs& a, const sty
     if (scene.test.empty()) throw Error("scene " + scene.root + " has no held-out views; use --views path");
     for (const auto& v : scene.test) cams.push_back(v.camera);
   } else {
-    cams = stylerf::scene::default_path(scene, a.frames);
+    cams = a.camera_path.empty() ? stylerf::scene::default_path(scene, a.frames) : a.path_file.cameras;
   }
   const int n = int(cams.size()), k = a.max_views > 0 ? std::min(a.max_views, n) : n;
   std::vector<stylerf::scene::Camera> picked;
@@ -400,6 +415,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
       {"per_view", per_view}};
   for (const auto& j : jobs) doc["outputs"].push_back({{"name", j.name}, {"dir", j.dir}});
   if (c.regions) doc["region"] = a.region;
+  if (!a.camera_path.empty()) doc["camera_path"] = a.camera_path;
   if (!c.weights.empty()) doc["mix"] = c.weights;
   if (w.losses) doc["mean_losses"] = w.losses->means();
   stylerf::host::write_file_atomic((fs::path(a.out) / "metrics.json").string(), doc.dump(2) + "\n");
@@ -441,6 +457,10 @@ int run_stylize(int argc, char** argv) {
   StylizeArgs a;
   if (const int code = parse_stylize_args(argc, argv, a); code >= 0) return code;
   const StyleChoice choice = check_stylize_args(a);
+  if (!a.camera_path.empty()) {  // read before any loading, so that a bad file is refused at once
+    a.path_file = stylerf::scene::read_camera_path_json(a.camera_path);
+    if (a.fps_from_path) a.fps = std::clamp(int(std::lround(a.path_file.fps)), 1, 240);
+  }
 
   // ---- loading (not counted in the timings) ----
   cli::init_runtime(a.device, false);
