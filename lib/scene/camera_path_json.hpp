@@ -8,8 +8,10 @@
 // One entry per frame (the viewer writes the interpolated frames there, its keyframes under other keys, which
 // are ignored). The camera axes are OpenGL's, as stylerf's (x right, y up, looking down -z), so the matrix's
 // top 3x4 is Camera::c2w as it is. nerfstudio derives the intrinsics from fov and the render size alone:
-// fx = fy = (H / 2) / tan(fov / 2), principal point at the image centre (W / 2, H / 2). "camera_type" may be
-// left out (perspective); fisheye and equirectangular paths are refused.
+// fx = fy = (H / 2) / tan(fov / 2), principal point at the image centre (W / 2, H / 2); "aspect" is the
+// viewer's and only checked to be positive (the render size decides). "camera_type" may be left out
+// (perspective); fisheye and equirectangular paths are refused. "seconds" is written, never needed: the
+// frames are the entries, the video plays at "fps".
 //
 // stylerf's cameras may have fx != fy or an off-centre principal point (real captures). The writer then
 // gives fov from fy, which is what nerfstudio renders (centred, square pixels), and keeps the exact
