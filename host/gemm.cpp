@@ -22,7 +22,6 @@ namespace stylerf::host {
 namespace {
 
 GemmEngine g_default = GemmEngine::Auto;
-std::optional<OwnGemmParams> g_own_override;
 std::optional<DeviceTuning> g_tuning_override;
 
 using ParamSet = std::unordered_map<std::string, size_t>;
@@ -295,7 +294,6 @@ GemmEngine parse_gemm_engine(const std::string& name) {
 }
 
 void set_default_gemm_engine(GemmEngine e) { g_default = e; }
-GemmEngine default_gemm_engine() { return g_default; }
 
 GemmEngine resolve_gemm_engine(GemmEngine e) {
   if (e != GemmEngine::Auto) return e;
@@ -305,14 +303,8 @@ GemmEngine resolve_gemm_engine(GemmEngine e) {
 }
 
 OwnGemmParams own_gemm_params() {
-  if (g_own_override) return *g_own_override;
   if (const DeviceTuning* t = current_device_tuning(); t && t->own_gemm) return *t->own_gemm;
   return OwnGemmParams{};
-}
-
-void set_own_gemm_params(const OwnGemmParams& p) {
-  p.validate();
-  g_own_override = p;
 }
 
 const DeviceTuning* current_device_tuning() {

@@ -35,7 +35,6 @@ GemmEngine parse_gemm_engine(const std::string& name);
 
 // Engine used when a call passes GemmEngine::Auto (default Auto => device recommendation).
 void set_default_gemm_engine(GemmEngine e);
-GemmEngine default_gemm_engine();
 
 void gemm(Trans ta, Trans tb, int M, int N, int K, float alpha, cl_mem A, size_t a_offset, int lda, cl_mem B,
           size_t b_offset, int ldb, float beta, cl_mem C, size_t c_offset, int ldc,
@@ -79,8 +78,6 @@ void host_blas_gemm_batched(Trans ta, Trans tb, int M, int N, int K, float alpha
                             size_t c_offset, int ldc, size_t c_stride, int batch);
 // The own kernel's parameters for the runtime's device: the tuning database's, else built-in defaults.
 OwnGemmParams own_gemm_params();
-// Overrides own_gemm_params() for this process (used by `stylerf tune` while searching).
-void set_own_gemm_params(const OwnGemmParams& p);
 
 // Replaces, for this process, the tuning entry used for the runtime's device (CLBlast parameters and own
 // kernel parameters); `stylerf tune` uses it to measure fresh tuner results before saving them.

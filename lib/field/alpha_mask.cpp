@@ -52,13 +52,4 @@ AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::ar
   return m;
 }
 
-void occupied_world_box(const AlphaMask& m, const std::array<float, 3>& box_lo, const std::array<float, 3>& box_hi,
-                        std::array<float, 3>& out_lo, std::array<float, 3>& out_hi) {
-  for (int a = 0; a < 3; ++a) {
-    const float s = box_hi[a] - box_lo[a];
-    out_lo[a] = box_lo[a] + (m.lo[a] + 1.0f) * 0.5f * s;
-    out_hi[a] = box_lo[a] + (m.hi[a] + 1.0f) * 0.5f * s;
-  }
-}
-
 }  // namespace stylerf::field

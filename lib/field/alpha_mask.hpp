@@ -27,8 +27,4 @@ struct AlphaMask {
 AlphaMask build_alpha_mask(const VMGrid& density, DensityActivation act, std::array<int, 3> res, float step,
                            float threshold = 1e-4f);
 
-// The world box of the mask's occupied region, for TensoRF's box shrink (world = lo + (q+1)/2 (hi-lo)).
-void occupied_world_box(const AlphaMask& m, const std::array<float, 3>& box_lo, const std::array<float, 3>& box_hi,
-                        std::array<float, 3>& out_lo, std::array<float, 3>& out_hi);
-
 }  // namespace stylerf::field

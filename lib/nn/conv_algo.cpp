@@ -42,7 +42,6 @@ ConvAlgo parse_conv_algo(const std::string& name) {
 }
 
 void set_default_conv_algo(ConvAlgo a) { g_default = a; }
-ConvAlgo default_conv_algo() { return g_default; }
 
 ConvAlgo resolve_conv_algo(ConvAlgo a, int cin, int cout, int h, int w, int n) {
   if (a == ConvAlgo::Auto) a = g_default;

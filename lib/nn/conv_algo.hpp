@@ -18,7 +18,6 @@ const char* conv_algo_name(ConvAlgo a);
 ConvAlgo parse_conv_algo(const std::string& name);  // "auto", "im2col", "winograd2", "winograd4"
 
 void set_default_conv_algo(ConvAlgo a);
-ConvAlgo default_conv_algo();
 
 // The algorithm a 3x3 conv of these sizes runs when asked for `a` (never Auto). Winograd needs its
 // largest transformed tensor to fit in 1 GiB (or STYLERF_CONV_SCRATCH_BYTES); otherwise im2col runs.

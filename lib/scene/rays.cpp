@@ -57,12 +57,6 @@ Rays camera_rays(const Scene& scene, const Camera& cam) {
   return r;
 }
 
-Rays view_rays(const Scene& scene, const View& view) {
-  Rays r = camera_rays(scene, view.camera);
-  r.rgb = view.rgb;
-  return r;
-}
-
 RaySampler::RaySampler(const Scene& scene, uint64_t seed) : scene_(&scene), rng_(seed) {
   if (scene.train.empty()) throw host::Error("RaySampler: scene " + scene.name + " has no training views");
   per_view_ = size_t(scene.width()) * scene.height();

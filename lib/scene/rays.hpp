@@ -38,8 +38,6 @@ std::array<float, 3> ndc_point(const Camera& cam, float near, const std::array<f
 
 // All W*H rays of a camera, row-major (y, then x); NDC when the scene's effects say so.
 Rays camera_rays(const Scene& scene, const Camera& cam);
-// All rays of a view with its image as targets.
-Rays view_rays(const Scene& scene, const View& view);
 
 // Uniform random batches over every training pixel (with replacement; no index table, so memory does not
 // grow with the dataset). Deterministic for a seed.
