@@ -18,11 +18,11 @@ start=$(date +%s)
 echo "== devices"
 "$S" devices
 echo "== generated pictures: a ray-traced content image and 32 styles, each its own palette and texture"
-"$S" demo-images -o "$OUT" --styles 32 --size 256
+"$S" demo-images -o "$OUT" --num-styles 32 --size 256
 echo "== 2D AdaIN with the real VGG-19 encoder and AdaIN decoder"
 "$S" adain --content "$OUT/content.png" --style "$OUT/styles/style_3.png" --size 256 -o "$OUT/adain.png"
 echo "== a generated scene: 48 views of four textured objects, with known depth"
-"$S" make-scene -o "$OUT/scene" --size 128 --views 48
+"$S" make-scene -o "$OUT/scene" --size 128 --num-views 48
 echo "== StyleRF in one command (iterations sized for under 6 minutes in all on a 2-core CPU; a real scene: --minutes 90)"
 "$S" run --scene "$OUT/scene" --styles "$OUT/styles" --holdout-styles 4 --stage-iters 700,280,90 --max-videos 2 \
     --frames 36 --eval-views 3 --table-frames 10 --check -o "$OUT"

@@ -2,8 +2,7 @@
 # Writes the command-line reference (docs/cli.md) to stdout, from the built tool itself:
 #   bash scripts/gen_cli_doc.sh BUILD_DIR > docs/cli.md
 # It runs `BUILD_DIR/stylerf help` for the list of commands, then `stylerf <command> --help` for each;
-# `eval` has subcommands, each with its own --help (`bench`'s --help lists its subcommands itself).
-# `devices` has no --help (its output is this machine's device list), so only its summary is given.
+# `eval` has subcommands, each with its own --help (`bench`'s --help lists its benchmarks itself).
 # The CTest test cli_doc (tests/cli_doc_test.sh) fails when docs/cli.md differs from this output.
 set -euo pipefail
 if [ $# -ne 1 ]; then
@@ -43,7 +42,8 @@ help_of() {
 }
 
 listing=$("$S" help)
-commands=$(printf '%s\n' "$listing" | awk '/^commands:/ {on = 1; next} on && NF {print $1}')
+# The listing's command lines: "  name   summary" under each group heading (examples are indented further).
+commands=$(printf '%s\n' "$listing" | awk '/^Examples:/ {exit} /^  [a-z][a-z-]*  +[^ ]/ {print $1}')
 if [ -z "$commands" ]; then
   echo "gen_cli_doc: 'stylerf help' listed no commands" >&2
   exit 1
@@ -67,22 +67,11 @@ generate() {
     echo "## stylerf $c"
     echo
     case "$c" in
-      devices)
-        echo "$(printf '%s\n' "$listing" | awk -v c="$c" '$1 == c {$1 = ""; sub(/^ +/, ""); print}')."
-        echo
-        echo '```'
-        echo "stylerf devices [SPEC | --device SPEC]"
-        echo '```'
-        echo
-        echo "It has no --help: it prints this machine's OpenCL devices and the one SPEC (an index, cpu, gpu,"
-        echo "accelerator or part of a name; default: STYLERF_DEVICE, else the first GPU, else the first device)"
-        echo "would choose."
-        ;;
       eval)
         echo '```'
         help_of eval
         echo '```'
-        subs=$(help_of eval | awk '/^usage:/ {next} /^  [a-z]/ {print $1}')
+        subs=$(help_of eval | awk '/^subcommands:/ {on = 1; next} on && !NF {exit} on {print $1}')
         for s in $subs; do
           echo
           echo "### stylerf eval $s"

@@ -1,7 +1,7 @@
 // `stylerf eval consistency` and `stylerf eval table` end to end on a generated scene, as a user runs them
 // (the built binary): every method gives finite scores over the right pairs, the table writes its Markdown,
 // JSON, plot and side-by-side frames; bad input is refused before any work, naming what is wrong.
-// `stylerf lpips` with either trunk (--net vgg | alex) and its refused inputs.
+// `stylerf lpips` with either trunk (--lpips-net vgg | alex) and its refused inputs.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -144,7 +144,7 @@ TEST_CASE("eval consistency: rgb, adain and stylerf on a generated scene") {
   CHECK(adain["score"]["short"]["valid_fraction"] == rgb["score"]["short"]["valid_fraction"]);
 
   r = run("eval consistency --ckpt '" + ck.style + "' --method stylerf --style '" + fixture("rgb16.png") +
-          "' --no-lpips --frames 10 --json '" + (dir / "stylerf.json").string() + "'");
+          "' --no-lpips --scored-frames 10 --json '" + (dir / "stylerf.json").string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto sr = read_json(dir / "stylerf.json");
   CHECK(sr["score"]["short"]["pairs"].size() == 9);
@@ -156,7 +156,7 @@ TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {
   const fs::path dir = testing::small_work_dir() / "eval_table";
   // Two groups: the second, without a style stage, is scored on the first one's held-out styles.
   const auto r = run("eval table --scene-ckpts '" + ck.density + "," + ck.style + "' '" + ck.density +
-                     "' --frames 9 --path-frames 60 -o '" + dir.string() + "'");
+                     "' --scored-frames 9 --path-frames 60 -o '" + dir.string() + "'");
   REQUIRE_MESSAGE(r.code == 0, r.output);
   const auto table = read_json(dir / "table.json");
   REQUIRE(table["scenes"].size() == 2);
@@ -171,7 +171,7 @@ TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {
   // The table's RGB row is `eval consistency --method rgb` on the same path: its warps come from the RGB
   // render's own depth and opacity there, from a separate geometry render here, and must agree.
   const fs::path rgb_json = dir.parent_path() / "eval_table_rgb.json";
-  const auto single = run("eval consistency --ckpt '" + ck.density + "' --method rgb --frames 9 --path-frames 60 --json '" +
+  const auto single = run("eval consistency --ckpt '" + ck.density + "' --method rgb --scored-frames 9 --path-frames 60 --json '" +
                           rgb_json.string() + "'");
   REQUIRE_MESSAGE(single.code == 0, single.output);
   const auto rgb = read_json(rgb_json)["score"];
@@ -211,7 +211,7 @@ TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   expect("eval flow", "unknown 'flow'");
   expect("eval consistency --ckpt '" + ck.density + "' --method flow", "--method must be rgb, adain or stylerf");
   expect("eval consistency --ckpt '" + ck.density + "' --method adain", "needs --style");
-  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --frames 5", "--frames must be in [8, 1000]");
+  expect("eval consistency --ckpt '" + ck.density + "' --method rgb --scored-frames 5", "--scored-frames must be in [8, 1000]");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --depth-tol 0", "--depth-tol");
   expect("eval consistency --ckpt '" + ck.density + "' --method rgb --supersample -1", "--supersample: supersample '-1': expected 1..8");
   expect("eval table --scene-ckpts '" + ck.density + "' --supersample quincunx2 -o /tmp/x", "or quincunx");
@@ -226,7 +226,7 @@ TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   expect("eval table --scene-ckpts /nonexistent.ckpt -o /tmp/x", "/nonexistent.ckpt is not a file");
 }
 
-TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the problem") {
+TEST_CASE("lpips: --lpips-net vgg and alex print the distance; bad input names the problem") {
   const fs::path dir = testing::small_work_dir() / "lpips_cli";
   fs::create_directories(dir);
   auto image = [&](const std::string& name, int w, int h, float phase) {
@@ -242,13 +242,13 @@ TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the pro
   const std::string small = image("small.png", 40, 30, 0.0f);
   for (const std::string net : {"vgg", "alex"}) {
     CAPTURE(net);
-    auto r = run("lpips " + a + " " + b + " --net " + net);
+    auto r = run("lpips " + a + " " + b + " --lpips-net " + net);
     INFO(r.output);
     REQUIRE(r.code == 0);
     const double d = std::stod(r.output);
     CHECK(d > 0.0);
     CHECK(d < 2.0);
-    r = run("lpips " + a + " " + a + " --net " + net);
+    r = run("lpips " + a + " " + a + " --lpips-net " + net);
     REQUIRE(r.code == 0);
     CHECK(std::stod(r.output) == 0.0);
   }
@@ -258,16 +258,16 @@ TEST_CASE("lpips: --net vgg and alex print the distance; bad input names the pro
     CHECK(r.code != 0);
     CHECK(r.output.find(needle) != std::string::npos);
   };
-  expect("lpips " + small + " " + small + " --net alex", "are 40x30: LPIPS (--net alex) needs at least 31x31");
-  CHECK(run("lpips " + small + " " + small + " --net vgg").code == 0);  // VGG takes 16x16 and up
+  expect("lpips " + small + " " + small + " --lpips-net alex", "are 40x30: LPIPS (--lpips-net alex) needs at least 31x31");
+  CHECK(run("lpips " + small + " " + small + " --lpips-net vgg").code == 0);  // VGG takes 16x16 and up
   expect("lpips " + small + " " + small, "needs at least 31x31");  // AlexNet is the default
-  expect("lpips " + a + " " + small + " --net alex", "is 48x40 but");
-  expect("lpips " + a + " " + b + " --net squeeze", "--net squeeze: unknown trunk (use vgg or alex)");
+  expect("lpips " + a + " " + small + " --lpips-net alex", "is 48x40 but");
+  expect("lpips " + a + " " + b + " --lpips-net squeeze", "--lpips-net squeeze: unknown trunk (use vgg or alex)");
 }
 
 TEST_CASE("bench render: seconds per view and per step for each --ert, per-kernel breakdown, JSON") {
   const auto json_path = testing::small_work_dir() / "bench_render.json";
-  const auto r = run("bench render --ckpt '" + checkpoints().density + "' --views 2 --steps 2 --ert 0,1e-4 --json '" +
+  const auto r = run("bench render --ckpt '" + checkpoints().density + "' --max-views 2 --steps 2 --ert 0,1e-4 --json '" +
                      json_path.string() + "'");
   INFO(r.output);
   REQUIRE(r.code == 0);

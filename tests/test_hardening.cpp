@@ -223,8 +223,8 @@ TEST_CASE("command line: options are checked before any work, with messages nami
   scene::make_scene((d / "other").string(), mo);
   expect("render --ckpt " + out + " --scene '" + (d / "other").string() + "' -o '" + (d / "r").string() + "'",
          "was trained on scene");
-  expect("make-scene --views 4 -o '" + (d / "few").string() + "'", "--views must be in 6..");
-  expect("make-scene --supersample 0 -o '" + (d / "few").string() + "'", "--supersample");
+  expect("make-scene --num-views 4 -o '" + (d / "few").string() + "'", "--num-views must be in 6..");
+  expect("make-scene --pixel-samples 0 -o '" + (d / "few").string() + "'", "--pixel-samples must be in 1..16");
   expect("adain --content a.png --style b.png --size 1000000000 -o x.png", "--size must be in [16, 4096]");
   expect("adain --content a.png --style b.png -o x.gif", "unknown image type '.gif'");
   expect("devices --device accelerator", "no OpenCL accelerator device was found");

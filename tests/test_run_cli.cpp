@@ -28,10 +28,10 @@ const Inputs& inputs() {
     const fs::path root = testing::small_work_dir() / "run_inputs";
     fs::remove_all(root);
     fs::create_directories(root);
-    auto r = testing::run_cli("make-scene -o '" + (root / "scene").string() + "' --size 32 --views 20");
+    auto r = testing::run_cli("make-scene -o '" + (root / "scene").string() + "' --size 32 --num-views 20");
     INFO(r.output);
     REQUIRE(r.code == 0);
-    r = testing::run_cli("demo-images -o '" + root.string() + "' --styles 8 --size 64");
+    r = testing::run_cli("demo-images -o '" + root.string() + "' --num-styles 8 --size 64");
     INFO(r.output);
     REQUIRE(r.code == 0);
     return Inputs{root / "scene", root / "styles"};

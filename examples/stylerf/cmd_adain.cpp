@@ -1,4 +1,4 @@
-// stylerf adain --content C --style S [--alpha A] [--size N] -o out.png [--device D] [--profile]
+// stylerf adain --content C --style S [--alpha A] [--size N] -o out.png [--device D] [--timing]
 // 2D AdaIN style transfer with the pretrained VGG-19 encoder and decoder (set up with
 // `bash scripts/fetch_weights.sh`).
 #include <boost/program_options.hpp>
@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/runtime.hpp"
 #include "lib/io/image.hpp"
 #include "lib/nn/weights.hpp"
@@ -23,20 +24,22 @@ int run_adain(int argc, char** argv) {
   std::string content, style, output, device;
   float alpha = 1.0f;
   int size = 512;
-  bool profile = false;
+  bool timing = false;
   po::options_description desc("stylerf adain --content C --style S -o out.png [options]");
   desc.add_options()("help,h", "show this help")("content,c", po::value(&content), "content image (PNG/JPEG)")(
       "style,s", po::value(&style), "style image (PNG/JPEG)")("output,o", po::value(&output), "output image (.png or .jpg)")(
-      "alpha", po::value(&alpha)->default_value(1.0f), "stylisation strength in [0,1] (0: reconstruct the content)")(
+      "alpha", stylerf::cli::value_shown(&alpha), "stylisation strength in [0,1] (0: reconstruct the content)")(
       "size", po::value(&size)->default_value(512), "longer image side in pixels (sides rounded to multiples of 8)")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
-      "profile", po::bool_switch(&profile), "print per-kernel times");
+      "timing", po::bool_switch(&timing), "print per-kernel times at the end");
+  stylerf::cli::apply_renamed_flags("adain", argc, argv, {{"--profile", "--timing"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help")) {
-    std::cout << desc << "\nWeights: " << stylerf::nn::weights_dir() << " (set up with `"
-              << stylerf::nn::kFetchWeightsCommand << "`)\n";
+    stylerf::cli::print_help(std::cout, "adain", desc,
+                             "Weights: " + stylerf::nn::weights_dir() + " (set up with `" +
+                                 stylerf::nn::kFetchWeightsCommand + "`)");
     return 0;
   }
   if (content.empty() || style.empty() || output.empty()) {
@@ -54,7 +57,7 @@ int run_adain(int argc, char** argv) {
       throw std::runtime_error("-o " + output + ": unknown image type '" + ext + "' (use .png or .jpg)");
   }
 
-  stylerf::cli::init_runtime(device, profile);
+  stylerf::cli::init_runtime(device, timing);
   // Images first: a wrong path is reported before the weights (80 MB) are read.
   auto t1 = std::chrono::steady_clock::now();
   stylerf::io::Image c = stylerf::style::load_image_for_adain(content, size);
@@ -75,10 +78,10 @@ int run_adain(int argc, char** argv) {
   std::cout << "wrote " << output << " (" << out.width << "x" << out.height << ", style " << s.width << "x" << s.height
             << ", alpha " << alpha << ")\n"
             << "time: weights " << t_load << " s, images " << t_images << " s, stylise " << t_run << " s\n";
-  if (profile) std::cout << stylerf::host::Runtime::instance().timing_report();
+  if (timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }
 
-stylerf::cli::Register reg("adain", "2D AdaIN style transfer of one image (pretrained VGG-19 + decoder)", run_adain);
+stylerf::cli::Register reg("adain", run_adain);
 
 }  // namespace

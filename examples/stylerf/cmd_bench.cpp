@@ -10,6 +10,7 @@
 #include "bench/bench_field.hpp"
 #include "bench/bench_targets.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "lib/nn/conv_algo.hpp"
 
 namespace po = boost::program_options;
@@ -26,15 +27,32 @@ std::vector<std::string> comma_list(const std::string& s) {
   return out;
 }
 
+// The benchmarks, one line each, for --help.
+std::string bench_list() {
+  return "  gemm  GEMM GFLOP/s: CLBlast defaults, CLBlast tuned, own kernel, OpenBLAS\n"
+         "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
+         "  ops   perf mode of every NN op kernel (GB/s)\n"
+         "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n"
+         "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n"
+         "  targets  stage-2 target reads: per-ray gather fwd/bwd, patch read (GB/s)\n"
+         "  patch    one patch step part by part (s, GFLOP/s): --stage 2|3 --profile fast|paper --size 256\n"
+         "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n"
+         "  render   rays/s and s/view of rendering, s/step of training, per kernel: --ckpt DENSITY\n"
+         "           [--scene DIR] [--max-views N] [--steps K] [--ert 0,1e-4,1e-3]\n"
+         "  decoder-step  torch_step.py's work (decoder + VGG + losses + backward + Adam), median s/step:\n"
+         "           --size 256 --decoder paper|fast [--conv-algo A]";
+}
+
 int run_bench(int argc, char** argv) {
   std::string which, device, parts, erts, decoder, conv_algo;
   stylerf::bench::BenchOptions opt;
+  double minutes = 0, knob_minutes = 0;  // bench density's budgets; 0: the defaults for --quick or not
   po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render|decoder-step> [options]");
   desc.add_options()("help,h", "show this help")("json", po::value(&opt.json_path), "also write results as JSON to FILE")(
       "repeats", po::value(&opt.repeats)->default_value(3), "timed repetitions after one warm-up")(
       "quick", po::bool_switch(&opt.quick), "smaller shapes (smoke run)")(
-      "budget", po::value(&opt.budget_s), "density: training seconds per scene (default 1800, --quick 240)")(
-      "knob-budget", po::value(&opt.knob_budget_s), "density: training seconds per knob row (default 300, --quick 60)")(
+      "minutes", po::value(&minutes), "density: training minutes per scene (default 30; with --quick 4)")(
+      "knob-minutes", po::value(&knob_minutes), "density: training minutes per knob row (default 5; with --quick 1)")(
       "parts", po::value(&parts), "density: comma list of lego, fern, knobs; ops: of spatial, norm, layout, "
                                   "style, eval (default all)")(
       "ckpt", po::value(&opt.ckpt), "patch: density or feature checkpoint whose geometry to render")(
@@ -46,7 +64,7 @@ int run_bench(int argc, char** argv) {
       "decoder-phases", po::bool_switch(&opt.decoder_phases),
       "patch --stage 3 --style-decoder vgg-adain: VGG's pool at all four grid phases (the fast recipe's)")(
       "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
-      "views", po::value(&opt.views)->default_value(3), "render: held-out views to render")(
+      "max-views", po::value(&opt.views)->default_value(3), "render: held-out views to render, evenly spaced")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(
       "ert", po::value(&erts), "render: comma list of early-termination thresholds to compare (0: off)")(
       "decoder", po::value(&decoder), "decoder-step: decoder, paper | fast (default paper)")(
@@ -58,25 +76,19 @@ int run_bench(int argc, char** argv) {
   pos.add("which", 1);
   po::options_description all;
   all.add(desc).add(hidden);
+  stylerf::cli::apply_renamed_flags("bench", argc, argv, {{"--views", "--max-views"}});
+  for (int i = 1; i < argc; ++i)  // a budget in seconds has no alias: its number would be read as minutes
+    if (const std::string a = argv[i]; a.rfind("--budget", 0) == 0 || a.rfind("--knob-budget", 0) == 0)
+      throw std::runtime_error(a.substr(0, a.find('=')) + " (seconds) is now --" +
+                               (a[2] == 'b' ? "minutes" : "knob-minutes") + " (minutes)");
   po::variables_map vm;
   po::store(po::command_line_parser(argc, argv).options(all).positional(pos).run(), vm);
   po::notify(vm);
   if (vm.count("help") || which.empty()) {
-    std::cout << desc << "\n  gemm  GEMM GFLOP/s: CLBlast defaults, CLBlast tuned, own kernel, OpenBLAS\n"
-              << "  conv  conv forward/backward time for every decoder and VGG layer at 256x256\n"
-              << "  ops   perf mode of every NN op kernel (GB/s)\n"
-              << "  field VM grid sampling, ray marching, compositing (points/s, GB/s)\n"
-              << "  density  density-stage PSNR against wall time (lego 1/4, fern 1/8) and knob costs\n"
-              << "  targets  stage-2 target reads: per-ray gather fwd/bwd, patch read (GB/s)\n"
-              << "  patch    one patch step part by part (s, GFLOP/s): --stage 2|3 --profile fast|paper --size 256\n"
-              << "  dst      deferred vs per-point style transformation: time, peak memory, ratios (--size 256)\n"
-              << "  render   rays/s and s/view of rendering, s/step of training, per kernel: --ckpt DENSITY\n"
-              << "           [--scene DIR] [--views N] [--steps K] [--ert 0,1e-4,1e-3]\n"
-              << "  decoder-step  torch_step.py's work (decoder + VGG + losses + backward + Adam), median s/step:\n"
-              << "           --size 256 --decoder paper|fast [--conv-algo A]\n";
+    stylerf::cli::print_help(std::cout, "bench", desc, bench_list());
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
-  if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--views must be >= 1 and --steps >= 0");
+  if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--max-views must be >= 1 and --steps >= 0");
   for (const std::string& e : comma_list(erts)) {
     size_t used = 0;
     float v = -1;
@@ -89,7 +101,9 @@ int run_bench(int argc, char** argv) {
     opt.erts.push_back(v);
   }
   if (opt.repeats < 1) throw std::runtime_error("--repeats must be at least 1");
-  if (opt.budget_s < 0 || opt.knob_budget_s < 0) throw std::runtime_error("--budget and --knob-budget must be >= 0");
+  if (!(minutes >= 0) || !(knob_minutes >= 0)) throw std::runtime_error("--minutes and --knob-minutes must be >= 0");
+  opt.budget_s = minutes * 60.0;
+  opt.knob_budget_s = knob_minutes * 60.0;
   for (const std::string& p : comma_list(parts)) {
     const bool ops = which == "ops";
     const bool known = ops ? (p == "spatial" || p == "norm" || p == "layout" || p == "style" || p == "eval")
@@ -122,5 +136,5 @@ int run_bench(int argc, char** argv) {
   std::cerr << "stylerf bench: unknown benchmark '" << which << "' (gemm, conv, ops, field, density, targets, patch, dst, render, decoder-step)\n";
   return 2;
 }
-stylerf::cli::Register reg("bench", "benchmarks: gemm, conv, ops (GFLOP/s, GB/s, ratios in one run)", run_bench);
+stylerf::cli::Register reg("bench", run_bench);
 }  // namespace

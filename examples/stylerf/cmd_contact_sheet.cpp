@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
 #include "lib/style/adain.hpp"
@@ -67,7 +68,7 @@ int run_contact_sheet(int argc, char** argv) {
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help")) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "contact-sheet", desc);
     return 0;
   }
   if (output.empty()) {
@@ -119,6 +120,6 @@ int run_contact_sheet(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("contact-sheet", "grid of 2D AdaIN results: contents x styles", run_contact_sheet);
+stylerf::cli::Register reg("contact-sheet", run_contact_sheet);
 
 }  // namespace

@@ -1,19 +1,41 @@
 // stylerf devices: list OpenCL devices and show which one would be chosen.
+#include <boost/program_options.hpp>
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/device.hpp"
 #include "lib/field/vm_grid.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/nn/reduce_path.hpp"
 
+namespace po = boost::program_options;
+
 namespace {
+// `stylerf devices [SPEC]` or `stylerf devices --device SPEC`. Returns -1 to go on, else the exit code.
+int parse_devices_args(int argc, char** argv, std::string& spec) {
+  po::options_description desc("stylerf devices [SPEC | --device SPEC] [options]");
+  desc.add_options()("help,h", "show this help")(
+      "device", po::value(&spec),
+      "the device to show as chosen: index, cpu|gpu|accelerator, or part of a name (default: STYLERF_DEVICE, "
+      "else the first GPU, else the first device)");
+  po::positional_options_description pos;
+  pos.add("device", 1);
+  po::variables_map vm;
+  po::store(po::command_line_parser(argc, argv).options(desc).positional(pos).run(), vm);
+  po::notify(vm);
+  if (!vm.count("help")) return -1;
+  stylerf::cli::print_help(std::cout, "devices", desc,
+                           "Prints this machine's OpenCL devices, the one SPEC chooses, the kernel paths taken there\n"
+                           "and the extensions they depend on.");
+  return 0;
+}
+
 int run_devices(int argc, char** argv) {
   using namespace stylerf::host;
+  std::string spec;
+  if (const int rc = parse_devices_args(argc, argv, spec); rc >= 0) return rc;
   for (const auto& d : list_devices()) std::cout << d.describe() << "\n";
-  // `stylerf devices [SPEC]` or `stylerf devices --device SPEC`.
-  std::string spec = argc > 1 ? argv[1] : "";
-  if (spec == "--device") spec = argc > 2 ? argv[2] : "";
   DeviceInfo chosen = choose_device(spec);
   std::cout << "chosen: [" << chosen.index << "] " << chosen.name
             << "   (pick with --device INDEX|cpu|gpu|NAME or STYLERF_DEVICE)\n";
@@ -30,5 +52,5 @@ int run_devices(int argc, char** argv) {
             << (stylerf::nn::device_flushes_denormals() ? "flushed to zero" : "kept (x86 CPUs run them slowly)") << "\n";
   return 0;
 }
-stylerf::cli::Register reg("devices", "list OpenCL devices and the one stylerf would use", run_devices);
+stylerf::cli::Register reg("devices", run_devices);
 }  // namespace

@@ -1,17 +1,19 @@
-// stylerf eval consistency|table: the consistency metric of StyleRF's Table 1 by the scene's own geometry
+// stylerf eval style|consistency|table: held-out styles against 2D AdaIN (cmd_eval_style.cpp), and the consistency metric of StyleRF's Table 1 by the scene's own geometry
 // (lib/eval/consistency.hpp), for one method (consistency) or the paper's table (cmd_eval_table.cpp).
 //
-// stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [--frames 16] --json F
+// stylerf eval consistency --ckpt CKPT --method rgb|adain|stylerf [--style IMG] [--scored-frames 16] --json F
 //   rgb, adain: CKPT is a density checkpoint (its RGB frames; AdaIN stylises each one);
 //   stylerf:    CKPT is a style checkpoint (zero-shot with --style).
-// The frames are the first --frames of the scene's default path of --path-frames (a video's spacing);
+// The frames are the first --scored-frames of the scene's default path of --path-frames (a video's spacing);
 // every method is warped by the checkpoint's frozen geometry.
 #include <boost/program_options.hpp>
 #include <chrono>
 #include <filesystem>
 #include <iostream>
 
+#include "examples/stylerf/command_index.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/eval_setup.hpp"
 #include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
@@ -28,6 +30,7 @@ namespace fs = std::filesystem;
 
 namespace stylerf::cli {
 int run_eval_table(int argc, char** argv);  // cmd_eval_table.cpp
+int run_eval_style(int argc, char** argv);  // cmd_eval_style.cpp
 }
 
 namespace {
@@ -73,10 +76,10 @@ int run_consistency(int argc, char** argv) {
       "ckpt", po::value(&ckpt), "density checkpoint (rgb, adain) or style checkpoint (stylerf)")(
       "method", po::value(&method), "rgb (the floor) | adain (per-frame 2D AdaIN of the RGB frames) | stylerf")(
       "style", po::value(&style_path), "style image (adain, stylerf)")(
-      "frames", po::value(&p.frames)->default_value(16), "frames compared: the first N of the path")(
+      "scored-frames", po::value(&p.frames)->default_value(16), "frames compared: the first N of the path")(
       "path-frames", po::value(&p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&p.size)->default_value(0), "longer image side (0: the scene's)")(
-      "depth-tol", po::value(&p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
+      "depth-tol", cli::value_shown(&p.depth_tolerance), "occlusion test: relative depth tolerance")(
       "no-lpips", po::bool_switch(&no_lpips), "RMSE only")(
       "lpips-net", po::value(&lpips_net)->default_value(lpips_net), "LPIPS trunk: vgg | alex")("json", po::value(&json_path), "write the scores here")(
       "output,o", po::value(&out_dir), "also write the frames (PNG) here")(
@@ -85,11 +88,12 @@ int run_consistency(int argc, char** argv) {
       "supersample", stylerf::cli::supersample_value(&p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
+  cli::apply_renamed_flags("eval consistency", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || ckpt.empty()) {
-    std::cout << desc;
+    cli::print_help(std::cout, "eval consistency", desc);
     return vm.count("help") ? 0 : 2;
   }
   // ---- options, checked before anything loads ----
@@ -161,22 +165,28 @@ int run_consistency(int argc, char** argv) {
   return 0;
 }
 
+// `stylerf eval`'s own page: its subcommands (from command_index.cpp), then its examples.
+std::string eval_usage() {
+  std::string usage = "usage: stylerf eval style|consistency|table [options]   (stylerf eval <what> --help)\n\nsubcommands:\n";
+  for (const cli::CommandInfo* sub : cli::subcommands_of("eval")) {
+    const std::string name = sub->name.substr(5);
+    usage += "  " + name + std::string(13 - std::min<size_t>(12, name.size()), ' ') + sub->summary + "\n";
+  }
+  return usage + "\n" + cli::examples_block("eval");
+}
+
 int run_eval(int argc, char** argv) {
-  const std::string usage =
-      "usage: stylerf eval consistency|table [options]   (stylerf eval <what> --help)\n"
-      "  consistency  one method's short- and long-range consistency on a path (RMSE, LPIPS)\n"
-      "  table        the paper's Table 1 over scenes and styles: Markdown, JSON, video, plot\n";
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
-    std::cout << usage;
+    (argc < 2 ? std::cerr : std::cout) << eval_usage();
     return argc < 2 ? 2 : 0;
   }
   const std::string what = argv[1];
+  if (what == "style") return cli::run_eval_style(argc - 1, argv + 1);
   if (what == "consistency") return run_consistency(argc - 1, argv + 1);
   if (what == "table") return cli::run_eval_table(argc - 1, argv + 1);
-  throw Error("eval: unknown '" + what + "'\n" + usage);
+  throw Error("eval: unknown '" + what + "'\n" + eval_usage());
 }
 
-cli::Register reg("eval", "consistency of stylised paths by the scene's geometry (RMSE, LPIPS); the paper's table",
-                  run_eval);
+cli::Register reg("eval", run_eval);
 
 }  // namespace

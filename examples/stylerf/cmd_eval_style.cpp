@@ -1,4 +1,4 @@
-// stylerf eval-style --ckpt STYLE_CKPT [--styles DIR] [--views N] [--images DIR]: the style stage's
+// stylerf eval style --ckpt STYLE_CKPT [--styles DIR] [--max-views N] [-o DIR]: the style stage's
 // yardstick. For the checkpoint's held-out styles (never trained on; or every image of --styles), the
 // content and style losses of our stylised test views beside those of 2D AdaIN applied to the true views,
 // by the same VGG and mask (lib/train/style_eval.hpp), per style and on average, with their ratio.
@@ -9,6 +9,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
@@ -19,33 +20,35 @@
 
 namespace po = boost::program_options;
 
-namespace {
+namespace stylerf::cli {
 
 using stylerf::host::Error;
 
+// `stylerf eval style` (cmd_eval.cpp dispatches it).
 int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
   int views = 5;
   std::string supersample_text = "0";
   float refine_contrast = stylerf::model::kRefineContrast;
-  po::options_description desc("stylerf eval-style --ckpt STYLE_CKPT [options]");
+  po::options_description desc("stylerf eval style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
-      "views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
-      "images", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
+      "max-views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
+      "output,o", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
       "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), "OpenCL device");
+  apply_renamed_flags("eval style", argc, argv, {{"--views", "--max-views"}, {"--images", "--output"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || ckpt.empty()) {
-    std::cout << desc;
+    print_help(std::cout, "eval style", desc);
     return vm.count("help") ? 0 : 2;
   }
-  if (views < 0) throw Error("--views must be >= 0");
+  if (views < 0) throw Error("--max-views must be >= 0");
   const int supersample = stylerf::cli::supersample_from(supersample_text);
   stylerf::cli::check_refine_contrast(refine_contrast);
   if (!images.empty()) std::filesystem::create_directories(images);
@@ -113,6 +116,4 @@ int run_eval_style(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("eval-style", "held-out styles: our stylised views vs 2D AdaIN, by the same VGG losses",
-                           run_eval_style);
-}  // namespace
+}  // namespace stylerf::cli

@@ -21,6 +21,7 @@
 
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/eval_setup.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
 #include "host/error.hpp"
@@ -166,10 +167,10 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "styles", po::value(&a.style_args)->multitoken(),
       "style images or folders (default: the first style checkpoint's held-out styles)")(
       "max-styles", po::value(&a.max_styles)->default_value(5), "styles per scene, evenly spaced (0: all)")(
-      "frames", po::value(&a.p.frames)->default_value(16), "frames compared: the first N of the path")(
+      "scored-frames", po::value(&a.p.frames)->default_value(16), "frames compared: the first N of the path")(
       "path-frames", po::value(&a.p.path_frames)->default_value(120), "frames of the whole path (their spacing)")(
       "size", po::value(&a.p.size)->default_value(0), "longer image side (0: the scene's)")(
-      "depth-tol", po::value(&a.p.depth_tolerance)->default_value(0.03f), "occlusion test: relative depth tolerance")(
+      "depth-tol", stylerf::cli::value_shown(&a.p.depth_tolerance), "occlusion test: relative depth tolerance")(
       "no-lpips", po::bool_switch(&a.no_lpips), "RMSE only")(
       "lpips-net", po::value(&a.lpips_net)->default_value(a.lpips_net), "LPIPS trunk: vgg | alex")(
       "fps", po::value(&a.fps)->default_value(8), "side-by-side video frame rate")(
@@ -178,11 +179,12 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "supersample", stylerf::cli::supersample_value(&a.p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&a.device), "OpenCL device");
+  stylerf::cli::apply_renamed_flags("eval table", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || a.groups.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "eval table", desc);
     return vm.count("help") ? 0 : 2;
   }
   return -1;

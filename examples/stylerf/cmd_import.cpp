@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "lib/scene/colmap_import.hpp"
 #include "lib/scene/pose_alignment.hpp"
 #include "lib/scene/scene.hpp"
@@ -43,13 +44,14 @@ int run_import(int argc, char** argv) {
       "longest image side COLMAP works at and the scene gets (0: as given)")(
       "colmap", po::value(&o.colmap)->default_value(o.colmap), "the COLMAP executable")(
       "threads", po::value(&o.threads)->default_value(0), "COLMAP threads (0: all cores)")(
-      "reference", po::value(&reference), "a scene with the same image names: print how well the poses agree")(
+      "compare-poses", po::value(&reference), "a scene with the same image names: print how well the poses agree")(
       "force", po::bool_switch(&o.force), "replace an existing output folder");
+  stylerf::cli::apply_renamed_flags("import", argc, argv, {{"--reference", "--compare-poses"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || o.images.empty() || o.out.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "import", desc);
     return vm.count("help") ? 0 : 2;
   }
   o.single_camera = !multi;
@@ -68,6 +70,5 @@ int run_import(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("import", "photos to a scene folder, by running COLMAP (features, matching, mapper, undistortion)",
-                           run_import);
+stylerf::cli::Register reg("import", run_import);
 }  // namespace

@@ -22,6 +22,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
@@ -209,7 +210,7 @@ int run_render(int argc, char** argv) {
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || ckpt.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "render", desc);
     return ckpt.empty() && !vm.count("help") ? 2 : 0;
   }
   if (views != "test" && views != "path") throw Error("--views must be test or path (got '" + views + "')");
@@ -278,7 +279,5 @@ int run_render(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("render",
-                           "render a density or feature checkpoint: held-out views with PSNR/SSIM, or a camera path",
-                           run_render);
+stylerf::cli::Register reg("render", run_render);
 }  // namespace

@@ -27,6 +27,7 @@
 #include <sstream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/pipeline_steps.hpp"
 #include "examples/stylerf/run_report.hpp"
 #include "lib/eval/eval_budget.hpp"
@@ -119,7 +120,7 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   desc.add_options()("help,h", "show this help")("scene", po::value(&o.scene), "the scene (Blender, LLFF, COLMAP or nerfstudio folder)")(
       "styles", po::value(&o.styles), "folder of training style images (some are held out)")(
       "output,o", po::value(&o.out), "output folder (a run there before is resumed)")(
-      "minutes", po::value(&o.minutes)->default_value(90), "the whole run's time budget")(
+      "minutes", po::value(&o.minutes)->default_value(90), "the whole run's time budget in minutes")(
       "stage-minutes", po::value(&o.stage_minutes), "D,F,S: each training stage's minutes (replaces --minutes' split)")(
       "stage-iters", po::value(&o.stage_iters),
       "D,F,S: each training stage's iterations instead of minutes (the same result on any machine; with "
@@ -142,7 +143,7 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   po::notify(vm);
   o.minutes_given = !vm["minutes"].defaulted();
   if (vm.count("help") || o.scene.empty() || o.styles.empty() || o.out.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "run", desc);
     rc = vm.count("help") ? 0 : 2;
     return false;
   }
@@ -253,7 +254,7 @@ double render_seconds_per_view(const std::string& metrics) {
 }
 
 // The test views a render step wrote (its metrics.json lists them), or `fallback` when it cannot tell:
-// eval-style scores at most that many, whatever --eval-views asks (fern has 3).
+// eval style scores at most that many, whatever --eval-views asks (fern has 3).
 int views_rendered(const std::string& metrics, int fallback) {
   try {
     std::ifstream in(metrics);
@@ -410,7 +411,7 @@ StylePlan plan_style_stage(PipelineSteps& steps, const RunOptions& o, const Budg
   return sp;
 }
 
-// Under a planned budget: the style stage and eval-style may have run past their plan, so what is left of
+// Under a planned budget: the style stage and eval style may have run past their plan, so what is left of
 // --minutes now sizes the videos, the mix sheet and the table.
 void refit_after_style(const RunOptions& o, double spent_s, StylePlan& sp) {
   const double left = o.minutes * 60.0 - spent_s;
@@ -440,7 +441,7 @@ void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, cons
                            corners[0] + "," + corners[1] + "," + corners[2] + "," + corners[3], "-o",
                            (out / "mix").string()),
                       (out / "mix/metrics.json").string(), upstream);
-  std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", ck.density + "," + ck.style, "--frames",
+  std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", ck.density + "," + ck.style, "--scored-frames",
                                         std::to_string(o.table_frames), "-o", (out / "consistency").string(),
                                         "--styles");
   for (const auto& st : shown_now) table.push_back(st);
@@ -479,7 +480,7 @@ int run_pipeline(int argc, char** argv) {
   const std::string upstream = s.key + ck.d.key;
   const double eval_style_s =
       steps.run("style_eval",
-                args(o, "eval-style", "--ckpt", ck.style, "--views", std::to_string(o.eval_views), "--images",
+                args(o, "eval", "style", "--ckpt", ck.style, "--max-views", std::to_string(o.eval_views), "-o",
                      (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
                 (out / "style_eval.json").string(), upstream)
           .seconds;
@@ -506,8 +507,7 @@ int run_pipeline(int argc, char** argv) {
   return 0;
 }
 
-Register reg("run", "the whole pipeline: density, features, style, then videos, mix sheet and consistency",
-             run_pipeline);
+Register reg("run", run_pipeline);
 
 }  // namespace
 }  // namespace stylerf::cli

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "lib/scene/camera_path.hpp"
 #include "lib/scene/pose_alignment.hpp"
 #include "lib/scene/scene.hpp"
@@ -29,7 +30,7 @@ int run_scene_info(int argc, char** argv) {
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || dir.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "scene-info", desc);
     return dir.empty() && !vm.count("help") ? 2 : 0;
   }
   opt.ndc = stylerf::scene::parse_switch(ndc, "--ndc");
@@ -51,6 +52,5 @@ int run_scene_info(int argc, char** argv) {
   }
   return 0;
 }
-stylerf::cli::Register reg("scene-info", "load a scene and print cameras, box, near/far and the effects switched on",
-                           run_scene_info);
+stylerf::cli::Register reg("scene-info", run_scene_info);
 }  // namespace

@@ -22,6 +22,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
@@ -198,7 +199,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help") || a.ckpt.empty()) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "stylize", desc);
     return vm.count("help") ? 0 : 2;
   }
   if (!a.camera_path.empty()) {
@@ -513,6 +514,5 @@ int run_stylize(int argc, char** argv) {
   return 0;
 }
 
-cli::Register reg("stylize", "zero-shot stylisation: any style image, interpolation, 3D region composition",
-                  run_stylize);
+cli::Register reg("stylize", run_stylize);
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/scene/scene.hpp"
@@ -66,7 +67,7 @@ struct DensityArgs {
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1, ert = 1e-4f, backdrop_weight = -1;
   double minutes = 0;
-  bool view_dep = false, resume = false, force = false, no_mask = false, profile = false;
+  bool view_dep = false, resume = false, force = false, no_mask = false, timing = false;
   int64_t vfinal = 0, vinit = 0;  // parsed --final-voxels / --init-voxels (0: the default)
   std::set<std::string> given;
   bool has(const char* option) const { return given.count(option) > 0; }
@@ -81,7 +82,7 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "image downsample factor (default: the paper's resolution, Blender 1 = 800x800, LLFF 4 = 1008x756; "
       "COLMAP and nerfstudio 1)")(
       "iters", po::value(&a.iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
-      "minutes", po::value(&a.minutes), "train for this much time: the schedule (events, lr decay) is fitted to it "
+      "minutes", po::value(&a.minutes), "train for this many minutes: the schedule (events, lr decay) is fitted to it "
                                         "from the measured step rate (replaces --iters)")(
       "batch", po::value(&a.batch)->default_value(4096), "rays per step")(
       "ndc", po::value(&a.ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
@@ -115,14 +116,15 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "eval-views", po::value(&a.eval_views)->default_value(5),
       "held-out views for the final PSNR, evenly spaced (0: all; timed apart from training)")(
       "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
-      "profile", po::bool_switch(&a.profile), "print per-kernel times at the end");
+      "timing", po::bool_switch(&a.timing), "print per-kernel times at the end");
+  stylerf::cli::apply_renamed_flags("train-density", argc, argv, {{"--profile", "--timing"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   for (const auto& kv : vm)
     if (!kv.second.defaulted()) a.given.insert(kv.first);
   if (vm.count("help") || argc <= 1) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "train-density", desc);
     return vm.count("help") ? 0 : 2;
   }
   return -1;
@@ -248,7 +250,7 @@ int run_train_density(int argc, char** argv) {
   DensityArgs a;
   if (const int code = parse_density_args(argc, argv, a); code >= 0) return code;
   check_density_args(a);
-  stylerf::cli::init_runtime(a.device, a.profile);
+  stylerf::cli::init_runtime(a.device, a.timing);
 
   stylerf::scene::LoadOptions lo;
   lo.downsample = a.downsample;
@@ -274,10 +276,9 @@ int run_train_density(int argc, char** argv) {
             << a.out << "\n";
   report_density_psnr(*trainer, scene, a.eval_views);
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
-  if (a.profile) std::cout << stylerf::host::Runtime::instance().timing_report();
+  if (a.timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;
 }
 
-stylerf::cli::Register reg("train-density", "density stage: train TensoRF VM grids on a scene's RGB images",
-                           run_train_density);
+stylerf::cli::Register reg("train-density", run_train_density);
 }  // namespace

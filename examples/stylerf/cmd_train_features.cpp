@@ -13,6 +13,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/model/density_model.hpp"
@@ -54,7 +55,7 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
       "fast (features at 1/4 resolution, AdaIN-initialised upsampling decoder) | paper (full resolution, "
       "PlainDecoder); default: the recipe's")(
       "iters", po::value(&a.iters), "iterations (ray and patch steps alternate; default 10000)")(
-      "minutes", po::value(&a.minutes), "train for this much time; the lr decay is fitted to it (replaces --iters)")(
+      "minutes", po::value(&a.minutes), "train for this many minutes; the lr decay is fitted to it (replaces --iters)")(
       "batch", po::value(&a.batch)->default_value(4096), "rays per ray step")(
       "patch", po::value(&a.patch)->default_value(256), "patch side in pixels (multiple of 8)")(
       "tv", po::value(&a.tv), "feature TV weight (default: 10 Blender, 80 LLFF)")(
@@ -78,7 +79,7 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
   for (const auto& kv : vm)
     if (!kv.second.defaulted()) a.given.insert(kv.first);
   if (vm.count("help") || a.out.empty() || (a.density_path.empty() && !a.resume)) {
-    std::cout << desc;
+    stylerf::cli::print_help(std::cout, "train-features", desc);
     return vm.count("help") ? 0 : 2;
   }
   return -1;
@@ -227,7 +228,5 @@ int run_train_features(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("train-features",
-                           "feature stage: a VGG feature grid and decoder over a density checkpoint's geometry",
-                           run_train_features);
+stylerf::cli::Register reg("train-features", run_train_features);
 }  // namespace

@@ -13,6 +13,7 @@
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/model/map_decoder.hpp"
@@ -56,7 +57,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
       "holdout-styles", po::value(&a.holdout)->default_value(12), "styles held out of training (evaluated, never trained on)")(
       "output,o", po::value(&a.out), "style checkpoint to write")(
       "iters", po::value(&a.iters), "iterations (default 25000, the paper's)")(
-      "minutes", po::value(&a.minutes), "train for this much time (replaces --iters)")(
+      "minutes", po::value(&a.minutes), "train for this many minutes (replaces --iters)")(
       "recipe", po::value(&a.recipe_name),
       "fast | paper: the settings below that a flag does not give (default: the feature checkpoint's profile's "
       "name; fast is the best measured, paper the paper's)")(
@@ -108,12 +109,13 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
   for (const auto& kv : vm)
     if (!kv.second.defaulted()) a.given.insert(kv.first);
   if (vm.count("help-all")) {
-    std::cout << all;
+    stylerf::cli::print_help(std::cout, "train-style", all);
     return 0;
   }
   if (vm.count("help") || a.out.empty() || (!a.resume && (a.features_path.empty() || a.styles_dir.empty()))) {
-    std::cout << desc << "\n(also --sict, --dst, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, --eval-every, --eval-styles, "
-                         "--ckpt-every, --timing: --help-all)\n";
+    stylerf::cli::print_help(std::cout, "train-style", desc,
+                             "(also --sict, --dst, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, "
+                             "--eval-every, --eval-styles, --ckpt-every, --timing: --help-all)");
     return vm.count("help") ? 0 : 2;
   }
   return -1;
@@ -249,6 +251,5 @@ int run_train_style(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("train-style", "style stage: SICT + DST over a feature checkpoint, many style images",
-                           run_train_style);
+stylerf::cli::Register reg("train-style", run_train_style);
 }  // namespace

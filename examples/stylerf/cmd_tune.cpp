@@ -1,4 +1,4 @@
-// stylerf tune [--quick] [--out FILE] [--from-dir DIR] [--skip-clblast] [--skip-own] [--device D]
+// stylerf tune [--quick] [-o FILE] [--from-dir DIR] [--skip-clblast] [--skip-own] [--device D]
 //
 // Tunes GEMM for the current device and merges the result into a tuning database file:
 //  1. CLBlast: runs CLBlast's tuners (clblast_tuner_* from clblast-utils, found on PATH) in a temporary
@@ -8,7 +8,7 @@
 //     timed on reduced versions of the decoder's forward, dX and dW GEMMs.
 //  3. Measures own, CLBlast tuned and CLBlast defaults on the same shapes and records the fastest as the
 //     device's recommended engine (what GemmEngine::Auto uses).
-// The file is $STYLERF_CACHE_DIR/clblast-tuning.json (or ~/.cache/stylerf/...) unless --out names one
+// The file is $STYLERF_CACHE_DIR/clblast-tuning.json (or ~/.cache/stylerf/...) unless -o names one
 // (e.g. the repository's tuning/clblast.json); other devices' entries in it are kept.
 //
 // Note on CLBlast 1.5.3's tuners: "-fraction F" explores (number of configurations) / F, so F > 1
@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/help.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "host/gemm.hpp"
@@ -285,22 +286,23 @@ int run_tune(int argc, char** argv) {
   bool quick = false, skip_clblast = false, skip_own = false, keep = false;
   po::options_description desc("stylerf tune [options]: tune GEMM (CLBlast + own kernel) for this device");
   desc.add_options()("help,h", "show this help")("quick", po::bool_switch(&quick), "fewer configurations (minutes)")(
-      "out", po::value(&out), "database file to merge into (default: user cache file)")(
+      "output,o", po::value(&out)->default_value(user_tuning_path()), "database file to merge into")(
       "from-dir", po::value(&from_dir), "use clblast_*.json tuner results from DIR instead of running the tuners")(
       "skip-clblast", po::bool_switch(&skip_clblast), "keep the existing CLBlast parameters")(
       "skip-own", po::bool_switch(&skip_own), "keep the existing own-kernel parameters")(
       "keep-dir", po::bool_switch(&keep), "keep the tuners' temporary directory")(
       "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+  stylerf::cli::apply_renamed_flags("tune", argc, argv, {{"--out", "--output"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
   if (vm.count("help")) {
-    std::cout << desc << "\n";
+    stylerf::cli::print_help(std::cout, "tune", desc);
     return 0;
   }
   stylerf::cli::init_runtime(device, false);
   const DeviceInfo& dev = Runtime::instance().device();
-  if (out.empty()) out = user_tuning_path();
+  if (out.empty()) throw std::runtime_error("-o: an empty file name");
   std::cout << "device: " << dev.describe() << "\ndatabase: " << out << (quick ? " (quick)" : "") << "\n";
 
   // Start from the file's current content and this device's current entry (embedded or user).
@@ -372,6 +374,5 @@ int run_tune(int argc, char** argv) {
   return 0;
 }
 
-stylerf::cli::Register reg("tune", "tune GEMM for this device (CLBlast tuners + own kernel) into a tuning file",
-                           run_tune);
+stylerf::cli::Register reg("tune", run_tune);
 }  // namespace

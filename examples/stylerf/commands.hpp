@@ -11,19 +11,19 @@ namespace stylerf::cli {
 using CommandFn = std::function<int(int argc, char** argv)>;
 
 struct Command {
-  std::string name, summary;
+  std::string name;  // its group, summary and examples are in command_index.cpp
   CommandFn run;
 };
 
 std::vector<Command>& commands();
 
 struct Register {
-  Register(std::string name, std::string summary, CommandFn fn);
+  Register(std::string name, CommandFn fn);
 };
 
-// Common options every subcommand accepts: --device SPEC (also STYLERF_DEVICE), --profile.
+// Common options every subcommand accepts: --device SPEC (also STYLERF_DEVICE), --timing (kernel times).
 // Initialises the OpenCL runtime on the chosen device.
-void init_runtime(const std::string& device_spec, bool profile);
+void init_runtime(const std::string& device_spec, bool timing);
 
 // This process's peak resident memory so far, in MB (getrusage; the training commands print it at the end).
 double peak_rss_mb();

@@ -31,9 +31,9 @@ void check_same_scene_of(const io::Checkpoint& a, const io::Checkpoint& b, const
 
 void check_path_options(PathOptions& p) {
   if (p.frames < 8 || p.frames > 1000)
-    throw Error("--frames must be in [8, 1000] (the long range compares frame t with t - 7)");
+    throw Error("--scored-frames must be in [8, 1000] (the long range compares frame t with t - 7)");
   if (p.path_frames < p.frames || p.path_frames > 100000)
-    throw Error("--path-frames must be in [--frames, 100000] (got " + std::to_string(p.path_frames) + ")");
+    throw Error("--path-frames must be in [--scored-frames, 100000] (got " + std::to_string(p.path_frames) + ")");
   if (p.size < 0 || p.size > 4096) throw Error("--size must be in [0, 4096] (0: the scene's)");
   if (!(p.depth_tolerance > 0 && p.depth_tolerance < 1)) throw Error("--depth-tol must be in (0, 1)");
   if (p.chunk < 1) throw Error("--chunk must be >= 1");

@@ -1,4 +1,4 @@
-// stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the subcommands.
+// stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the commands by workflow.
 #include <sys/resource.h>
 
 #include <cstring>
@@ -7,9 +7,12 @@
 
 #include "bench/timing.hpp"
 #include "examples/stylerf/cli_checks.hpp"
+#include "examples/stylerf/command_index.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "host/device.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
+#include "lib/version.hpp"
 
 namespace stylerf::cli {
 
@@ -18,9 +21,7 @@ std::vector<Command>& commands() {
   return list;
 }
 
-Register::Register(std::string name, std::string summary, CommandFn fn) {
-  commands().push_back({std::move(name), std::move(summary), std::move(fn)});
-}
+Register::Register(std::string name, CommandFn fn) { commands().push_back({std::move(name), std::move(fn)}); }
 
 double peak_rss_mb() {
   rusage u{};
@@ -28,14 +29,16 @@ double peak_rss_mb() {
   return double(u.ru_maxrss) / 1024.0;  // Linux reports kilobytes
 }
 
-void init_runtime(const std::string& device_spec, bool profile) {
+void init_runtime(const std::string& device_spec, bool timing) {
   auto& rt = host::Runtime::init(device_spec);
-  if (profile) rt.set_profiling(true);
+  if (timing) rt.set_profiling(true);
 }
 
 }  // namespace stylerf::cli
 
 namespace {
+namespace cli = stylerf::cli;
+
 // STYLERF_PROFILE=1: the whole command's device time per kernel, longest first, on stderr (what a frame or a
 // step spends where, without a bench).
 void print_profile_report() {
@@ -43,39 +46,90 @@ void print_profile_report() {
   stylerf::bench::print_top_kernels(25, "device time per kernel over the whole command", stderr);
 }
 
-void usage() {
-  std::cout << "usage: stylerf <command> [options]   (stylerf <command> --help for its options)\n\ncommands:\n";
-  for (const auto& c : stylerf::cli::commands()) std::cout << "  " << c.name << std::string(16 - std::min<size_t>(15, c.name.size()), ' ') << c.summary << "\n";
+const cli::Command* find_command(const std::string& name) {
+  for (const auto& c : cli::commands())
+    if (c.name == name) return &c;
+  return nullptr;
+}
+
+// `stylerf help`: the commands group by group in workflow order, each with its summary and first example.
+void usage(std::ostream& os) {
+  os << "usage: stylerf <command> [options]\n"
+     << "       stylerf <command> --help   the command's options and examples\n"
+     << "       stylerf --version          version, git commit and OpenCL devices\n";
+  for (const std::string& group : cli::workflow_groups()) {
+    os << "\n" << group << ":\n";
+    for (const auto& c : cli::command_index()) {
+      if (c.group != group || c.name.find(' ') != std::string::npos) continue;
+      os << "  " << c.name << std::string(16 - std::min<size_t>(15, c.name.size()), ' ') << c.summary << "\n"
+         << std::string(18, ' ') << c.examples.front() << "\n";
+    }
+  }
+  os << "\nExamples:\n  stylerf train-density --help\n  stylerf --version\n";
+}
+
+// `stylerf --version`: what was built, and where it can run.
+int print_version() {
+  std::cout << "stylerf " << stylerf::version() << " (commit " << stylerf::git_commit() << ")\nOpenCL devices:\n";
+  try {
+    const auto devices = stylerf::host::list_devices();
+    if (devices.empty()) std::cout << "  none found\n";
+    for (const auto& d : devices) std::cout << "  " << d.describe() << "\n";
+  } catch (const std::exception& e) {
+    std::cout << "  none usable: " << e.what() << "\n";
+  }
+  return 0;
+}
+
+// Every registered command must have its line in command_index.cpp (group, summary, examples): a command
+// added without one is a programming error, reported before anything runs.
+bool index_complete() {
+  bool ok = true;
+  for (const auto& c : cli::commands())
+    if (!cli::find_command_info(c.name)) {
+      std::cerr << "stylerf: internal error: command '" << c.name << "' has no entry in command_index.cpp\n";
+      ok = false;
+    }
+  return ok;
+}
+
+int run_command(const cli::Command& c, int argc, char** argv) {
+  int rc = 1;
+  try {
+    rc = c.run(argc, argv);
+    print_profile_report();
+    stylerf::host::Runtime::shutdown();
+  } catch (const std::exception& e) {
+    // A library setting's error names its config field; the user typed a flag.
+    const auto* setting = dynamic_cast<const stylerf::host::SettingError*>(&e);
+    std::cerr << "stylerf " << c.name << ": error: "
+              << (setting ? cli::flag_for_field(setting->field()) + " " + setting->problem() : e.what()) << std::endl;
+    try {
+      stylerf::host::Runtime::shutdown();
+    } catch (const std::exception&) {
+    }
+  }
+  return rc;
 }
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (!index_complete()) return 3;
   if (argc < 2 || !std::strcmp(argv[1], "help") || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
-    usage();
+    usage(argc < 2 ? std::cerr : std::cout);
     return argc < 2 ? 2 : 0;
   }
-  for (const auto& c : stylerf::cli::commands()) {
-    if (c.name == argv[1]) {
-      int rc = 1;
-      try {
-        rc = c.run(argc - 1, argv + 1);
-        print_profile_report();
-        stylerf::host::Runtime::shutdown();
-      } catch (const std::exception& e) {
-        // A library setting's error names its config field; the user typed a flag.
-        const auto* setting = dynamic_cast<const stylerf::host::SettingError*>(&e);
-        std::cerr << "stylerf " << c.name << ": error: "
-                  << (setting ? stylerf::cli::flag_for_field(setting->field()) + " " + setting->problem() : e.what())
-                  << std::endl;
-        try {
-          stylerf::host::Runtime::shutdown();
-        } catch (const std::exception&) {
-        }
-      }
-      return rc;
-    }
+  if (!std::strcmp(argv[1], "--version")) return print_version();
+  std::vector<char*> args(argv + 1, argv + argc);
+  // The old spelling of `eval style` keeps working, with a notice (CHANGELOG.md).
+  static char eval_name[] = "eval", style_name[] = "style";
+  if (!std::strcmp(argv[1], "eval-style")) {
+    std::cerr << "stylerf: eval-style is now `eval style` (the old name will be removed; CHANGELOG.md)\n";
+    args.front() = eval_name;
+    args.insert(args.begin() + 1, style_name);
   }
+  if (const cli::Command* c = find_command(args.front())) return run_command(*c, int(args.size()), args.data());
   std::cerr << "stylerf: unknown command '" << argv[1] << "'\n";
-  usage();
+  usage(std::cerr);
   return 2;
 }

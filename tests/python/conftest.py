@@ -32,9 +32,9 @@ class Stages:
         self.root = str(root)
         self.scene = os.path.join(self.root, "scene")
         self.styles = os.path.join(self.root, "demo", "styles")
-        code, out = run_cli("make-scene", "-o", self.scene, "--size", "32", "--views", "20")
+        code, out = run_cli("make-scene", "-o", self.scene, "--size", "32", "--num-views", "20")
         assert code == 0, out
-        code, out = run_cli("demo-images", "-o", os.path.join(self.root, "demo"), "--size", "64", "--styles", "3")
+        code, out = run_cli("demo-images", "-o", os.path.join(self.root, "demo"), "--size", "64", "--num-styles", "3")
         assert code == 0, out
         self.style_images = sorted(os.path.join(self.styles, f) for f in os.listdir(self.styles))
         self.density = stylerf.train_density(stylerf.Scene.open(self.scene), os.path.join(self.root, "d.ckpt"),
