@@ -40,11 +40,12 @@ double lpips(const pyb::object& a, const pyb::object& b, const std::string& net)
   return lpips_net(net).distance(ia, ib);
 }
 
-pyb::dict range_dict(const eval::RangeScore& r) {
+// lpips is None when it was not measured (consistency(lpips=None)).
+pyb::dict range_dict(const eval::RangeScore& r, bool measured_lpips) {
   pyb::dict d;
   d["k"] = r.k;
   d["rmse"] = r.rmse;
-  d["lpips"] = r.lpips;
+  d["lpips"] = measured_lpips ? pyb::object(pyb::float_(r.lpips)) : pyb::none();
   d["valid_fraction"] = r.valid_fraction;
   d["pairs"] = int(r.pairs.size());
   d["skipped"] = r.skipped;
@@ -53,12 +54,12 @@ pyb::dict range_dict(const eval::RangeScore& r) {
 
 // `stylerf eval consistency --method stylerf` for a code already encoded: the path's first `frames`
 // frames, warped by the scene's own geometry; RMSE, and LPIPS unless lpips_net is None.
-pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, int path_frames, int size,
-                      std::optional<std::string> lpips_name, const SupersampleArg& supersample) {
+pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, int path_frames,
+                      std::optional<int> size, std::optional<std::string> lpips_name, const SupersampleArg& supersample) {
   if (code.owner != s) throw pyb::value_error("code: this StyleCode was encoded by another StyleModel");
   if (frames < 8 || frames > 1000) throw pyb::value_error("frames: must be in [8, 1000] (the long range compares t with t - 7)");
   if (path_frames < frames || path_frames > 100000) throw pyb::value_error("path_frames: must be in [frames, 100000]");
-  if (size < 0 || size > 4096) throw pyb::value_error("size: must be in [0, 4096] (0: the scene's)");
+  if (size && (*size < 1 || *size > 4096)) throw pyb::value_error("size: must be in [1, 4096], or None for the scene's");
   if (lpips_name) check_net(*lpips_name);
   const int n = supersample_of(*s, supersample);
   eval::ConsistencyScore score;
@@ -67,7 +68,7 @@ pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, 
     eval::PathOptions p;
     p.frames = frames;
     p.path_frames = path_frames;
-    p.size = size;
+    p.size = size.value_or(0);  // 0: the scene's
     const eval::PathSetup path = eval::path_setup(s->model.features.geo, s->scene, p);
     const auto images = eval::stylerf_frames(s->model, s->scene, path.cams, code.code,
                                              s->model.features.geo.has_background, p.chunk, n);
@@ -75,8 +76,8 @@ pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, 
     score = eval::score_frames(images, path.warps, dist.get());
   }
   pyb::dict d;
-  d["short_range"] = range_dict(score.short_range);
-  d["long_range"] = range_dict(score.long_range);
+  d["short_range"] = range_dict(score.short_range, lpips_name.has_value());
+  d["long_range"] = range_dict(score.long_range, lpips_name.has_value());
   return d;
 }
 
@@ -84,11 +85,13 @@ pyb::dict consistency(const ModelHandle& s, const CodeHandle& code, int frames, 
 
 void bind_eval(pyb::module_& m) {
   m.def("lpips", &lpips, pyb::arg("a"), pyb::arg("b"), pyb::arg("net") = eval::lpips_net_name(eval::kDefaultLpipsNet),
-        "LPIPS (v0.1) between two H x W x 3 images; net: vgg or alex");
+        "LPIPS (v0.1) between two H x W x 3 images of one size; net: alex or vgg.");
   m.def("consistency", &consistency, pyb::arg("model"), pyb::arg("code"), pyb::kw_only(), pyb::arg("frames") = 16,
-        pyb::arg("path_frames") = 120, pyb::arg("size") = 0, pyb::arg("lpips") = eval::lpips_net_name(eval::kDefaultLpipsNet),
-        pyb::arg("supersample") = pyb::none(),
-        "short- and long-range consistency of the stylised path (RMSE, LPIPS) as the paper's Table 1");
+        pyb::arg("path_frames") = 120, pyb::arg("size") = pyb::none(),
+        pyb::arg("lpips") = eval::lpips_net_name(eval::kDefaultLpipsNet), pyb::arg("supersample") = pyb::none(),
+        "Short- and long-range consistency of the stylised camera path, as the paper's Table 1 (`stylerf eval "
+        "consistency`): the first frames of a path_frames path, at size pixels on the longer side (None: the "
+        "scene's), warped by the scene's geometry; RMSE, and LPIPS with that net (None: not measured).");
 }
 
 }  // namespace stylerf::py

@@ -9,6 +9,7 @@
 #include "lib/scene/scene_meta.hpp"
 #include "python/src/arrays.hpp"
 #include "python/src/handles.hpp"
+#include "python/src/path_args.hpp"
 
 namespace stylerf::py {
 
@@ -16,16 +17,16 @@ namespace {
 
 constexpr int kChunk = 8192;  // rays per content-render call: `stylerf stylize`'s default --chunk
 
-ModelHandle open_model(const std::string& path, const std::string& scene_dir) {
+ModelHandle open_model(const std::filesystem::path& checkpoint, const std::optional<SceneArg>& scene_arg) {
+  const std::string path = path_arg(checkpoint, "path");
+  scene::SceneOverrides o = scene_overrides(scene_arg, "scene");
+  o.load_images = false;  // cameras only: stylising needs no photographs
   LibraryCall call;
   const io::Checkpoint ck = io::load_checkpoint(path, "");
   if (ck.kind != "style")
     throw host::Error("checkpoint " + path + " holds a '" + ck.kind +
                       "' stage, not a trained stylizer; train one with train_style");
   auto s = std::make_shared<ModelState>(ModelState{path, model::StyleModel::load(ck), {}, {}, {}, {}});
-  scene::SceneOverrides o;
-  o.dir = scene_dir;
-  o.load_images = false;  // cameras only: stylising needs no photographs
   s->scene = scene::open_scene_for(ck.meta.value("scene", nlohmann::json::object()), path, o).scene;
   s->vgg = nn::VggEncoder::load_default();
   s->encoder = std::make_unique<style::StyleEncoder>(s->model.dst, s->vgg);
@@ -58,6 +59,7 @@ CodeHandle encode(const ModelHandle& s, const pyb::object& image) {
   c.owner = s;
   if (pyb::isinstance<pyb::str>(image) || pyb::hasattr(image, "__fspath__")) {
     c.source = pyb::str(image);
+    if (c.source.empty()) throw pyb::value_error("image: an empty path; give an image file or an array");
     LibraryCall call;
     c.code = s->encoder->encode(c.source).code;  // the file as `stylize --style` reads it
   } else {
@@ -156,35 +158,51 @@ CodeHandle mix(const std::vector<CodeHandle>& codes, const std::vector<float>& w
 
 void bind_model(pyb::module_& m) {
   pyb::class_<CodeHandle>(m, "StyleCode", "A style image's code under one StyleModel (zero-shot: no optimisation).")
-      .def_readonly("source", &CodeHandle::source)
+      .def_readonly("source", &CodeHandle::source,
+                    "Where the code came from: the image's path, '<array>' for an array, or 'mix'.")
       .def("__repr__", [](const CodeHandle& c) { return "StyleCode('" + c.source + "')"; });
 
-  pyb::class_<ModelState, ModelHandle>(m, "StyleModel", "A trained style checkpoint on the scene it was trained on.")
-      .def_static("open", &open_model, pyb::arg("path"), pyb::arg("scene") = "",
-                  "scene: the scene folder, when it moved since training (default: the one the checkpoint records)")
-      .def_readonly("path", &ModelState::path)
+  pyb::class_<ModelState, ModelHandle>(m, "StyleModel",
+                                       "A trained style checkpoint on the scene it was trained on. A view is an index "
+                                       "into cameras or a Camera.")
+      .def_static("open", &open_model, pyb::arg("path"), pyb::arg("scene") = pyb::none(),
+                  "Opens a train_style checkpoint. scene: the scene (a Scene or its folder) when it moved since "
+                  "training; None: the folder the checkpoint records.")
+      .def_readonly("path", &ModelState::path, "The checkpoint's path.")
       .def_property_readonly("supersample",
                              [](const ModelState& s) -> std::variant<int, std::string> {
                                if (s.model.inference_supersample == model::kQuincunx) return std::string("quincunx");
                                return s.model.inference_supersample;
-                             })
-      .def_property_readonly("stride", [](const ModelState& s) { return s.model.stride(); })
+                             },
+                             "Rays per feature block that stylize uses by default: n (n x n) or 'quincunx'.")
+      .def_property_readonly("stride", [](const ModelState& s) { return s.model.stride(); },
+                             "Pixels per feature-map cell along each side: the depth and opacity of render are at "
+                             "1/stride of the image's resolution.")
       .def_property_readonly("cameras", [](const ModelState& s) {
         std::vector<scene::Camera> v;
         for (const auto& view : s.scene.test.empty() ? s.scene.train : s.scene.test) v.push_back(view.camera);
         return v;
-      }, "the cameras a view index picks: the held-out views (the training views when there are none)")
-      .def("path_cameras", [](const ModelState& s, int frames) { return scene::default_path(s.scene, frames); },
-           pyb::arg("frames") = 120)
+      }, "The cameras a view index picks: the held-out views (the training views when there are none).")
+      .def("path_cameras", [](const ModelState& s, int frames) {
+        if (frames < 1) throw pyb::value_error("frames: must be >= 1");
+        return scene::default_path(s.scene, frames);
+      }, pyb::arg("frames") = 120, "The scene's default camera path: an orbit, or a spiral for forward-facing scenes.")
       .def("encode_style", &encode, pyb::arg("image"),
-           "image: a file path (read as `stylerf stylize --style` reads it) or an H x W x 3 array")
-      .def("stylize", &stylize, pyb::arg("view"), pyb::arg("code"), pyb::arg("supersample") = pyb::none())
-      .def("render", &render, pyb::arg("view"))
+           "The code of a style image: a file path (read as `stylerf stylize --style` reads it) or an H x W x 3 "
+           "array (float32 in [0, 1] or uint8).")
+      .def("stylize", &stylize, pyb::arg("view"), pyb::arg("code"), pyb::arg("supersample") = pyb::none(),
+           "The view stylised with code: H x W x 3 float32 in [0, 1]. supersample: rays per feature block, n (n x n, "
+           "1 to 8) or 'quincunx'; None: the model's.")
+      .def("render", &render, pyb::arg("view"),
+           "The view without style: rgb (H x W x 3, the feature decoder's picture), and depth and opacity at 1/stride "
+           "of that resolution (the rays the model renders).")
       .def("_cpp_stylize_seconds", &cpp_stylize_seconds, pyb::arg("view"), pyb::arg("code"),
-           pyb::arg("supersample") = pyb::none(), pyb::arg("repeats") = 1);
+           pyb::arg("supersample") = pyb::none(), pyb::arg("repeats") = 1,
+           "The seconds of each of repeats stylize calls, timed in C++ (bench/python_stylize.py's other side).");
 
   m.def("mix", &mix, pyb::arg("codes"), pyb::arg("weights"),
-        "sum_k w_k code_k (weights >= 0 summing to 1): interpolates the style transformation itself");
+        "The code sum_k weights[k] * codes[k] (weights >= 0 summing to 1, codes of one model): it interpolates the "
+        "style transformation itself.");
 }
 
 }  // namespace stylerf::py

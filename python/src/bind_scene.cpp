@@ -5,6 +5,7 @@
 #include "lib/scene/camera_path.hpp"
 #include "python/src/arrays.hpp"
 #include "python/src/handles.hpp"
+#include "python/src/path_args.hpp"
 
 namespace stylerf::py {
 
@@ -54,53 +55,52 @@ scene::Camera resolve_view(const scene::Scene& scene, const ViewOrCamera& v) {
 }
 
 void bind_scene(pyb::module_& m) {
-  pyb::class_<scene::Camera>(m, "Camera", "A pinhole camera: camera-to-world pose (OpenGL axes), intrinsics in pixels.")
+  pyb::class_<scene::Camera>(m, "Camera",
+                             "A pinhole camera: c2w camera-to-world (3 x 4 or 4 x 4, OpenGL axes: it looks down -z), "
+                             "intrinsics in pixels.")
       .def(pyb::init(&make_camera), pyb::arg("c2w"), pyb::arg("fx"), pyb::arg("fy"), pyb::arg("cx"), pyb::arg("cy"),
-           pyb::arg("w"), pyb::arg("h"))
-      .def_property_readonly("c2w", &c2w_array, "4 x 4 camera-to-world matrix (a copy)")
-      .def_readonly("fx", &scene::Camera::fx)
-      .def_readonly("fy", &scene::Camera::fy)
-      .def_readonly("cx", &scene::Camera::cx)
-      .def_readonly("cy", &scene::Camera::cy)
-      .def_readonly("width", &scene::Camera::width)
-      .def_readonly("height", &scene::Camera::height)
-      .def("resized", &scene::Camera::resized, pyb::arg("w"), pyb::arg("h"))
-      .def("with_longer_side", &scene::Camera::with_longer_side, pyb::arg("size"))
+           pyb::arg("w"), pyb::arg("h"),
+           "A camera from its pose (a rigid 3 x 4 or 4 x 4 matrix, float32 or float64), focal lengths, principal "
+           "point and image size in pixels.")
+      .def_property_readonly("c2w", &c2w_array, "The 4 x 4 camera-to-world matrix (a copy).")
+      .def_readonly("fx", &scene::Camera::fx, "Horizontal focal length in pixels.")
+      .def_readonly("fy", &scene::Camera::fy, "Vertical focal length in pixels.")
+      .def_readonly("cx", &scene::Camera::cx, "Principal point, x in pixels.")
+      .def_readonly("cy", &scene::Camera::cy, "Principal point, y in pixels.")
+      .def_readonly("width", &scene::Camera::width, "Image width in pixels.")
+      .def_readonly("height", &scene::Camera::height, "Image height in pixels.")
+      .def("resized", &scene::Camera::resized, pyb::arg("w"), pyb::arg("h"),
+           "The same camera for a w x h image (intrinsics scaled with it).")
+      .def("with_longer_side", &scene::Camera::with_longer_side, pyb::arg("size"),
+           "The same camera with its longer side size pixels and its aspect kept (size <= 0: unchanged).")
       .def("__repr__", [](const scene::Camera& c) {
         return "Camera(" + std::to_string(c.width) + "x" + std::to_string(c.height) + ", fx=" + std::to_string(c.fx) + ")";
       });
 
   pyb::class_<SceneHandle, std::shared_ptr<SceneHandle>>(m, "Scene", "A scene folder (Blender, LLFF, COLMAP or nerfstudio).")
-      .def_static(
-          "open",
-          [](const std::string& path, int downsample) {
-            if (downsample < 0 || downsample > 64)
-              throw pyb::value_error("downsample: must be in [1, 64], or 0 for the scene's default");
-            auto h = std::make_shared<SceneHandle>();
-            h->dir = path;
-            h->options.downsample = scene::resolve_downsample(path, downsample);
-            LibraryCall call;
-            h->scene = scene::load_scene(path, h->options);
-            return h;
-          },
-          pyb::arg("path"), pyb::arg("downsample") = 0,
-          "Loads the scene; downsample 0 is the paper's resolution (Blender 1, LLFF 4, COLMAP and nerfstudio 1).")
-      .def_property_readonly("name", [](const SceneHandle& h) { return h.scene.name; })
-      .def_property_readonly("format", [](const SceneHandle& h) { return h.scene.format; })
-      .def_property_readonly("path", [](const SceneHandle& h) { return h.dir; })
-      .def_property_readonly("downsample", [](const SceneHandle& h) { return h.options.downsample; })
+      .def_static("open", &open_scene, pyb::arg("path"), pyb::arg("downsample") = pyb::none(),
+                  "Loads the scene folder. downsample: the image downsample factor (None: the paper's resolution, "
+                  "Blender 1, LLFF 4, COLMAP and nerfstudio 1).")
+      .def_property_readonly("name", [](const SceneHandle& h) { return h.scene.name; }, "The scene's name.")
+      .def_property_readonly("format", [](const SceneHandle& h) { return h.scene.format; },
+                             "The folder's format as the loader found it: blender, or llff, colmap or nerfstudio with "
+                             "-forward or -object.")
+      .def_property_readonly("path", [](const SceneHandle& h) { return h.dir; }, "The folder, as given to open.")
+      .def_property_readonly("downsample", [](const SceneHandle& h) { return h.options.downsample; },
+                             "The downsample factor its images were loaded at.")
       .def_property_readonly("train_cameras", [](const SceneHandle& h) {
         std::vector<scene::Camera> v;
         for (const auto& view : h.scene.train) v.push_back(view.camera);
         return v;
-      })
+      }, "The training views' cameras.")
       .def_property_readonly("test_cameras", [](const SceneHandle& h) {
         std::vector<scene::Camera> v;
         for (const auto& view : h.scene.test) v.push_back(view.camera);
         return v;
-      })
+      }, "The held-out views' cameras (empty when the scene holds none out).")
       .def("path_cameras", [](const SceneHandle& h, int frames) { return scene::default_path(h.scene, frames); },
-           pyb::arg("frames") = 120, "the scene's default camera path (orbit, or spiral for forward-facing scenes)")
+           pyb::arg("frames") = 120,
+           "The scene's default camera path: an orbit, or a spiral for forward-facing scenes.")
       .def("__repr__", [](const SceneHandle& h) {
         return "Scene('" + h.dir + "', " + h.scene.format + ", " + std::to_string(h.scene.train.size()) + " train / " +
                std::to_string(h.scene.test.size()) + " test views)";

@@ -29,13 +29,13 @@ void bind_runtime(pyb::module_& m) {
     pyb::list out;
     for (const auto& d : host::list_devices()) out.append(device_dict(d));
     return out;
-  }, "the OpenCL devices, in the order an index picks them");
+  }, "The OpenCL devices, in the order an index picks them.");
   m.def("use_device", [](const std::string& spec) {
     LibraryCall call;
     host::Runtime::init(spec);
   }, pyb::arg("spec"),
-        "choose the device before the first computation: an index, cpu|gpu|accelerator, or part of a name "
-        "(default: $STYLERF_DEVICE, else the first GPU, else the first device); once chosen it stays");
+        "Chooses the device before the first computation: spec is an index, cpu, gpu, accelerator, or part of a "
+        "name (default: $STYLERF_DEVICE, else the first GPU, else the first device); once chosen it stays.");
   m.def("device", [] {
     host::DeviceInfo d;
     bool flushes = false;
@@ -47,8 +47,8 @@ void bind_runtime(pyb::module_& m) {
     pyb::dict out = device_dict(d);
     out["denormals_flushed"] = flushes;
     return out;
-  }, "the device in use (choosing the default one if none was chosen yet); denormals_flushed: whether its "
-     "kernels flush floats below 1e-38 to zero (the library sets that up on CPU devices: x86 runs them slowly)");
+  }, "The device in use (choosing the default one if none was chosen yet); denormals_flushed: whether its "
+     "kernels flush floats below 1e-38 to zero (the library sets that up on CPU devices: x86 runs them slowly).");
   m.def("_shutdown", [] {
     LibraryCall call;
     if (host::Runtime::initialised()) host::Runtime::shutdown();
@@ -62,6 +62,8 @@ PYBIND11_MODULE(_stylerf, m) {
   m.doc() = "stylerf: zero-shot 3D style transfer of radiance fields (OpenCL)";
   m.attr("__version__") = STYLERF_VERSION;
   static pybind11::exception<stylerf::host::Error> error(m, "Error", PyExc_RuntimeError);
+  error.attr("__doc__") =
+      "An error of the library (a missing file, a bad checkpoint, a device failure), its message unchanged.";
   pybind11::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);

@@ -41,7 +41,7 @@ class Stages:
                                              iters=150, batch=1024)
         self.features = stylerf.train_features(self.density, os.path.join(self.root, "f.ckpt"), iters=20)
         self.style = stylerf.train_style(self.features, self.styles, os.path.join(self.root, "s.ckpt"), iters=4,
-                                         holdout=1)
+                                         holdout_styles=1)
 
 
 @pytest.fixture(scope="session")

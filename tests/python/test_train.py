@@ -58,16 +58,8 @@ def test_an_exception_in_the_callback_stops_cleanly(stages, tmp_path, stage):
         elif stage == "features":
             stylerf.train_features(stages.density, out, iters=20, progress=progress)
         else:
-            stylerf.train_style(stages.features, stages.styles, out, iters=20, holdout=1, progress=progress)
+            stylerf.train_style(stages.features, stages.styles, out, iters=20, holdout_styles=1, progress=progress)
     assert os.listdir(tmp_path) == [], "no checkpoint and no temporary file may be left"
-
-
-def test_an_existing_checkpoint_is_kept_unless_overwrite(stages, tmp_path):
-    out = tmp_path / "f.ckpt"
-    out.write_bytes(b"keep")
-    with pytest.raises(FileExistsError):
-        stylerf.train_features(stages.density, str(out), iters=1)
-    assert out.read_bytes() == b"keep"
 
 
 def test_the_gil_is_released_while_training(stages, tmp_path):
@@ -123,4 +115,4 @@ def test_checkpoints_equal_the_clis_byte_for_byte(stages, tmp_path):
          lambda out: stylerf.train_features(stages.density, out, iters=3))
     same(["train-style", "--features", stages.features, "--styles", stages.styles, "--holdout-styles", "1",
           "--iters", "3"],
-         lambda out: stylerf.train_style(stages.features, stages.styles, out, iters=3, holdout=1))
+         lambda out: stylerf.train_style(stages.features, stages.styles, out, iters=3, holdout_styles=1))
