@@ -60,7 +60,7 @@ TEST_CASE("render: an exported camera path renders the built-in path's frames, b
   INFO(r.output);
   REQUIRE(r.code == 0);
   check_same_files(dir / "builtin", dir / "file", 4,
-                   {"frame_%04d.png", "depth_%04d.exr", "depth_%04d.png", "features_%04d.png"});
+                   {"frame_%04d.png", "depth/depth_%04d.exr", "depth_%04d.png", "features_%04d.png"});
   CHECK(!fs::exists(dir / "file" / "frame_0004.png"));
 }
 
@@ -80,7 +80,7 @@ TEST_CASE("stylize: an exported camera path stylises as the built-in path, byte 
   r = testing::run_cli(common + "--camera-path " + quoted(file) + " -o " + quoted(dir / "file"));
   INFO(r.output);
   REQUIRE(r.code == 0);
-  check_same_files(dir / "builtin", dir / "file", 3, {"frame_%04d.png", "depth_%04d.exr"});
+  check_same_files(dir / "builtin", dir / "file", 3, {"frame_%04d.png", "depth/depth_%04d.exr"});
   CHECK(testing::read_json(dir / "file" / "metrics.json")["camera_path"] == file.string());
 }
 

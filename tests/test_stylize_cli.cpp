@@ -51,7 +51,7 @@ TEST_CASE("stylize: a path, test views with the AdaIN baseline, mix, sheet and r
   REQUIRE(r.code == 0);
   for (int i = 0; i < 3; ++i) {
     CHECK(finite_png(out / ("frame_000" + std::to_string(i) + ".png")));
-    CHECK(fs::exists(out / ("depth_000" + std::to_string(i) + ".exr")));
+    CHECK(fs::exists(out / "depth" / ("depth_000" + std::to_string(i) + ".exr")));
   }
   nlohmann::json m = read_json(out / "metrics.json");
   CHECK(m["timing"]["first_frame_s"].get<double>() > 0);

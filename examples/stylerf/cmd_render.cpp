@@ -1,10 +1,10 @@
 // stylerf render --ckpt CKPT --views test|path [--frames N] [-o DIR]: renders a density-stage checkpoint
 // (RGB) or a feature-stage checkpoint (decoded RGB, plus a PCA picture of the feature map).
-//   test: every held-out view -> test_NNN.png, test_NNN_depth.exr (depth along the ray, ray-space units),
+//   test: every held-out view -> test_NNN.png, depth/test_NNN_depth.exr (depth along the ray, ray-space units),
 //         test_NNN_depth.png (colourised), [test_NNN_features.png], metrics.json (PSNR and SSIM per view
 //         and their means);
 //   path: a camera path (spiral for forward-facing scenes, orbit for object scenes) -> frame_NNNN.png,
-//         depth_NNNN.exr / .png, [features_NNNN.png], and video.mp4 when ffmpeg is on PATH.
+//         depth/depth_NNNN.exr, depth_NNNN.png, [features_NNNN.png], and video.mp4 when ffmpeg is on PATH.
 //   --camera-path FILE: the same outputs along the cameras of a nerfstudio camera_path.json (at its render
 //         size, the video at its fps); --export-camera-path FILE writes the built-in path in that format
 //         and renders nothing (lib/scene/camera_path_json.hpp).
@@ -90,6 +90,7 @@ using stylerf::cli::numbered;
 void save_outputs(const Frame& r, const std::string& png, const std::string& exr, const std::string& depth_png,
                   const std::string& pca_png) {
   stylerf::io::save_png(png, to_image(r.rgb, r.width, r.height));
+  fs::create_directories(fs::path(exr).parent_path());
   stylerf::io::write_exr(exr, r.depth, r.map_width, r.map_height, 1);
   stylerf::io::save_png(depth_png, colourise_depth(r));
   if (!r.pca.empty()) stylerf::io::save_png(pca_png, to_image(r.pca, r.map_width, r.map_height));
@@ -170,7 +171,7 @@ void render_path(FrameRenderer& renderer, const stylerf::scene::Scene& scene, co
             << " frames\n";
   for (size_t i = 0; i < path.size(); ++i) {
     const Frame r = renderer.render(scene, path[i], chunk);
-    save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(out, "depth_", int(i), 4, ".exr"),
+    save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(fs::path(out) / "depth", "depth_", int(i), 4, ".exr"),
                  numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
     if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
   }
@@ -248,7 +249,7 @@ int run_render(int argc, char** argv) {
       const Frame r = renderer.render(scene, v.camera, chunk);
       render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_view).count();
       const std::string png = numbered(out, "test_", id, 3, ".png");
-      save_outputs(r, png, numbered(out, "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"),
+      save_outputs(r, png, numbered(fs::path(out) / "depth", "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"),
                    numbered(out, "test_", id, 3, "_features.png"));
       const auto a = to_image(r.rgb, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
       const double p = stylerf::eval::psnr(a.data, b.data), s = stylerf::eval::ssim(a, b);

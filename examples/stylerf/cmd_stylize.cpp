@@ -7,7 +7,7 @@
 //   - --region SPEC --style-inside A --style-outside B: compositional transfer, plus the mask PNGs.
 // --camera-path FILE: the path's outputs along the cameras of a nerfstudio camera_path.json (at its render
 // size, or --size; the video at its fps unless --fps is given) instead of the built-in path.
-// Per view, once for all styles: the content render (SICT, composited), depth_NNNN.exr (depth along the
+// Per view, once for all styles: the content render (SICT, composited), depth/depth_NNNN.exr (depth along the
 // ray in ray-space units, at the rendered map's resolution). DIR/metrics.json: the styles (cache keys),
 // the time to encode the styles, to the first frame, frames/s after it, and per view and style the content
 // and style losses (test views: also 2D AdaIN of the true view, by the same VGG and mask).
@@ -106,6 +106,7 @@ void write_depth(const model::StyleModel::CameraContent& cc, const std::string& 
   const auto acc = cc.content.acc.to_host(), d = cc.content.depth.to_host();
   std::vector<float> depth(acc.size());
   for (size_t i = 0; i < acc.size(); ++i) depth[i] = acc[i] > 1e-6f ? d[i] / acc[i] : 0.0f;
+  fs::create_directories(fs::path(path).parent_path());
   stylerf::io::write_exr(path, depth, cc.width, cc.height, 1);
 }
 
@@ -348,7 +349,7 @@ nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::
     t.content_s += seconds_since(tc);
     const std::string stem = test ? "test_" : "frame_";
     const int digits = test ? 3 : 4, idx = test ? ids[vi] : int(vi);
-    write_depth(cc, cli::numbered(a.out, "depth_", idx, digits, ".exr"));
+    write_depth(cc, cli::numbered(fs::path(a.out) / "depth", "depth_", idx, digits, ".exr"));
     if (w.region)
       stylerf::io::save_png(cli::numbered(a.out, "mask_", idx, digits, ".png"),
                             cli::grey_image(cc.region_mask, cc.width, cc.height));
