@@ -78,6 +78,24 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(html.find("mix/mix_grid.png") != std::string::npos);
   CHECK(html.find("video.mp4") != std::string::npos);
   CHECK(html.find("per_frame_rmse.svg") != std::string::npos);
+  // What a person reads: the scene's name as the title, which way each number is better, the decoded test
+  // views, each held-out style's image beside its results, and what made the run.
+  CHECK(html.find("<title>StyleRF: scene</title>") != std::string::npos);
+  CHECK(html.find("lower is better") != std::string::npos);
+  CHECK(html.find("higher is better") != std::string::npos);
+  CHECK(html.find("features_test/test_000.png") != std::string::npos);
+  const std::string held_out = s["per_style"][0]["style"].get<std::string>();
+  CHECK(html.find("styles/" + held_out + ".png") != std::string::npos);
+  CHECK(s["scene_name"] == "scene");
+  CHECK(s["command_line"].get<std::string>().rfind("stylerf run --scene ", 0) == 0);
+  CHECK(s["command_line"].get<std::string>().find(out.string()) != std::string::npos);
+  CHECK(!s["device"]["name"].get<std::string>().empty());
+  CHECK(!s["build"]["version"].get<std::string>().empty());
+  CHECK(s["recipe_settings"]["feature_profile"] == "fast");
+  CHECK(html.find(s["device"]["name"].get<std::string>()) != std::string::npos);
+  // Depth EXRs in a subfolder: the test views' folder holds what a person opens.
+  CHECK(fs::exists(out / "features_test/depth/test_000_depth.exr"));
+  for (const auto& e : fs::directory_iterator(out / "features_test")) CHECK(e.path().extension() != ".exr");
   const auto style_s = testing::read_json(out / "steps.json")["style"]["seconds"].get<double>();
 
   // The same command again: every step is kept, none runs.

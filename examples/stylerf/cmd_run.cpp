@@ -29,6 +29,7 @@
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/pipeline_steps.hpp"
+#include "examples/stylerf/run_provenance.hpp"
 #include "examples/stylerf/run_report.hpp"
 #include "lib/eval/eval_budget.hpp"
 #include "host/error.hpp"
@@ -311,6 +312,15 @@ EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wante
   return plan;
 }
 
+// What a recipe sets, for the report: the feature profile and density shading it picks, and the style
+// stage's whole configuration.
+nlohmann::json recipe_settings(const std::string& recipe) {
+  const train::Recipe r = train::parse_recipe(recipe);
+  return {{"feature_profile", train::recipe_name(r)},
+          {"density_shading", r == train::Recipe::Paper ? "per-sample" : "deferred"},
+          {"style", train::style_recipe(r).to_json()}};
+}
+
 // Each training stage trains for its minutes or, under --stage-iters, its iterations.
 std::vector<std::string> stage_length(const Budget& budget, int stage, double minutes) {
   return budget.iters.empty() ? std::vector<std::string>{"--minutes", num(minutes)}
@@ -492,6 +502,11 @@ int run_pipeline(int argc, char** argv) {
   in.out = o.out;
   in.recipe = o.recipe;
   in.scene = o.scene;
+  in.styles = o.styles;
+  in.recipe_settings = recipe_settings(o.recipe);
+  in.command_line = shell_command_line(argc, argv);
+  in.device = device_record(o.device);
+  in.build = build_record();
   in.minutes = !budget.iters.empty() ? 0.0 : o.stage_minutes.empty() ? o.minutes : budget.density + budget.features + budget.style;
   in.steps = steps.record();
   in.shown_styles = shown_now;

@@ -10,6 +10,11 @@ namespace stylerf::cli {
 
 struct RunReportInput {
   std::string out, recipe, scene;
+  std::string styles;                     // the style images' folder (the held-out styles shown beside their results)
+  nlohmann::json recipe_settings;         // what the recipe set (its stages' settings)
+  std::string command_line;               // the run's, as a shell would take it (shell_command_line)
+  nlohmann::json device;                  // device_record(): the OpenCL device the steps ran on
+  nlohmann::json build;                   // build_record(): stylerf's version and commit
   double minutes = 0;                     // the training budget asked for
   nlohmann::json steps;                   // PipelineSteps::record(): seconds per step
   std::vector<std::string> shown_styles;  // the videos' and the consistency table's styles
