@@ -65,6 +65,9 @@ std::vector<Option> options_of(const std::string& page, const std::string& help)
       options.back().text += " " + line.substr(line.find_first_not_of(' '));
     }
   }
+  for (Option& o : options) o.text = std::regex_replace(o.text, std::regex(" +"), " ");  // boost pads wrapped lines
+  for (Option& o : options)
+    while (!o.text.empty() && o.text.back() == ' ') o.text.pop_back();
   return options;
 }
 
@@ -253,6 +256,9 @@ TEST_CASE("one meaning per name: the names the grammar fixes mean the same on ev
   each("--timing", [](const Option& o) { return !o.takes_value && has(o.text, "per-kernel times"); }, "kernel times");
   each("--minutes", [](const Option& o) { return has(o.text, "minutes"); }, "in minutes");
   each("--scored-frames", [](const Option& o) { return has(o.text, "frames compared"); }, "a count of scored frames");
+  each("--device", [&](const Option& o) { return o.text == by_name["--device"].front().text; },
+       "the same text on every page");
+  each("--device", [](const Option& o) { return has(o.text, "(default: "); }, "with its default");
   CHECK(by_name["--views"].size() >= 2);
   CHECK(by_name["--max-views"].size() >= 3);
   CHECK(by_name["--timing"].size() >= 4);

@@ -30,7 +30,7 @@ int run_adain(int argc, char** argv) {
       "style,s", po::value(&style), "style image (PNG/JPEG)")("output,o", po::value(&output), "output image (.png or .jpg)")(
       "alpha", stylerf::cli::value_shown(&alpha), "stylisation strength in [0,1] (0: reconstruct the content)")(
       "size", po::value(&size)->default_value(512), "longer image side in pixels (sides rounded to multiples of 8)")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "device", po::value(&device), stylerf::cli::kDeviceHelp)(
       "timing", po::bool_switch(&timing), "print per-kernel times at the end");
   stylerf::cli::apply_renamed_flags("adain", argc, argv, {{"--profile", "--timing"}});
   po::variables_map vm;

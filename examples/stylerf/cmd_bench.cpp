@@ -69,7 +69,7 @@ int run_bench(int argc, char** argv) {
       "ert", po::value(&erts), "render: comma list of early-termination thresholds to compare (0: off)")(
       "decoder", po::value(&decoder), "decoder-step: decoder, paper | fast (default paper)")(
       "conv-algo", po::value(&conv_algo), "3x3 conv algorithm: auto, im2col, winograd2, winograd4 (default auto)")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   po::options_description hidden;
   hidden.add_options()("which", po::value(&which));
   po::positional_options_description pos;

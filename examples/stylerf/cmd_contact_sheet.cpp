@@ -63,7 +63,7 @@ int run_contact_sheet(int argc, char** argv) {
       "output,o", po::value(&output), "output PNG")("size", po::value(&size)->default_value(256),
                                                     "cell size: longer side of every image")(
       "alpha", po::value(&alpha)->default_value(1.0f), "stylisation strength in [0,1]")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);

@@ -16,9 +16,7 @@ namespace {
 int parse_devices_args(int argc, char** argv, std::string& spec) {
   po::options_description desc("stylerf devices [SPEC | --device SPEC] [options]");
   desc.add_options()("help,h", "show this help")(
-      "device", po::value(&spec),
-      "the device to show as chosen: index, cpu|gpu|accelerator, or part of a name (default: STYLERF_DEVICE, "
-      "else the first GPU, else the first device)");
+      "device", po::value(&spec), stylerf::cli::kDeviceHelp);
   po::positional_options_description pos;
   pos.add("device", 1);
   po::variables_map vm;

@@ -87,7 +87,7 @@ int run_consistency(int argc, char** argv) {
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", stylerf::cli::supersample_value(&p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
-      "device", po::value(&device), "OpenCL device");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   cli::apply_renamed_flags("eval consistency", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

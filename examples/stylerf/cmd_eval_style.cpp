@@ -39,7 +39,7 @@ int run_eval_style(int argc, char** argv) {
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
       "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
-      "device", po::value(&device), "OpenCL device");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   apply_renamed_flags("eval style", argc, argv, {{"--views", "--max-views"}, {"--images", "--output"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

@@ -178,7 +178,7 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", stylerf::cli::supersample_value(&a.p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
-      "device", po::value(&a.device), "OpenCL device");
+      "device", po::value(&a.device), stylerf::cli::kDeviceHelp);
   stylerf::cli::apply_renamed_flags("eval table", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

@@ -29,7 +29,7 @@ int run_lpips(int argc, char** argv) {
   desc.add_options()("help,h", "show this help")("lpips-net", po::value(&net)->default_value(net),
                                                   "trunk: vgg (VGG-16) or alex (AlexNet)")(
       "mask", po::value(&mask_path), "mask image, same size: compare only where it is bright (masked LPIPS)")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "device", po::value(&device), stylerf::cli::kDeviceHelp)(
       "timing", po::bool_switch(&timing), "print per-kernel times at the end");
   po::options_description hidden;
   hidden.add_options()("a", po::value(&a_path))("b", po::value(&b_path));

@@ -206,7 +206,7 @@ int run_render(int argc, char** argv) {
       "ert", po::value(&ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
       "for NDC scenes, whose rays rarely turn opaque)")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);

@@ -138,7 +138,7 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
       "table-frames", po::value(&o.table_frames)->default_value(16), "frames scored by the consistency table")(
       "check", po::bool_switch(&o.check),
       "exit non-zero when the result is degenerate (style loss > 1.5x AdaIN's, mix corners < 0.01 apart, "
-      "short-range RMSE > 0.8x AdaIN's)")("device", po::value(&o.device), "OpenCL device");
+      "short-range RMSE > 0.8x AdaIN's)")("device", po::value(&o.device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);

@@ -195,7 +195,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
       "supersample", stylerf::cli::supersample_value(&a.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.refine_contrast), stylerf::cli::kRefineContrastHelp)(
-      "device", po::value(&a.device), "OpenCL device");
+      "device", po::value(&a.device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);

@@ -81,7 +81,7 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "downsample", po::value(&a.downsample),
       "image downsample factor (default: the paper's resolution, Blender 1 = 800x800, LLFF 4 = 1008x756; "
       "COLMAP and nerfstudio 1)")(
-      "iters", po::value(&a.iters), "training iterations (TensoRF: 30000 Blender, 25000 LLFF)")(
+      "iters", po::value(&a.iters), "training iterations (default: TensoRF's, 30000 Blender, 25000 other formats)")(
       "minutes", po::value(&a.minutes), "train for this many minutes: the schedule (events, lr decay) is fitted to it "
                                         "from the measured step rate (replaces --iters)")(
       "batch", po::value(&a.batch)->default_value(4096), "rays per step")(
@@ -101,8 +101,8 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "ert", po::value(&a.ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "
       "for NDC scenes, whose rays rarely turn opaque)")(
-      "density-rank", po::value(&a.density_rank), "density ranks per mode, e.g. 16,4,4")(
-      "app-rank", po::value(&a.app_rank), "appearance ranks per mode, e.g. 48,12,12")(
+      "density-rank", po::value(&a.density_rank), "density ranks per mode (default: TensoRF's, 16,16,16 Blender, 16,4,4 other formats)")(
+      "app-rank", po::value(&a.app_rank), "appearance ranks per mode (default: TensoRF's, 48,48,48 Blender, 48,12,12 other formats)")(
       "lr-grid", po::value(&a.lr_grid), "grid learning rate (default 0.02)")(
       "backdrop-weight", po::value(&a.backdrop_weight),
       "weight of the mean opacity of rays on backdrop pixels (scenes with a background: alpha, or a plain "
@@ -115,7 +115,7 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "ckpt-every", po::value(&a.ckpt_every)->default_value(1000), "iterations between checkpoints")(
       "eval-views", po::value(&a.eval_views)->default_value(5),
       "held-out views for the final PSNR, evenly spaced (0: all; timed apart from training)")(
-      "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "device", po::value(&a.device), stylerf::cli::kDeviceHelp)(
       "timing", po::bool_switch(&a.timing), "print per-kernel times at the end");
   stylerf::cli::apply_renamed_flags("train-density", argc, argv, {{"--profile", "--timing"}});
   po::variables_map vm;

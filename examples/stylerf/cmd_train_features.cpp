@@ -71,7 +71,7 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
       "log-every", po::value(&a.log_every)->default_value(50), "iterations between progress lines")(
       "ckpt-every", po::value(&a.ckpt_every)->default_value(500), "iterations between checkpoints")(
       "eval-views", po::value(&a.eval_views)->default_value(5), "held-out views for the final PSNR (0: all)")(
-      "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name")(
+      "device", po::value(&a.device), stylerf::cli::kDeviceHelp)(
       "timing", po::bool_switch(&a.timing), "print per-kernel times at the end");
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

@@ -82,7 +82,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
       "seed", po::value(&a.seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&a.force), "overwrite an existing checkpoint at -o")(
-      "device", po::value(&a.device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "device", po::value(&a.device), stylerf::cli::kDeviceHelp);
   po::options_description more("ablations and plumbing (--help-all)");
   more.add_options()("sict", po::value(&a.sict_name)->default_value("volume-adaptive"),
                      "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(

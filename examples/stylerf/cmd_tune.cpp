@@ -291,7 +291,7 @@ int run_tune(int argc, char** argv) {
       "skip-clblast", po::bool_switch(&skip_clblast), "keep the existing CLBlast parameters")(
       "skip-own", po::bool_switch(&skip_own), "keep the existing own-kernel parameters")(
       "keep-dir", po::bool_switch(&keep), "keep the tuners' temporary directory")(
-      "device", po::value(&device), "OpenCL device: index, cpu|gpu|accelerator, or part of a name");
+      "device", po::value(&device), stylerf::cli::kDeviceHelp);
   stylerf::cli::apply_renamed_flags("tune", argc, argv, {{"--out", "--output"}});
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);

@@ -11,6 +11,10 @@ namespace stylerf::cli {
 
 namespace po = boost::program_options;
 
+const char* const kDeviceHelp =
+    "OpenCL device: index, cpu|gpu|accelerator, or part of a name (default: STYLERF_DEVICE, else the first GPU, "
+    "else the first device)";
+
 std::string examples_block(const std::string& command) {
   const CommandInfo* info = find_command_info(command);
   if (!info || info->examples.empty()) throw host::Error("no examples for '" + command + "' in command_index.cpp");

@@ -15,6 +15,9 @@ void print_help(std::ostream& os, const std::string& command, const boost::progr
 // "Examples:\n  stylerf ...\n" for `command` ("eval style" for a subcommand); an error when it has none.
 std::string examples_block(const std::string& command);
 
+// --device's help, the same on every command: what SPEC may be, and the device chosen without it.
+extern const char* const kDeviceHelp;
+
 // The shortest decimal text that reads back as the same value: 0.03f prints "0.03", not "0.0299999993".
 std::string shortest(float v);
 std::string shortest(double v);
