@@ -4,6 +4,7 @@
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/version.hpp"
 #include "python/src/handles.hpp"
 
 namespace stylerf::py {
@@ -60,7 +61,8 @@ void bind_runtime(pyb::module_& m) {
 PYBIND11_MODULE(_stylerf, m) {
   namespace py = stylerf::py;
   m.doc() = "stylerf: zero-shot 3D style transfer of radiance fields (OpenCL)";
-  m.attr("__version__") = STYLERF_VERSION;
+  m.attr("__version__") = stylerf::version();
+  m.attr("__commit__") = stylerf::git_commit();  // the git commit built from, or "unknown"
   static pybind11::exception<stylerf::host::Error> error(m, "Error", PyExc_RuntimeError);
   error.attr("__doc__") =
       "An error of the library (a missing file, a bad checkpoint, a device failure), its message unchanged.";

@@ -14,6 +14,7 @@ from ._stylerf import (  # noqa: F401  (the public API)
     Scene,
     StyleCode,
     StyleModel,
+    __commit__,
     __version__,
     consistency,
     device,
@@ -55,9 +56,9 @@ from .api_types import (  # noqa: F401  (the types the stubs name)
 _atexit.register(_shutdown)
 
 __all__ = [
-    "Camera", "Error", "Scene", "StyleCode", "StyleModel", "__version__", "consistency", "device", "devices",
-    "load_image", "lpips", "mix", "save_image", "save_video", "train_density", "train_features", "train_style",
-    "use_device",
+    "Camera", "Error", "Scene", "StyleCode", "StyleModel", "__commit__", "__version__", "consistency", "device",
+    "devices", "load_image", "lpips", "mix", "save_image", "save_video", "train_density", "train_features",
+    "train_style", "use_device",
     "ActiveDevice", "ConsistencyScore", "DensityCallback", "DensityProgress", "DeviceInfo", "FeatureCallback",
     "FeatureProgress", "FloatImage", "ImageLike", "LpipsNet", "PathLike", "Profile", "RangeScore", "Recipe",
     "RenderResult", "StyleCallback", "StyleProgress", "Supersample", "View",

@@ -26,6 +26,7 @@ from .api_types import Supersample as Supersample
 from .api_types import View as View
 
 __version__: str
+__commit__: str
 
 class Error(RuntimeError):
     """An error of the library (a missing file, a bad checkpoint, a device failure), its message unchanged."""

@@ -88,6 +88,8 @@ def test_lpips_and_images(tmp_path):
 
 def test_devices_and_version():
     assert stylerf.__version__.count(".") == 2
+    # The commit the module was built from: a short hash, or "unknown" outside a git checkout.
+    assert stylerf.__commit__ == "unknown" or all(c in "0123456789abcdef" for c in stylerf.__commit__)
     names = [d["name"] for d in stylerf.devices()]
     assert stylerf.device()["name"] in names
     assert os.path.basename(stylerf.__file__) == "__init__.py"
