@@ -271,16 +271,29 @@ io::Image hand_image(int i) {
   return im;
 }
 
-}  // namespace
-
-TEST_CASE("hand-computed path: per-pair RMSE, the range's mean over pairs, and a pair with no valid pixel") {
+// The hand-computed 4-frame path and its warps (short range 1, long range 2).
+struct HandPath {
   std::vector<FrameGeometry> geos;
   std::vector<io::Image> frames;
-  for (int i = 0; i < 4; ++i) geos.push_back(hand_geometry(i)), frames.push_back(hand_image(i));
+  eval::PathWarps warps;
+};
+
+HandPath hand_path() {
+  HandPath p;
+  for (int i = 0; i < 4; ++i) p.geos.push_back(hand_geometry(i)), p.frames.push_back(hand_image(i));
   eval::ConsistencyOptions opt;
   opt.short_range = 1;
   opt.long_range = 2;
-  const auto warps = eval::path_warps(geos, RaySpace{false, 1.0f}, opt);
+  p.warps = eval::path_warps(p.geos, RaySpace{false, 1.0f}, opt);
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("hand-computed path: per-pair RMSE, the range's mean over pairs, and a pair with no valid pixel") {
+  const HandPath path = hand_path();
+  const std::vector<io::Image>& frames = path.frames;
+  const auto& warps = path.warps;
   int lpips_calls = 0;
   // A stand-in for LPIPS that returns the fraction of the frame the mask keeps: 9/16, 4/16 and 4/16 below.
   eval::MaskedDistance kept = [&](const io::Image&, const io::Image&, const std::vector<float>& mask) {
@@ -345,19 +358,20 @@ TEST_CASE("hand-computed path: per-pair RMSE, the range's mean over pairs, and a
 
   // Without a single valid pair the range has no score (NaN), not 0.
   const std::vector<io::Image> far_apart{frames[0], frames[3], frames[0]};
+  eval::ConsistencyOptions one_and_two;
+  one_and_two.short_range = 1;
+  one_and_two.long_range = 2;
   const auto none = eval::score_frames(
-      far_apart, eval::path_warps({geos[0], geos[3], geos[0]}, RaySpace{false, 1.0f}, opt), nullptr);
+      far_apart, eval::path_warps({path.geos[0], path.geos[3], path.geos[0]}, RaySpace{false, 1.0f}, one_and_two),
+      nullptr);
   CHECK(none.short_range.skipped == 2);
   CHECK(std::isnan(none.short_range.rmse));
 }
 
 TEST_CASE("NaN or infinite pixels reaching the consistency score or LPIPS are errors naming the pixel") {
-  std::vector<FrameGeometry> geos;
-  std::vector<io::Image> frames;
-  for (int i = 0; i < 4; ++i) geos.push_back(hand_geometry(i)), frames.push_back(hand_image(i));
-  eval::ConsistencyOptions opt;
-  opt.long_range = 2;
-  const auto warps = eval::path_warps(geos, RaySpace{false, 1.0f}, opt);
+  HandPath path = hand_path();
+  std::vector<io::Image>& frames = path.frames;
+  const auto& warps = path.warps;
   frames[2].at(1, 3, 2) = std::numeric_limits<float>::quiet_NaN();
   testing::expect_error([&] { eval::score_frames(frames, warps, nullptr); },
                         "consistency: frame 2 has a NaN value at pixel 2,3, channel 1");

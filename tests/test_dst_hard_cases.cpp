@@ -21,6 +21,7 @@
 #include "host/tensor.hpp"
 #include "lib/style/dst.hpp"
 #include "tests/style_reference.hpp"
+#include "tests/directional_derivative.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -42,7 +43,7 @@ ref::DstParams ref_params(const style::Dst& d) {
 using Loss = std::function<double(const std::vector<double>&)>;
 
 // Our gradient against central differences (step h) of loss(x): at the entries idx, and along 3 random
-// directions (every entry takes part).
+// directions over the whole tensor.
 void fd_check(const std::string& what, const std::vector<float>& ours, const std::vector<double>& x, const Loss& loss,
               const std::vector<size_t>& idx, double h, double rtol = 3e-3) {
   REQUIRE(ours.size() == x.size());
@@ -55,22 +56,7 @@ void fd_check(const std::string& what, const std::vector<float>& ours, const std
   }
   for (float g : ours) scale = std::max(scale, double(std::abs(g)) * 1e-3);
   check_close(got, fd, rtol, 1e-3 * scale + 1e-12, what);
-  for (int k = 0; k < 3; ++k) {
-    const std::vector<double> dir = to_double(testing::random_normal(x.size(), 700 + uint64_t(k)));
-    std::vector<double> xp = x, xm = x;
-    double along = 0, terms_sq = 0;
-    for (size_t i = 0; i < x.size(); ++i) {
-      xp[i] += h * dir[i];
-      xm[i] -= h * dir[i];
-      along += double(ours[i]) * dir[i];
-      terms_sq += double(ours[i]) * dir[i] * double(ours[i]) * dir[i];
-    }
-    const double numeric = (loss(xp) - loss(xm)) / (2 * h);
-    // A random-direction sum's natural size is the root of its terms' squares (their signs are random).
-    const double tol = rtol * (std::abs(numeric) + std::sqrt(terms_sq)) + 1e-12;
-    INFO(what << ": along random direction " << k << ": ours " << along << ", central differences " << numeric);
-    CHECK(std::abs(along - numeric) <= tol);
-  }
+  testing::check_random_directions(what, ours, x, loss, h, rtol, 1e-12, 700);
 }
 
 // `count` entries spread over a tensor of n.

@@ -24,6 +24,7 @@
 #include "tests/closed_form_values.hpp"
 #include "tests/sict_testing.hpp"
 #include "tests/style_reference.hpp"
+#include "tests/directional_derivative.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -54,10 +55,9 @@ double scaled_error(const std::vector<float>& got, const std::vector<double>& wa
   return scale > 0 ? err / scale : err;
 }
 
-// Our gradient against central differences of loss(x), over the whole tensor and at entries: along
-// kDirections random directions d (g.d against (loss(x + h d) - loss(x - h d)) / 2h, so every entry takes
-// part: a wrong column block of a 1M-entry weight cannot hide between sampled entries), at `count` spread
-// indices, and at `extra` indices (entries of each block a tensor packs, e.g. SICT's q, k and v columns).
+// Our gradient against central differences of loss(x): over the whole tensor along 3 random directions
+// (tests/directional_derivative.hpp), at `count` spread indices, and at `extra` indices (entries of each
+// block a tensor packs, e.g. SICT's q, k and v columns).
 void fd_check(const std::string& what, const std::vector<float>& ours, std::vector<double> x,
               const std::function<double(const std::vector<double>&)>& loss, int count = 10, double rtol = 3e-3,
               const std::vector<size_t>& extra = {}) {
@@ -77,26 +77,9 @@ void fd_check(const std::string& what, const std::vector<float>& ours, std::vect
   for (float g : ours) scale = std::max(scale, double(std::abs(g)) * 1e-3);
   check_close(got, want, rtol, 1e-3 * scale + 1e-9, what);
 
-  constexpr int kDirections = 3;
   // A step along all entries at once moves the style MLP's pre-activations by ~h sqrt(fan-in): at 1e-4 some
   // cross their ReLU's kink between the two evaluations; the double reference affords a smaller step.
-  constexpr double h = 1e-6;
-  for (int k = 0; k < kDirections; ++k) {
-    const std::vector<double> d = to_double(testing::random_normal(x.size(), 9000 + uint64_t(k)));
-    std::vector<double> xp = x, xm = x;
-    double along = 0, terms_sq = 0;
-    for (size_t i = 0; i < x.size(); ++i) {
-      xp[i] += h * d[i];
-      xm[i] -= h * d[i];
-      along += double(ours[i]) * d[i];
-      terms_sq += double(ours[i]) * d[i] * double(ours[i]) * d[i];
-    }
-    const double numeric = (loss(xp) - loss(xm)) / (2 * h);
-    // A random-direction sum's natural size is the root of its terms' squares (their signs are random).
-    const double tol = rtol * (std::abs(numeric) + std::sqrt(terms_sq)) + 1e-9;
-    INFO(what << ": along random direction " << k << ": ours " << along << ", central differences " << numeric);
-    CHECK(std::abs(along - numeric) <= tol);
-  }
+  testing::check_random_directions(what, ours, x, loss, 1e-6, rtol, 1e-9, 9000);
 }
 
 // Entries of each E-column block of a [rows, blocks * E] tensor (SICT's q | k | v weights, or their bias
