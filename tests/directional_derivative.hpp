@@ -11,7 +11,7 @@
 #include <vector>
 #include "tests/testing.hpp"
 
-namespace testing {
+namespace stylerf::testing {
 
 // Directions are drawn from random_normal(x.size(), seed + k), k < directions. The tolerance scales with
 // the root of the terms' squares, the natural size of a sum whose terms have random signs.
@@ -36,4 +36,4 @@ inline void check_random_directions(const std::string& what, const std::vector<f
   }
 }
 
-}  // namespace testing
+}  // namespace stylerf::testing
