@@ -24,7 +24,7 @@ namespace {
 
 std::string data_dir() {
   if (const char* e = std::getenv("STYLERF_DATA")) return e;
-  for (const char* d : {"../shared/data", "../../shared/data", "/work/shared/data"})
+  for (const char* d : {"../shared/data", "../../shared/data"})
     if (fs::is_directory(fs::path(d) / "scenes")) return d;
   throw host::Error("bench density: scene data not found; set STYLERF_DATA to the folder holding scenes/");
 }

@@ -11,7 +11,7 @@
 # DEST is made afresh (list it in .git/info/exclude so that it travels as a carried path). The machine gets
 # the repository and the carried paths in 64 MiB all told: this script refuses (exit 1) a bundle over
 # 56 MiB. Environment: DC_TRAIN_VIEWS (default 30) and DC_TEST_VIEWS (default 3) lego views; DC_SCENE (default
-# ../shared/data/scenes/blender/lego beside the source tree, else /work/shared/data/scenes/blender/lego).
+# ../shared/data/scenes/blender/lego beside the source tree).
 set -euo pipefail
 
 if [[ $# -ne 2 || "$1" == -h || "$1" == --help ]]; then
@@ -38,8 +38,7 @@ BUILD_ORIG=$(sed -n 's/^# Build directory: //p' "$BUILD/CTestTestfile.cmake" | h
 
 SCENE=${DC_SCENE:-}
 if [[ -z "$SCENE" ]]; then
-  for c in "$SRC_ORIG/../shared/data/scenes/blender/lego" "$REPO/../shared/data/scenes/blender/lego" \
-           /work/shared/data/scenes/blender/lego; do
+  for c in "$SRC_ORIG/../shared/data/scenes/blender/lego" "$REPO/../shared/data/scenes/blender/lego"; do
     [[ -f "$c/transforms_train.json" ]] && { SCENE=$c; break; }
   done
 fi

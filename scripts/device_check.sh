@@ -137,7 +137,7 @@ if [[ -n "$BUNDLE" ]]; then
 else
   BUILD=$(cd "$BUILD" && pwd -P) || { say "device_check: no build at $BUILD"; exit 2; }
   COMMIT=$(git -C "$REPO" rev-parse HEAD 2>/dev/null || echo unknown)
-  for c in "$REPO/../shared/data/scenes/blender/lego" /work/shared/data/scenes/blender/lego; do
+  for c in "$REPO/../shared/data/scenes/blender/lego"; do
     [[ -f "$c/transforms_train.json" ]] && { SCENE=$c; break; }
   done
 fi

@@ -72,9 +72,8 @@ TMP_PATH = re.compile(r"(?<![\w.~$-])/tmp\b(?!/stylerf-)(?!/[\w.-]*XXXXXX)")
 PROSE_SUFFIXES = (".md", ".txt", ".rst", ".json")
 COMMENT_START = re.compile(r"^\s*(?:#|//|/\*|\*)|\s(?://|#)\s")
 
-# Phrases that look like process language but are product text (pytest's fixture scope; the default
-# data location the tools search when $STYLERF_DATA is unset).
-ALLOWED = [re.compile(p) for p in (r"""scope\s*=\s*["']session["']""", r"/work/shared/data\b")]
+# Phrases that look like process language but are product text (pytest's fixture scope).
+ALLOWED = [re.compile(p) for p in (r"""scope\s*=\s*["']session["']""",)]
 
 
 def list_files(root):
@@ -170,7 +169,7 @@ CLEAN = {
         '@pytest.fixture(scope="session")',
         'return "/tmp/stylerf-cache"; STAGE=$(mktemp -d /tmp/device_bundle.XXXXXX)',
         'expect("eval table -o /tmp/x", "must be a density checkpoint");',
-        'for (const char* d : {"../shared/data", "/work/shared/data"})',
+        'for (const char* d : {"../shared/data", "../../shared/data"})',
     ],
 }
 

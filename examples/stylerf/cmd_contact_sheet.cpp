@@ -1,6 +1,6 @@
 // stylerf contact-sheet [--contents a,b,c] [--styles w,x,y,z] -o sheet.png [--size N] [--alpha A]
 // A grid of 2D AdaIN results: the first row shows the styles, the first column the contents, each other
-// cell the content in that style. Defaults use the shared data set ($STYLERF_DATA, else /work/shared/data).
+// cell the content in that style. Defaults use the shared data set ($STYLERF_DATA, else ../shared/data beside the working folder).
 #include <boost/algorithm/string.hpp>
 #include <boost/program_options.hpp>
 #include <chrono>
@@ -21,7 +21,7 @@ namespace {
 
 std::string data_dir() {
   const char* d = std::getenv("STYLERF_DATA");
-  return d && *d ? d : "/work/shared/data";
+  return d && *d ? d : "../shared/data";
 }
 
 // The first image file of a folder in name order (LLFF folders: the first view).
