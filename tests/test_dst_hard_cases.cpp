@@ -21,6 +21,7 @@
 #include "host/tensor.hpp"
 #include "lib/style/dst.hpp"
 #include "tests/style_reference.hpp"
+#include "tests/style_reference_params.hpp"
 #include "tests/directional_derivative.hpp"
 #include "tests/testing.hpp"
 
@@ -33,12 +34,6 @@ namespace ref = testing::style_ref;
 namespace {
 
 constexpr int C = 256, E = 32;
-
-ref::DstParams ref_params(const style::Dst& d) {
-  return {to_double(d.w0.value.to_host()),   to_double(d.b0.value.to_host()),   to_double(d.w2.value.to_host()),
-          to_double(d.b2.value.to_host()),   to_double(d.w4.value.to_host()),   to_double(d.b4.value.to_host()),
-          to_double(d.fc_w.value.to_host()), to_double(d.fc_b.value.to_host()), to_double(d.unzip_w.value.to_host())};
-}
 
 using Loss = std::function<double(const std::vector<double>&)>;
 
@@ -109,7 +104,7 @@ TEST_CASE("constant and dead channels: std exactly 0, output exactly w_r * mean,
     CHECK(mean[size_t(j)] == 0.0f);
     CHECK(sd[size_t(j)] == 0.0f);
   }
-  const ref::DstParams p = ref_params(d);
+  const ref::DstParams p = testing::dst_ref_params(d);
   const ref::Code rc = ref::style_code(to_double(s), L, p);
   check_close(mean, rc.mean, 1e-5, 1e-6, "mean");
   check_close(sd, rc.std, 1e-4, 1e-6, "std");
@@ -194,7 +189,7 @@ TEST_CASE("the backward through a near-constant channel and through large featur
     style::Dst::StyleContext sctx;
     style::Dst::ApplyContext actx;
     const style::StyleCode code = d.style_code(Tensor::from_host(s, {L, C}), &sctx);
-    const ref::DstParams p = ref_params(d);
+    const ref::DstParams p = testing::dst_ref_params(d);
     const auto sdd = to_double(s), cd = to_double(c), ad = to_double(acc), gd = to_double(g);
     const ref::Code rc = ref::style_code(sdd, L, p);
     if (v.flat_deviation > 0)
@@ -222,7 +217,7 @@ TEST_CASE("scaled features: exact where float holds them, std flushed to 0 below
   const auto c = testing::random_normal(size_t(R) * E, 301);
   const auto acc = testing::random_uniform(R, 302, 0.2f, 1.0f);
   style::Dst d = style::Dst::create(true, 0, 303);
-  const ref::DstParams p = ref_params(d);
+  const ref::DstParams p = testing::dst_ref_params(d);
   const style::StyleCode unit = d.style_code(Tensor::from_host(base, {L, C}), nullptr);
   const auto mean1 = unit.mean.to_host(), std1 = unit.std.to_host();
   auto scaled = [&](int e) {

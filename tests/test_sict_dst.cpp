@@ -24,6 +24,7 @@
 #include "tests/closed_form_values.hpp"
 #include "tests/sict_testing.hpp"
 #include "tests/style_reference.hpp"
+#include "tests/style_reference_params.hpp"
 #include "tests/directional_derivative.hpp"
 #include "tests/testing.hpp"
 
@@ -37,12 +38,6 @@ namespace ref = testing::style_ref;
 namespace {
 
 constexpr int C = 256, E = 32;
-
-ref::DstParams ref_params(const style::Dst& d) {
-  return {to_double(d.w0.value.to_host()),   to_double(d.b0.value.to_host()),   to_double(d.w2.value.to_host()),
-          to_double(d.b2.value.to_host()),   to_double(d.w4.value.to_host()),   to_double(d.b4.value.to_host()),
-          to_double(d.fc_w.value.to_host()), to_double(d.fc_b.value.to_host()), to_double(d.unzip_w.value.to_host())};
-}
 
 // Largest |got - want| over the largest |want|: the reference file's agreement measure.
 double scaled_error(const std::vector<float>& got, const std::vector<double>& want) {
@@ -176,7 +171,7 @@ TEST_CASE("DST style code and apply match the double reference, with and without
   for (bool bias : {true, false}) {
     style::Dst d = style::Dst::create(bias, 0, 23);
     const style::StyleCode code = d.style_code(Tensor::from_host(s, {L, C}), nullptr);
-    const ref::DstParams p = ref_params(d);
+    const ref::DstParams p = testing::dst_ref_params(d);
     const ref::Code rc = ref::style_code(to_double(s), L, p);
     check_close(code.mean.to_host(), rc.mean, 1e-5, 1e-6, "style mean");
     check_close(code.std.to_host(), rc.std, 1e-4, 1e-6, "style std (unbiased)");
@@ -202,7 +197,7 @@ TEST_CASE("DST backward (every parameter, composited input, style features) matc
   const style::Dst::ApplyGrads ag = d.apply_backward(actx, Tensor::from_host(g, {R, C}), true);
   const Tensor ds = d.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, true);
 
-  const ref::DstParams p0 = ref_params(d);
+  const ref::DstParams p0 = testing::dst_ref_params(d);
   const auto sd = to_double(s), cd = to_double(c), ad = to_double(acc), gd = to_double(g);
   auto loss = [&](const ref::DstParams& p, const std::vector<double>& sv, const std::vector<double>& cv) {
     return testing::dot(ref::dst_apply(cv, ad, R, ref::style_code(sv, L, p), p.unzip, true), gd);
@@ -483,13 +478,13 @@ TEST_CASE("a flat-colour style (zero std, rank-deficient covariance) gives a fin
   // The mean of L equal floats rounds, so the deviations (and the std) are ~1e-7 of the values, not 0.
   const auto std_ = code.std.to_host();
   CHECK(*std::max_element(std_.begin(), std_.end()) < 1e-5f);
-  const ref::Code rc = ref::style_code(to_double(s), L, ref_params(d));
+  const ref::Code rc = ref::style_code(to_double(s), L, testing::dst_ref_params(d));
   check_close(code.T.to_host(), rc.T, 1e-4, 1e-6, "T of a flat style");
   const auto c = testing::random_normal(size_t(R) * E, 62);
   const auto acc = testing::random_uniform(R, 63, 0.2f, 1.0f);
   const Tensor y = d.apply(Tensor::from_host(c, {R, E}), Tensor::from_host(acc, {R}), code, &actx);
   // std 0: the styled map is the style's mean times each ray's opacity.
-  check_close(y.to_host(), ref::dst_apply(to_double(c), to_double(acc), R, rc, ref_params(d).unzip, true), 1e-5, 1e-6,
+  check_close(y.to_host(), ref::dst_apply(to_double(c), to_double(acc), R, rc, testing::dst_ref_params(d).unzip, true), 1e-5, 1e-6,
               "flat style output");
   d.zero_grad();
   const auto ag = d.apply_backward(actx, Tensor::from_host(testing::random_normal(size_t(R) * C, 64), {R, C}), true);
