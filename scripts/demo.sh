@@ -26,4 +26,17 @@ echo "== a generated scene: 48 views of four textured objects, with known depth"
 echo "== StyleRF in one command (iterations sized for under 6 minutes in all on a 2-core CPU; a real scene: --minutes 90)"
 "$S" run --scene "$OUT/scene" --styles "$OUT/styles" --holdout-styles 4 --stage-iters 700,280,90 --max-videos 2 \
     --frames 36 --eval-views 3 --table-frames 10 --check -o "$OUT"
+echo "== one test view, then the same view in three held-out styles (each inset at the corner): $OUT/strip.png"
+# Cut from the truth | ours | AdaIN sheets the held-out evaluation wrote for its first view.
+mapfile -t sheets < <(ls "$OUT"/style_eval/*.png | sort | head -3)
+inputs=(); for s in "${sheets[@]}"; do inputs+=(-i "$s"); done
+for s in "${sheets[@]}"; do inputs+=(-i "$OUT/styles/$(basename "$s")"); done
+graph="[0:v]crop=iw/3:ih:0:0,scale=iw*2:ih*2:flags=lanczos,pad=iw+8:ih:0:0:white[c];"
+for i in 0 1 2; do
+  graph+="[$i:v]crop=iw/3:ih:iw/3:0,scale=iw*2:ih*2:flags=lanczos[o$i];"
+  graph+="[$((i + 3)):v]scale=80:80,pad=84:84:2:2:white[s$i];"
+  graph+="[o$i][s$i]overlay=W-w:H-h,pad=iw+8:ih:0:0:white[p$i];"
+done
+graph+="[c][p0][p1][p2]hstack=inputs=4,crop=iw-8:ih:0:0"
+ffmpeg -loglevel error -y "${inputs[@]}" -filter_complex "$graph" -frames:v 1 "$OUT/strip.png"
 echo "== done in $(( $(date +%s) - start )) s after the build; open $OUT/index.html"
