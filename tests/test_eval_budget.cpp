@@ -39,6 +39,12 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
     CHECK(lpips_pair_units(LpipsNet::Alex) < lpips_pair_units(LpipsNet::Vgg));
     CHECK(eval_seconds(c, n) - eval_seconds(c, alex) == doctest::Approx(12 * (2.0 - alex.lpips_pair)));
   }
+  {
+    // eval-style's structure score: per style and view two LPIPS pairs, at u = 0.5: 1 x 2 x 2 x 0.5 units.
+    EvalCounts scored = n;
+    scored.structure_pair = lpips_pair_units(LpipsNet::Alex);
+    CHECK(eval_seconds(c, scored) - eval_seconds(c, n) == doctest::Approx(2.0 * scored.structure_pair));
+  }
   const double base = eval_seconds(c, n);
   for (int which = 0; which < 6; ++which) {
     CAPTURE(which);

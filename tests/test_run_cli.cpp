@@ -69,6 +69,20 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(s["stages"]["density"]["test_psnr"].is_number());
   CHECK(s["style_loss_ratio"].get<double>() > 0);
   CHECK(s["per_style"].size() == 2);  // the two held-out styles
+  // Style and content together: the content loss and the structure score (LPIPS to the true view) beside
+  // the style loss, on average and per style, each a measured positive ratio.
+  for (const char* k : {"content_loss_ratio", "lpips_ratio", "max_content_loss_ratio", "max_lpips_ratio"}) {
+    CAPTURE(k);
+    REQUIRE(s[k].is_number());
+    CHECK(s[k].get<double>() > 0);
+  }
+  for (const auto& st : s["per_style"]) {
+    REQUIRE(st["lpips_ratio"].is_number());
+    CHECK(st["lpips_ratio"].get<double>() <= s["max_lpips_ratio"].get<double>());
+  }
+  // The held-out renders that feed only the report use --eval-views' views, not the whole test split.
+  CHECK(testing::read_json(out / "density_test/metrics.json")["views"].size() == 1);
+  CHECK(testing::read_json(out / "features_test/metrics.json")["views"].size() == 1);
   CHECK(s["consistency"]["short_rmse_ratio"].get<double>() > 0);
   CHECK(s["consistency"]["lpips_net"] == "alex");  // eval table's default trunk, named beside its ratios
   CHECK(s["mix_corner_min_mean_abs_diff"].get<double>() >= 0);
@@ -77,6 +91,7 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
   CHECK(html.find("mix/mix_grid.png") != std::string::npos);
   CHECK(html.find("video.mp4") != std::string::npos);
+  CHECK(html.find("LPIPS to the true view") != std::string::npos);
   CHECK(html.find("per_frame_rmse.svg") != std::string::npos);
   // What a person reads: the scene's name as the title, which way each number is better, the decoded test
   // views, each held-out style's image beside its results, and what made the run.

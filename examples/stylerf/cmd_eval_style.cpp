@@ -1,7 +1,8 @@
 // stylerf eval style --ckpt STYLE_CKPT [--styles DIR] [--max-views N] [-o DIR]: the style stage's
 // yardstick. For the checkpoint's held-out styles (never trained on; or every image of --styles), the
 // content and style losses of our stylised test views beside those of 2D AdaIN applied to the true views,
-// by the same VGG and mask (lib/train/style_eval.hpp), per style and on average, with their ratio.
+// by the same VGG and mask (lib/train/style_eval.hpp), per style and on average, with their ratio; and the
+// structure score, LPIPS(true view, stylised view) of ours and of AdaIN's, with its ratio.
 #include <boost/program_options.hpp>
 #include <filesystem>
 #include <iomanip>
@@ -24,10 +25,84 @@ namespace stylerf::cli {
 
 using stylerf::host::Error;
 
+namespace {
+
+// Means over the styles of each column of the evaluation; `structure` when the LPIPS columns were measured.
+struct StyleMeans {
+  double ours_content = 0, ours_style = 0, adain_content = 0, adain_style = 0, ours_lpips = 0, adain_lpips = 0;
+  bool structure = false;
+};
+
+StyleMeans style_means(const std::vector<stylerf::train::StyleEvalRow>& rows) {
+  StyleMeans m;
+  const double k = double(std::max<size_t>(1, rows.size()));
+  for (const auto& r : rows) {
+    m.ours_content += r.ours_content / k, m.ours_style += r.ours_style / k;
+    m.adain_content += r.adain_content / k, m.adain_style += r.adain_style / k;
+    m.ours_lpips += r.ours_lpips / k, m.adain_lpips += r.adain_lpips / k;
+  }
+  m.structure = !rows.empty() && rows[0].structure_views > 0;
+  return m;
+}
+
+// A value when it was measured, else JSON null.
+nlohmann::json optional(bool measured, double v) { return measured ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json per_style_json(const std::vector<stylerf::train::StyleEvalRow>& rows) {
+  nlohmann::json per = nlohmann::json::array();
+  for (const auto& r : rows) {
+    const bool s = r.structure_views > 0;
+    per.push_back({{"style", r.style},
+                   {"ours_content", r.ours_content},
+                   {"ours_style", r.ours_style},
+                   {"adain_content", r.adain_content},
+                   {"adain_style", r.adain_style},
+                   {"ours_lpips", optional(s, r.ours_lpips)},
+                   {"adain_lpips", optional(s, r.adain_lpips)},
+                   {"style_ratio", r.ours_style / r.adain_style},
+                   {"content_ratio", r.ours_content / r.adain_content},
+                   {"lpips_ratio", optional(s, r.ours_lpips / r.adain_lpips)}});
+  }
+  return per;
+}
+
+void print_style_table(std::ostream& os, const std::vector<stylerf::train::StyleEvalRow>& rows, const StyleMeans& m,
+                       const std::string& lpips_net, int lpips_min_side) {
+  os << std::fixed << std::setprecision(3) << "style                                     ours: content   style   LPIPS"
+     << "   AdaIN: content   style   LPIPS\n";
+  for (const auto& r : rows)
+    os << std::left << std::setw(40) << r.style.substr(0, 40) << std::right << std::setw(15) << r.ours_content
+       << std::setw(9) << r.ours_style << std::setw(8) << r.ours_lpips << std::setw(16) << r.adain_content
+       << std::setw(9) << r.adain_style << std::setw(8) << r.adain_lpips << "\n";
+  os << "mean over " << rows.size() << " styles: ours content " << m.ours_content << " style " << m.ours_style
+     << " LPIPS " << m.ours_lpips << "; AdaIN content " << m.adain_content << " style " << m.adain_style << " LPIPS "
+     << m.adain_lpips << "\n"
+     << "ours / AdaIN (lower is better): style loss " << m.ours_style / m.adain_style << "x, content loss "
+     << m.ours_content / m.adain_content << "x, LPIPS to the true view ";
+  if (m.structure)
+    os << m.ours_lpips / m.adain_lpips << "x (" << lpips_net << ")\n";
+  else
+    os << "not measured (views below " << lpips_min_side << " px)\n";
+  // Where the style gap lies: relu1_1 / relu2_1 measure colour and fine texture, relu3_1 / relu4_1 larger
+  // patterns. A blurred stylisation loses most at the low taps.
+  const char* taps[] = {"relu1_1", "relu2_1", "relu3_1", "relu4_1"};
+  const double k = double(std::max<size_t>(1, rows.size()));
+  os << "style loss per VGG tap (mean over styles), ours / AdaIN:";
+  for (size_t t = 0; t < 4; ++t) {
+    double o = 0, a = 0;
+    for (const auto& r : rows) o += r.ours_style_tap[t], a += r.adain_style_tap[t];
+    os << "  " << taps[t] << " " << o / k << " / " << a / k;
+  }
+  os << std::endl;
+}
+
+}  // namespace
+
 // `stylerf eval style` (cmd_eval.cpp dispatches it).
 int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
+  std::string lpips_net = stylerf::eval::lpips_net_name(stylerf::eval::kDefaultLpipsNet);
   int views = 5;
   std::string supersample_text = "0";
   float refine_contrast = stylerf::model::kRefineContrast;
@@ -37,6 +112,7 @@ int run_eval_style(int argc, char** argv) {
       "max-views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
       "output,o", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
+      "lpips-net", po::value(&lpips_net)->default_value(lpips_net), "LPIPS trunk of the structure score: vgg | alex")(
       "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), stylerf::cli::kDeviceHelp);
@@ -65,54 +141,29 @@ int run_eval_style(int argc, char** argv) {
   }
   auto vgg = stylerf::nn::VggEncoder::load_default();
   auto adain = stylerf::style::AdainModel::load_default();
+  const auto lpips = stylerf::eval::Lpips::load_default(stylerf::eval::parse_lpips_net(lpips_net));
   train::StyleEvalOptions opt;
   opt.views = views;
   opt.supersample = supersample != 0 ? supersample : model.inference_supersample;
   opt.refine_contrast = refine_contrast;
   opt.image_dir = images;
+  opt.lpips = &lpips;
   opt.log = &std::cout;
   const auto rows = train::evaluate_styles(model, vgg, adain, scene, styles, opt);
-  double oc = 0, os = 0, ac = 0, as = 0;
-  std::cout << std::fixed << std::setprecision(3) << "style                                     ours: content   style"
-            << "   AdaIN: content   style\n";
-  for (const auto& r : rows) {
-    std::cout << std::left << std::setw(40) << r.style.substr(0, 40) << std::right << std::setw(15) << r.ours_content
-              << std::setw(9) << r.ours_style << std::setw(16) << r.adain_content << std::setw(9) << r.adain_style << "\n";
-    oc += r.ours_content, os += r.ours_style, ac += r.adain_content, as += r.adain_style;
-  }
-  const double k = double(std::max<size_t>(1, rows.size()));
-  std::cout << "mean over " << rows.size() << " styles: ours content " << oc / k << " style " << os / k
-            << "; AdaIN content " << ac / k << " style " << as / k << "\n"
-            << "style loss ours / AdaIN = " << (os / k) / (as / k) << "  (content ours / AdaIN = " << (oc / k) / (ac / k)
-            << ")" << std::endl;
+  const StyleMeans mean = style_means(rows);
+  print_style_table(std::cout, rows, mean, lpips_net, lpips.min_side());
   if (!json_path.empty()) {
-    nlohmann::json per = nlohmann::json::array();
-    for (const auto& r : rows)
-      per.push_back({{"style", r.style},
-                     {"ours_content", r.ours_content},
-                     {"ours_style", r.ours_style},
-                     {"adain_content", r.adain_content},
-                     {"adain_style", r.adain_style},
-                     {"style_ratio", r.ours_style / r.adain_style}});
     const nlohmann::json doc = {{"checkpoint", ckpt},
                                 {"views", views},
                                 {"supersample", stylerf::model::supersample_name(opt.supersample)},
                                 {"refine_contrast", opt.supersample != 1 ? refine_contrast : 0.0f},
-                                {"styles", per},
-                                {"style_loss_ratio", (os / k) / (as / k)},
-                                {"content_loss_ratio", (oc / k) / (ac / k)}};
+                                {"styles", per_style_json(rows)},
+                                {"style_loss_ratio", mean.ours_style / mean.adain_style},
+                                {"content_loss_ratio", mean.ours_content / mean.adain_content},
+                                {"lpips_net", lpips_net},
+                                {"lpips_ratio", optional(mean.structure, mean.ours_lpips / mean.adain_lpips)}};
     stylerf::host::write_file_atomic(json_path, doc.dump(2) + "\n");
   }
-  // Where the style gap lies: relu1_1 / relu2_1 measure colour and fine texture, relu3_1 / relu4_1 larger
-  // patterns. A blurred stylisation loses most at the low taps.
-  const char* taps[] = {"relu1_1", "relu2_1", "relu3_1", "relu4_1"};
-  std::cout << "style loss per VGG tap (mean over styles), ours / AdaIN:";
-  for (size_t t = 0; t < 4; ++t) {
-    double o = 0, a = 0;
-    for (const auto& r : rows) o += r.ours_style_tap[t], a += r.adain_style_tap[t];
-    std::cout << "  " << taps[t] << " " << o / k << " / " << a / k;
-  }
-  std::cout << std::endl;
   return 0;
 }
 

@@ -27,9 +27,9 @@ double aux_unit(const FrameCost& c) {
 double eval_seconds(const FrameCost& c, const EvalCounts& n) {
   // s: the probed frame's own 2D work (the videos' and the mix sheet's frames); u: the other 2D work.
   const double k = c.content, s = c.style2d, u = aux_unit(c), rgb = c.rgb > 0 ? c.rgb : c.style2d;
-  // eval-style: each view's content once; per style ours, AdaIN's (an encoder and a decoder) and the VGG
-  // losses of both.
-  const double style_eval = n.eval_views * (k + n.holdout * 4.0 * u);
+  // eval-style: each view's content once; per style ours, AdaIN's (an encoder and a decoder), the VGG
+  // losses of both and their structure score (an LPIPS pair each, against the true view).
+  const double style_eval = n.eval_views * (k + n.holdout * (4.0 + 2.0 * n.structure_pair) * u);
   // videos: each frame's content once, then each shown style.
   const double videos = n.video_frames * (k + n.shown * s);
   const double mix = k + kMixCells * s;

@@ -54,6 +54,9 @@ struct EvalCounts {
   bool stats_one_ray = false;
   // Units an LPIPS pair of the table costs (lpips_pair_units; the fits below were made with VGG-16's).
   double lpips_pair = 2.0;
+  // Units an LPIPS pair of eval-style's structure score costs (two a style and view: ours and AdaIN's
+  // against the true view); 0 for evaluations that do not score it (the runs the fits below were made on).
+  double structure_pair = 0.0;
 };
 // An LPIPS pair of the consistency table in aux_units, by trunk: VGG-16's 2 is the fitted value (the
 // three 90-minute fern runs below); AlexNet's is that times the two trunks' ratio measured on the same

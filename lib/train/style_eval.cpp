@@ -23,13 +23,31 @@ Tensor planar_crop(const std::vector<float>& rgb, int W, int He, int We) {
   return Tensor::from_host(v, {1, 3, He, We}, "evaluation image");
 }
 
-OpacityMask content_opacity_mask(const model::StyleModel::CameraContent& cc, int stride, int He, int We) {
+std::vector<float> content_opacity_pixels(const model::StyleModel::CameraContent& cc, int stride, int He, int We) {
   const auto acc = cc.content.acc.to_host();
   std::vector<float> full(size_t(He) * We);
   for (int y = 0; y < He; ++y)
     for (int x = 0; x < We; ++x) full[size_t(y) * We + x] = acc[size_t(y / stride) * cc.width + x / stride];
-  return opacity_mask(full, He, We, He, We);
+  return full;
 }
+
+OpacityMask content_opacity_mask(const model::StyleModel::CameraContent& cc, int stride, int He, int We) {
+  return opacity_mask(content_opacity_pixels(cc, stride, He, We), He, We, He, We);
+}
+
+namespace {
+
+// A planar [1, 3, H, W] tensor as an image, clamped to [0, 1] (what a PNG of it would hold).
+io::Image clamped_image(const Tensor& t) {
+  io::Image im;
+  im.height = int(t.shape()[2]);
+  im.width = int(t.shape()[3]);
+  im.data = t.to_host();
+  for (float& x : im.data) x = std::clamp(x, 0.0f, 1.0f);
+  return im;
+}
+
+}  // namespace
 
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
                                           const scene::Scene& scene, const std::vector<std::string>& styles,
@@ -64,6 +82,15 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
       mask = content_opacity_mask(cc, m.stride(), He, We);  // each pixel's block, cut like the images
       if (mask.empty()) continue;
     }
+    // The structure score compares what a person sees: the true view and each stylised picture as shown.
+    const bool score_structure = opt.lpips && std::min(He, We) >= opt.lpips->min_side();
+    const std::vector<float> pixel_mask =
+        score_structure && masked ? content_opacity_pixels(cc, m.stride(), He, We) : std::vector<float>{};
+    const io::Image truth_image = score_structure ? clamped_image(truth) : io::Image{};
+    auto structure = [&](const Tensor& stylised) {
+      const io::Image s = clamped_image(stylised);
+      return masked ? opt.lpips->distance(truth_image, s, pixel_mask) : opt.lpips->distance(truth_image, s);
+    };
     for (size_t si = 0; si < styles.size(); ++si) {
       const auto ours_rgb = m.stylize_camera(cc, codes[si], W, H);
       const Tensor ours = planar_crop(ours_rgb, W, He, We);
@@ -85,16 +112,22 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         r.ours_style_tap[t] += lo.style_tap[t] / count;
         r.adain_style_tap[t] += la.style_tap[t] / count;
       }
+      // The pictures show ours as stylize does, over the scene's background (the losses above are masked
+      // by opacity instead, so what the decoder draws in empty space never counts).
+      std::vector<float> shown_rgb = ours_rgb;
+      m.over_background(shown_rgb, cc, W, H);
+      const Tensor shown = planar_crop(shown_rgb, W, He, We);
+      if (score_structure) {
+        r.ours_lpips += structure(shown);
+        r.adain_lpips += structure(ad);
+        ++r.structure_views;
+      }
       if (!opt.image_dir.empty() && vi == 0) {
         io::Image sheet;
         sheet.width = 3 * We;
         sheet.height = He;
         sheet.data.assign(size_t(3) * sheet.width * He, 0.0f);
-        // The picture shows ours as stylize does, over the scene's background (the losses above are
-        // masked by opacity instead, so what the decoder draws in empty space never counts).
-        std::vector<float> shown = ours_rgb;
-        m.over_background(shown, cc, W, H);
-        const Tensor parts[3] = {truth, planar_crop(shown, W, He, We), ad};
+        const Tensor parts[3] = {truth, shown, ad};
         for (int k = 0; k < 3; ++k) {
           const auto p = parts[k].to_host();
           for (int c = 0; c < 3; ++c)
@@ -108,6 +141,8 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
     if (opt.log)
       *opt.log << "  view " << vi + 1 << "/" << count << " done (" << styles.size() << " styles)" << std::endl;
   }
+  for (StyleEvalRow& r : rows)
+    if (r.structure_views > 0) r.ours_lpips /= r.structure_views, r.adain_lpips /= r.structure_views;
   return rows;
 }
 
