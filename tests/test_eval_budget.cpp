@@ -179,3 +179,19 @@ TEST_CASE("eval budget: the style stage keeps a minimum, and the evaluation what
   CHECK(now.shown == wanted.shown);
   CHECK(now.video_frames >= 40);
 }
+
+TEST_CASE("eval budget: the report keeps to its share of the run, and training gets the rest") {
+  const double minutes = 90, nominal = 42.9 * 60, left = 2820;
+  // 90 s of held-out renders and the probe already taken: the evaluation may take the 15% share's rest.
+  const double report_left = kReportShare * minutes * 60 - 90;
+  CHECK(eval_share_seconds(left, nominal, report_left) == doctest::Approx(720));
+  // The cap never raises the share the style stage's minimum leaves.
+  CHECK(eval_share_seconds(1000, nominal, 5000) == doctest::Approx(eval_share_seconds(1000, nominal)));
+  // A report that has already spent its share gets nothing more (the caller reports what cannot fit).
+  CHECK(eval_share_seconds(left, nominal, -30) == 0);
+  // Training's share of the whole run: the stages' minutes before the style stage plus what the style stage
+  // gets (left less the evaluation) is at least 1 - kReportShare of the run, less the report's earlier 90 s.
+  const double before_style = minutes * 60 - left - 90;
+  const double training = before_style + left - eval_share_seconds(left, nominal, report_left);
+  CHECK(training / (minutes * 60) >= 1 - kReportShare - 1e-9);
+}

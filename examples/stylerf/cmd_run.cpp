@@ -285,11 +285,13 @@ struct EvalPlan {
 };
 
 // style_iters > 0: the style stage trains that many iterations (--stage-iters) whatever its planned minutes.
+// report_spent_s: what the report has taken so far (the held-out renders and the probe).
 EvalPlan plan_evaluation(const eval::FrameCost& c, const eval::EvalCounts& wanted, double minutes, double spent_s,
-                         double nominal_style_min, double style_fixed_s, int style_iters) {
+                         double report_spent_s, double nominal_style_min, double style_fixed_s, int style_iters) {
   const double left = minutes * 60.0 - spent_s, nominal_style = nominal_style_min * 60.0;
   EvalPlan plan;
-  const double share = eval::eval_share_seconds(left, nominal_style);
+  const double report_left = eval::kReportShare * minutes * 60.0 - report_spent_s;
+  const double share = eval::eval_share_seconds(left, nominal_style, report_left);
   plan.counts = eval::fit_eval(c, wanted, share / eval::kEvalMargin);
   const double eval_s = eval::kEvalMargin * eval::eval_seconds(c, plan.counts);
   plan.predicted_eval_s = eval_s;
@@ -414,7 +416,9 @@ StylePlan plan_style_stage(PipelineSteps& steps, const RunOptions& o, const Budg
   double style_fixed_s = 0;
   sp.cost = probe_frame_cost(steps, o, out, ck.features, probe_style, ck.f.key + styles_fp, spent, style_fixed_s);
   sp.cost.rgb = render_seconds_per_view((out / "density_test/metrics.json").string());
-  const EvalPlan plan = plan_evaluation(sp.cost, wanted, o.minutes, spent, budget.style, style_fixed_s, style_iters);
+  const double report_spent = spent - ck.d.seconds - ck.f.seconds;  // held-out renders and the probe
+  const EvalPlan plan =
+      plan_evaluation(sp.cost, wanted, o.minutes, spent, report_spent, budget.style, style_fixed_s, style_iters);
   sp.style_minutes = plan.style_minutes;
   sp.json = {{"frame_content_s", sp.cost.content},
              {"frame_style_s", sp.cost.style2d},

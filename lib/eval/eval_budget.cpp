@@ -59,10 +59,11 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
   return n;
 }
 
-double eval_share_seconds(double left_s, double nominal_style_s) {
+double eval_share_seconds(double left_s, double nominal_style_s, double report_left_s) {
   if (!(left_s > 0)) return 0;
   const double style_minimum = std::clamp(kStyleSecondsEnough, 0.35 * left_s, 0.65 * left_s);
-  return std::max(left_s - nominal_style_s, left_s - style_minimum);
+  const double share = std::max(left_s - nominal_style_s, left_s - style_minimum);
+  return std::clamp(std::min(share, report_left_s), 0.0, left_s);
 }
 
 std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got) {

@@ -9,6 +9,7 @@
 // from the counts below, gives the style stage what is left, and shrinks the counts when the evaluation
 // would take more than its share.
 #pragma once
+#include <limits>
 #include <string>
 
 #include "lib/eval/lpips.hpp"
@@ -85,7 +86,14 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
 // ~300 steps (checked every 100 steps in three 90-minute runs at 504x378: fern 15.24 at step 300 -> 14.73
 // at 719 and 14.81 -> 14.40 at 676, horns 17.00 at 300 -> 16.81 at 608), while the evaluation's cuts take
 // what a user sees: with 35% of what was left, horns 1/8's videos were cut to 8 frames of one style.
-double eval_share_seconds(double left_s, double nominal_style_s);
+// `report_left_s` caps it: what is left of the report's share of the run (kReportShare of --minutes, less
+// what the report has already taken: the held-out renders and the probe), so that training keeps the run.
+// A 90-minute run on an 800x800 scene took 25 of its minutes for the report under the rule above alone
+// (held-out renders of all 200 test views, 3 videos of 60 frames) and left the style stage 16.
+double eval_share_seconds(double left_s, double nominal_style_s,
+                          double report_left_s = std::numeric_limits<double>::infinity());
+// The most of a run's time its report (held-out renders, probe, evaluation, videos, table) may take.
+constexpr double kReportShare = 0.15;
 // `stylerf run` plans with its predictions x this: the probe's two timed frames are noisy (see above).
 constexpr double kEvalMargin = 1.15;
 constexpr double kStyleSecondsEnough = 15 * 60.0;  // ~360 steps at 504x378 (2.3-2.5 s a step), ~900 on lego 1/4
