@@ -15,6 +15,7 @@
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/io/exr.hpp"
+#include "lib/io/image.hpp"
 #include "lib/io/npy.hpp"
 #include "lib/scene/analytic_scene.hpp"
 #include "lib/scene/camera_path.hpp"
@@ -754,4 +755,19 @@ TEST_CASE("downsample by default: the paper's resolution, Blender 1 and LLFF 4; 
   CHECK(scene::resolve_downsample(llff.string(), 8) == 8);
   CHECK(scene::resolve_downsample(blender.string(), 2) == 2);
   testing::expect_error([&] { scene::resolve_downsample(blender.string(), -1); }, "at least 1, or 0 for the scene's default");
+  // LLFF captures of smaller images: the longer side of images/ brought to at most 1024, by powers of two.
+  fs::create_directories(llff / "images");
+  auto llff_default_for = [&](int w, int h) {
+    for (const auto& e : fs::directory_iterator(llff / "images")) fs::remove(e.path());
+    io::Image im;
+    im.width = w, im.height = h;
+    im.data.assign(size_t(3) * w * h, 0.5f);
+    io::save_png((llff / "images" / "000.png").string(), im);
+    return scene::resolve_downsample(llff.string(), 0);
+  };
+  CHECK(llff_default_for(4032, 30) == 4);  // 4032x3024 captures: 1008x756, the paper's
+  CHECK(llff_default_for(544, 960) == 1);    // an object capture at its own size
+  CHECK(llff_default_for(1140, 855) == 2);   // 570x428
+  CHECK(llff_default_for(1024, 768) == 1);
+  CHECK(llff_default_for(1025, 20) == 2);
 }

@@ -11,6 +11,7 @@
 #include "lib/scene/blender_loader.hpp"
 #include "lib/scene/colmap_loader.hpp"
 #include "lib/scene/colmap_model.hpp"
+#include "lib/scene/image_files.hpp"
 #include "lib/scene/llff_loader.hpp"
 #include "lib/scene/masked_background.hpp"
 
@@ -120,8 +121,20 @@ int resolve_downsample(const std::string& dir, int requested) {
   if (requested < 0)
     throw host::SettingError("downsample", "must be at least 1, or 0 for the scene's default (got " +
                                                std::to_string(requested) + ")");
+  namespace fs = std::filesystem;
   std::error_code ec;
-  return std::filesystem::exists(std::filesystem::path(dir) / "poses_bounds.npy", ec) ? 4 : 1;
+  if (!fs::exists(fs::path(dir) / "poses_bounds.npy", ec)) return 1;
+  // LLFF: the paper's 1/4 is 1008x756 of 4032x3024 captures. Captures of smaller images (object captures at
+  // 544x960 or 1140x855) keep the factor that brings their longer side to at most kLlffLongestSide, so a
+  // 960-pixel capture trains at its own size rather than at 240.
+  const fs::path images = fs::path(dir) / "images";
+  const std::vector<std::string> files = fs::is_directory(images, ec) ? list_images(images.string()) : std::vector<std::string>{};
+  if (files.empty()) return 4;
+  int w = 0, h = 0;
+  image_size(files.front(), w, h);
+  int factor = 1;
+  while (std::max(w, h) > kLlffLongestSide * factor) factor *= 2;
+  return factor;
 }
 
 Scene load_scene(const std::string& dir, const LoadOptions& opts) {

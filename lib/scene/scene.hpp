@@ -84,8 +84,11 @@ struct LoadOptions {
 Scene load_scene(const std::string& dir, const LoadOptions& opts = {});
 
 // The downsample factor a scene trains at when none is given: the resolutions the paper reports, Blender
-// at its own 800x800 (1) and LLFF at 1/4 (1008x756 from 4032x3024 captures: 4); COLMAP and nerfstudio
-// folders at 1 (`stylerf import` already bounds their image size). `requested` > 0 is returned as is.
+// at its own 800x800 (1) and LLFF at 1/4 (1008x756 from 4032x3024 captures: 4). LLFF captures of smaller
+// images take the smallest power of two that brings the longer side of images/ to at most
+// kLlffLongestSide (544x960: 1; 1140x855: 2); without images/ 4. COLMAP and nerfstudio folders at 1
+// (`stylerf import` already bounds their image size). `requested` > 0 is returned as is.
+constexpr int kLlffLongestSide = 1024;
 int resolve_downsample(const std::string& dir, int requested);
 
 // Throws host::Error naming `what` if any entry of the 3x4 pose is NaN or infinite.
