@@ -27,7 +27,8 @@ import results_plots as plots  # noqa: E402
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COMMAND = "python3 scripts/make_results.py"
 SCENE_ORDER = ["lego", "fern", "horns", "milk_carton", "demo"]
-SCENE_NAME = {"lego": "lego", "fern": "fern", "horns": "horns", "milk_carton": "milk_carton", "demo": "the demo scene"}
+SCENE_NAME = {"lego": "lego", "fern": "fern", "horns": "horns", "milk_carton": "milk_carton",
+              "bird_figurine": "bird_figurine", "demo": "the demo scene"}
 MACHINE_SHORT = {"cpu2": "2-core CPU", "cpu2-xeon": "2-core Xeon", "cpu2-epyc": "2-core EPYC", "h100": "H100",
                  "h200": "H200"}
 SVGS = ["density.svg", "features.svg", "style.svg", "consistency_rays.svg", "consistency_time.svg",
@@ -119,6 +120,7 @@ def run_rows(runs):
             "<a id=\"%s\"></a>**%s**" % (r["anchor"], scene_size(r)),
             cell(n.get("total_min"), " min"), cell(n.get("density_psnr_db"), " dB"),
             cell(n.get("decoded_psnr_db"), " dB"), style,
+            pair(n.get("content_ratio_x"), n.get("structure_lpips_x")),
             pair(n.get("short_rmse_x"), n.get("long_rmse_x")),
             pair(n.get("short_lpips_x"), n.get("long_lpips_x")) + (" (%s)" % LPIPS_NET[r["lpips_net"]]),
             frame, cell(n.get("peak_rss_gb"), " GB"), MACHINE_SHORT[r["machine"]] + ", " + r["date"],
@@ -346,6 +348,9 @@ def page(root):
          "- **style loss / 2D AdaIN**: `stylerf eval-style`'s style loss of our stylised test views under held-out "
          "styles (never trained on), divided by 2D AdaIN's on the true views, by the same VGG and opacity mask. "
          "Below 1 is closer to the style than 2D AdaIN;",
+         "- **content loss, LPIPS to the truth / 2D AdaIN**: the same evaluation's content loss, and LPIPS between "
+         "the true view and the stylised one (a structure score training never sees), each over 2D AdaIN's. "
+         "Below 1 keeps the object's structure better than 2D AdaIN. A style ratio is good only beside these two;",
          "- **short / long RMSE, LPIPS**: `stylerf eval table`'s consistency of StyleRF's frames along the camera "
          "path, divided by per-frame 2D AdaIN's (below 1 is steadier; the paper reports 0.67x / 0.74x RMSE).", ""]
 
@@ -353,7 +358,8 @@ def page(root):
           "The default (fast) recipe, `--minutes 90` unless the command says otherwise, each run alone on its "
           "machine. *Frame*: a stylised frame at the run's resolution, measured with `stylerf stylize`, or the "
           "run's own plan (the content of one frame + one style) where no frame was timed.", ""]
-    L += table(["scene, size", "time", "density", "decoded", "style loss / 2D AdaIN", "short / long RMSE",
+    L += table(["scene, size", "time", "density", "decoded", "style loss / 2D AdaIN",
+                "content loss / LPIPS to the truth, over 2D AdaIN's", "short / long RMSE",
                 "short / long LPIPS", "frame", "peak RSS", "machine, date", "commit", "command"], run_rows(runs))
     L += ["", "The built-in demo (`bash scripts/demo.sh`: a generated 128 px scene, 32 generated styles of which "
           "4 are held out; by iteration counts, so its ratios do not depend on the machine's speed):", ""]
