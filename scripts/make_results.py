@@ -380,7 +380,7 @@ def page(root):
               h100["parts"]["tests"]["passed"], h100["parts"]["tests"]["failed"]), ""]
 
     L += density_section(density) + feature_section(features) + style_section(style_all)
-    L += consistency_section(cons) + resolution_section(runs) + demo_section(demo)
+    L += consistency_section(cons) + resolution_section(runs) + budget_section(runs) + demo_section(demo)
     L += knobs_section(knobs) + gpu_section(gpu, h100, h200, root) + machines_section(machines)
     return "\n".join(L) + "\n", svgs
 
@@ -496,6 +496,25 @@ def resolution_section(runs):
              commit_cell(r)] for r in recs]
     return L + table(["scene, size", "decoded", "style loss / 2D AdaIN", "short RMSE", "plan: content + a style",
                       "measured frame", "peak RSS", "machine", "commit"], rows) + [""]
+
+
+def budget_section(runs):
+    recs = sorted((r for r in runs if num(r, "report_min") is not None), key=sort_key)
+    if not recs:
+        return []
+    L = ["## Where a run's minutes go", "",
+         "`stylerf run` gives its report (held-out renders, the probe, eval style, videos, mix sheet, consistency "
+         "table) at most 15% of `--minutes` and training the rest. Training: the three stages' wall time; "
+         "report: every other step.", ""]
+    rows = [[scene_size(r), cell(num(r, "total_min"), " min"), cell(num(r, "density_min"), " min"),
+             cell(num(r, "features_min"), " min"), cell(num(r, "style_min"), " min"),
+             cell(num(r, "report_min"), " min"), cell(num(r, "training_share_pct"), "%"),
+             "**%s** / %s / %s" % (cell(num(r, "style_ratio_x"), "x"), cell(num(r, "content_ratio_x"), "x"),
+                                   cell(num(r, "structure_lpips_x"), "x")),
+             MACHINE_SHORT[r["machine"]] + ", " + r["date"], commit_cell(r), cmd_cell(r["command"])] for r in recs]
+    return L + table(["scene, size", "time", "density", "features", "style", "report", "training",
+                      "style / content / LPIPS to the truth, over 2D AdaIN's", "machine, date", "commit",
+                      "command"], rows) + [""]
 
 
 def demo_section(demo):

@@ -58,7 +58,7 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
   CHECK(eval_seconds({2.0, 0.5, 1, 9.0}, n) > base);  // dearer RGB views
 }
 
-TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then frames to 8") {
+TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then frames to 8, then the scores") {
   const FrameCost c{10.0, 1.0};  // content-bound, like fern at 1008x756
   const EvalCounts wanted;       // 5 views x 12 styles, 3 videos of 60 frames, 16 table frames
   const double full = eval_seconds(c, wanted);
@@ -80,11 +80,22 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   CHECK(b.video_frames == 24);
   CHECK(describe_cuts(wanted, b) == "video frames 60 -> 24, styles shown 3 -> 1");
 
+  // Past the videos, the scores shrink: held-out styles first, then views, then the table's frames.
+  EvalCounts scores = one;
+  scores.video_frames = 8;
+  const EvalCounts e = fit_eval(c, wanted, eval_seconds(c, scores) - 1.0);
+  CHECK(e.video_frames == 8);
+  CHECK(e.holdout == wanted.holdout - 1);
+  CHECK(e.eval_views == wanted.eval_views);
+  CHECK(e.table_frames == wanted.table_frames);
+  CHECK(describe_cuts(wanted, e) == "video frames 60 -> 8, styles shown 3 -> 1, held-out styles scored 12 -> 11");
+
   const EvalCounts d = fit_eval(c, wanted, 1.0);  // nothing fits: the least of every cut, never below
   CHECK(d.shown == 1);
   CHECK(d.video_frames == 8);
-  CHECK(d.table_frames == wanted.table_frames);
-  CHECK(d.eval_views == wanted.eval_views);
+  CHECK(d.holdout == 4);
+  CHECK(d.eval_views == 2);
+  CHECK(d.table_frames == 8);  // one long-range pair (t - 7) remains
   CHECK(eval_seconds(c, d) > 1.0);  // still over: the caller reports it
 
   EvalCounts few = wanted;

@@ -103,13 +103,14 @@ int run_eval_style(int argc, char** argv) {
   namespace train = stylerf::train;
   std::string ckpt, styles_dir, images, json_path, device;
   std::string lpips_net = stylerf::eval::lpips_net_name(stylerf::eval::kDefaultLpipsNet);
-  int views = 5;
+  int views = 5, max_styles = 0;
   std::string supersample_text = "0";
   float refine_contrast = stylerf::model::kRefineContrast;
   po::options_description desc("stylerf eval style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
       "max-views", po::value(&views)->default_value(5), "test views, evenly spaced (0: all)")(
+      "max-styles", po::value(&max_styles)->default_value(0), "styles scored, evenly spaced in name order (0: all)")(
       "output,o", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
       "lpips-net", po::value(&lpips_net)->default_value(lpips_net), "LPIPS trunk of the structure score: vgg | alex")(
@@ -125,6 +126,7 @@ int run_eval_style(int argc, char** argv) {
     return vm.count("help") ? 0 : 2;
   }
   if (views < 0) throw Error("--max-views must be >= 0");
+  if (max_styles < 0) throw Error("--max-styles must be >= 0");
   const int supersample = stylerf::cli::supersample_from(supersample_text);
   stylerf::cli::check_refine_contrast(refine_contrast);
   if (!images.empty()) std::filesystem::create_directories(images);
@@ -138,6 +140,11 @@ int run_eval_style(int argc, char** argv) {
   } else {
     styles = train::StyleSet::from_json(ck.meta.at("styles")).holdout;
     if (styles.empty()) throw Error("checkpoint " + ckpt + " held out no styles; pass --styles DIR");
+  }
+  if (max_styles > 0 && size_t(max_styles) < styles.size()) {
+    std::vector<std::string> kept;
+    for (int i = 0; i < max_styles; ++i) kept.push_back(styles[size_t(int64_t(i) * styles.size() / max_styles)]);
+    styles.swap(kept);
   }
   auto vgg = stylerf::nn::VggEncoder::load_default();
   auto adain = stylerf::style::AdainModel::load_default();

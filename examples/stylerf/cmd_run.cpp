@@ -439,7 +439,7 @@ StylePlan plan_style_stage(PipelineSteps& steps, const RunOptions& o, const Budg
 void refit_after_style(const RunOptions& o, double spent_s, StylePlan& sp) {
   const double left = o.minutes * 60.0 - spent_s;
   eval::EvalCounts rest = sp.counts;
-  rest.eval_views = 0;  // done
+  rest.eval_views = 0, rest.holdout = 0;  // done
   const eval::EvalCounts fitted = eval::fit_eval(sp.cost, rest, left / eval::kEvalMargin);
   const std::string cuts = eval::describe_cuts(rest, fitted);
   if (!cuts.empty()) {
@@ -448,15 +448,16 @@ void refit_after_style(const RunOptions& o, double spent_s, StylePlan& sp) {
     sp.json["late_cuts"] = cuts;
   }
   sp.counts.video_frames = fitted.video_frames, sp.counts.shown = fitted.shown;
+  sp.counts.table_frames = fitted.table_frames;
 }
 
 // The zero-shot videos of the shown styles, the mix sheet of the four corners and the consistency table.
 void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, const fs::path& out,
                                  const Checkpoints& ck, const std::string& upstream,
                                  const std::vector<std::string>& shown_now, const std::vector<std::string>& corners,
-                                 int video_frames) {
+                                 const eval::EvalCounts& counts) {
   std::vector<std::string> vid = args(o, "stylize", "--ckpt", ck.style, "--views", "path", "--frames",
-                                      std::to_string(video_frames), "--no-losses", "-o", (out / "videos").string());
+                                      std::to_string(counts.video_frames), "--no-losses", "-o", (out / "videos").string());
   for (const auto& st : shown_now) vid.insert(vid.end(), {"--style", st});
   steps.run("videos", vid, (out / "videos/metrics.json").string(), upstream);
   steps.run("mix",
@@ -465,7 +466,7 @@ void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, cons
                            (out / "mix").string()),
                       (out / "mix/metrics.json").string(), upstream);
   std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", ck.density + "," + ck.style, "--scored-frames",
-                                        std::to_string(o.table_frames), "-o", (out / "consistency").string(),
+                                        std::to_string(counts.table_frames), "-o", (out / "consistency").string(),
                                         "--styles");
   for (const auto& st : shown_now) table.push_back(st);
   steps.run("consistency", table, (out / "consistency/table.json").string(), upstream);
@@ -503,13 +504,14 @@ int run_pipeline(int argc, char** argv) {
   const std::string upstream = s.key + ck.d.key;
   const double eval_style_s =
       steps.run("style_eval",
-                args(o, "eval", "style", "--ckpt", ck.style, "--max-views", std::to_string(o.eval_views), "-o",
-                     (out / "style_eval").string(), "--json", (out / "style_eval.json").string()),
+                args(o, "eval", "style", "--ckpt", ck.style, "--max-views", std::to_string(sp.counts.eval_views),
+                     "--max-styles", std::to_string(sp.counts.holdout), "-o", (out / "style_eval").string(), "--json",
+                     (out / "style_eval.json").string()),
                 (out / "style_eval.json").string(), upstream)
           .seconds;
   if (sp.by_minutes) refit_after_style(o, spent + s.seconds + eval_style_s, sp);
   const std::vector<std::string> shown_now(shown.begin(), shown.begin() + sp.counts.shown);
-  render_videos_mix_and_table(steps, o, out, ck, upstream, shown_now, picked.corners, sp.counts.video_frames);
+  render_videos_mix_and_table(steps, o, out, ck, upstream, shown_now, picked.corners, sp.counts);
 
   RunReportInput in;
   in.out = o.out;

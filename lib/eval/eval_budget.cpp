@@ -56,6 +56,11 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
   while (!fits() && n.video_frames > std::min(24, wanted.video_frames)) --n.video_frames;
   while (!fits() && n.shown > 1) --n.shown;
   while (!fits() && n.video_frames > std::min(8, wanted.video_frames)) --n.video_frames;
+  // Then the scores themselves, to their smallest useful size: 4 held-out styles, 2 views, the table's 8
+  // frames (one long-range pair).
+  while (!fits() && n.holdout > std::min(4, wanted.holdout)) --n.holdout;
+  while (!fits() && n.eval_views > std::min(2, wanted.eval_views)) --n.eval_views;
+  while (!fits() && n.table_frames > std::min(8, wanted.table_frames)) --n.table_frames;
   return n;
 }
 
@@ -70,9 +75,13 @@ std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got) {
   std::string s;
   if (got.video_frames < wanted.video_frames)
     s += "video frames " + std::to_string(wanted.video_frames) + " -> " + std::to_string(got.video_frames);
-  if (got.shown < wanted.shown)
-    s += std::string(s.empty() ? "" : ", ") + "styles shown " + std::to_string(wanted.shown) + " -> " +
-         std::to_string(got.shown);
+  auto cut = [&](const char* what, int from, int to) {
+    if (to < from) s += std::string(s.empty() ? "" : ", ") + what + " " + std::to_string(from) + " -> " + std::to_string(to);
+  };
+  cut("styles shown", wanted.shown, got.shown);
+  cut("held-out styles scored", wanted.holdout, got.holdout);
+  cut("views scored", wanted.eval_views, got.eval_views);
+  cut("table frames", wanted.table_frames, got.table_frames);
   return s;
 }
 

@@ -75,8 +75,10 @@ double lpips_pair_units(LpipsNet net);
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
-// then fewer shown styles (down to 1), then fewer video frames (down to 8). The table keeps its frames
-// (its long range needs t - 7) and eval-style its views. The result may still not fit: the caller says so.
+// then fewer shown styles (down to 1), then fewer video frames (down to 8), then fewer held-out styles
+// scored (down to 4), views scored (down to 2) and table frames (down to 8: its long range needs t - 7).
+// At 800x800 the scores alone (12 styles x 5 views, 16 table frames) are ~20 minutes on a 2-core CPU.
+// The result may still not fit: the caller says so.
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds);
 
 // The most of `left_s` (the run's seconds left when the style stage is planned) the evaluation may take;
