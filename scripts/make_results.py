@@ -504,17 +504,18 @@ def budget_section(runs):
         return []
     L = ["## Where a run's minutes go", "",
          "`stylerf run` gives its report (held-out renders, the probe, eval style, videos, mix sheet, consistency "
-         "table) at most 15% of `--minutes` and training the rest. Training: the three stages' wall time; "
-         "report: every other step.", ""]
+         "table) at most 15% of `--minutes` and training the rest, shrinking the videos and then the scores to fit. "
+         "Training: the three stages' wall time; report: every other step.", ""]
     rows = [[scene_size(r), cell(num(r, "total_min"), " min"), cell(num(r, "density_min"), " min"),
              cell(num(r, "features_min"), " min"), cell(num(r, "style_min"), " min"),
              cell(num(r, "report_min"), " min"), cell(num(r, "training_share_pct"), "%"),
              "**%s** / %s / %s" % (cell(num(r, "style_ratio_x"), "x"), cell(num(r, "content_ratio_x"), "x"),
                                    cell(num(r, "structure_lpips_x"), "x")),
-             MACHINE_SHORT[r["machine"]] + ", " + r["date"], commit_cell(r), cmd_cell(r["command"])] for r in recs]
+             MACHINE_SHORT[r["machine"]] + ", " + r["date"], commit_cell(r), cmd_cell(r["command"]),
+             r.get("note", "")] for r in recs]
     return L + table(["scene, size", "time", "density", "features", "style", "report", "training",
                       "style / content / LPIPS to the truth, over 2D AdaIN's", "machine, date", "commit",
-                      "command"], rows) + [""]
+                      "command", "note"], rows) + [""]
 
 
 def demo_section(demo):
