@@ -71,14 +71,14 @@ TEST_CASE("run: the whole pipeline, its report, and resuming") {
   CHECK(s["per_style"].size() == 2);  // the two held-out styles
   // Style and content together: the content loss and the structure score (LPIPS to the true view) beside
   // the style loss, on average and per style, each a measured positive ratio.
-  for (const char* k : {"content_loss_ratio", "lpips_ratio", "max_content_loss_ratio", "max_lpips_ratio"}) {
+  for (const char* k : {"content_loss_ratio", "structure_lpips_ratio", "max_content_loss_ratio", "max_structure_lpips_ratio"}) {
     CAPTURE(k);
     REQUIRE(s[k].is_number());
     CHECK(s[k].get<double>() > 0);
   }
   for (const auto& st : s["per_style"]) {
-    REQUIRE(st["lpips_ratio"].is_number());
-    CHECK(st["lpips_ratio"].get<double>() <= s["max_lpips_ratio"].get<double>());
+    REQUIRE(st["structure_lpips_ratio"].is_number());
+    CHECK(st["structure_lpips_ratio"].get<double>() <= s["max_structure_lpips_ratio"].get<double>());
   }
   // The held-out renders that feed only the report use --eval-views' views, not the whole test split.
   CHECK(testing::read_json(out / "density_test/metrics.json")["views"].size() == 1);

@@ -61,7 +61,7 @@ nlohmann::json per_style_json(const std::vector<stylerf::train::StyleEvalRow>& r
                    {"adain_lpips", optional(s, r.adain_lpips)},
                    {"style_ratio", r.ours_style / r.adain_style},
                    {"content_ratio", r.ours_content / r.adain_content},
-                   {"lpips_ratio", optional(s, r.ours_lpips / r.adain_lpips)}});
+                   {"structure_lpips_ratio", optional(s, r.ours_lpips / r.adain_lpips)}});
   }
   return per;
 }
@@ -167,8 +167,8 @@ int run_eval_style(int argc, char** argv) {
                                 {"styles", per_style_json(rows)},
                                 {"style_loss_ratio", mean.ours_style / mean.adain_style},
                                 {"content_loss_ratio", mean.ours_content / mean.adain_content},
-                                {"lpips_net", lpips_net},
-                                {"lpips_ratio", optional(mean.structure, mean.ours_lpips / mean.adain_lpips)}};
+                                {"structure_lpips_net", lpips_net},
+                                {"structure_lpips_ratio", optional(mean.structure, mean.ours_lpips / mean.adain_lpips)}};
     stylerf::host::write_file_atomic(json_path, doc.dump(2) + "\n");
   }
   return 0;

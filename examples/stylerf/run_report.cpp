@@ -190,7 +190,7 @@ void style_eval_section(std::ostringstream& h, const RunReportInput& in, const j
   h << "<h2>Held-out styles: truth | StyleRF | 2D AdaIN (first test view), and the style</h2>\n<p>Style loss over "
        "2D AdaIN's, by the same VGG (lower is better): <b>"
     << fmt(number(sum, "style_loss_ratio"), 3) << "x</b> on average (content loss " << fmt(number(sum, "content_loss_ratio"), 3)
-    << "x; LPIPS to the true view, the structure kept, " << fmt(number(sum, "lpips_ratio"), 3)
+    << "x; LPIPS to the true view, the structure kept, " << fmt(number(sum, "structure_lpips_ratio"), 3)
     << "x; lower is better for all three).</p>\n";
   for (const auto& r : eval.value("styles", json::array())) {
     const std::string st = r.value("style", ""), image = style_image(in.styles, st);
@@ -198,7 +198,7 @@ void style_eval_section(std::ostringstream& h, const RunReportInput& in, const j
     if (!image.empty()) h << linked_image(link(out, image), "style");
     h << "<figcaption>" << html_escape(st) << ": over AdaIN's, style loss " << fmt(number(r, "style_ratio"), 2)
       << "x, content loss " << fmt(number(r, "content_ratio"), 2) << "x, LPIPS to the truth "
-      << fmt(number(r, "lpips_ratio"), 2) << "x (lower is better)</figcaption></figure>\n";
+      << fmt(number(r, "structure_lpips_ratio"), 2) << "x (lower is better)</figcaption></figure>\n";
   }
 }
 
@@ -306,8 +306,8 @@ RunSummary write_run_report(const RunReportInput& in, const RunLimits& limits) {
   // Style and content together: a low style loss bought by painting over the object shows in the other two.
   j["style_loss_ratio"] = number(eval, "style_loss_ratio");
   j["content_loss_ratio"] = number(eval, "content_loss_ratio");
-  j["lpips_ratio"] = number(eval, "lpips_ratio");
-  j["lpips_net"] = eval.value("lpips_net", std::string());
+  j["structure_lpips_ratio"] = number(eval, "structure_lpips_ratio");
+  j["structure_lpips_net"] = eval.value("structure_lpips_net", std::string());
   // The largest measured value (NaN when none was: a score not measured is not a perfect one).
   auto raise = [](double& worst, double v) {
     if (std::isfinite(v) && !(worst >= v)) worst = v;
@@ -318,14 +318,14 @@ RunSummary write_run_report(const RunReportInput& in, const RunLimits& limits) {
     j["per_style"].push_back({{"style", r.value("style", "")},
                               {"style_ratio", number(r, "style_ratio")},
                               {"content_ratio", number(r, "content_ratio")},
-                              {"lpips_ratio", number(r, "lpips_ratio")}});
+                              {"structure_lpips_ratio", number(r, "structure_lpips_ratio")}});
     raise(worst_style, number(r, "style_ratio"));
     raise(worst_content, number(r, "content_ratio"));
-    raise(worst_lpips, number(r, "lpips_ratio"));
+    raise(worst_lpips, number(r, "structure_lpips_ratio"));
   }
   j["max_style_loss_ratio"] = worst_style;
   j["max_content_loss_ratio"] = worst_content;
-  j["max_lpips_ratio"] = worst_lpips;
+  j["max_structure_lpips_ratio"] = worst_lpips;
   j["mix_corner_min_mean_abs_diff"] = number(read_json(out / "mix/metrics.json"), "corner_min_mean_abs_diff");
   j["consistency"] = consistency_ratios(read_json(out / "consistency/table.json"));
   j["checks"] = json::array();
@@ -348,8 +348,8 @@ void print_run_summary(const RunSummary& s, std::ostream& os) {
      << "  held-out styles / 2D AdaIN's (lower is better): style loss " << fmt(number(j, "style_loss_ratio"), 3)
      << "x (worst " << fmt(number(j, "max_style_loss_ratio"), 2) << "x), content loss "
      << fmt(number(j, "content_loss_ratio"), 3) << "x (worst " << fmt(number(j, "max_content_loss_ratio"), 2)
-     << "x), LPIPS to the true view " << fmt(number(j, "lpips_ratio"), 3) << "x (worst "
-     << fmt(number(j, "max_lpips_ratio"), 2) << "x)\n"
+     << "x), LPIPS to the true view " << fmt(number(j, "structure_lpips_ratio"), 3) << "x (worst "
+     << fmt(number(j, "max_structure_lpips_ratio"), 2) << "x)\n"
      << "  consistency, StyleRF / per-frame AdaIN: short RMSE " << fmt(number(j["consistency"], "short_rmse_ratio"), 3)
      << "x, short LPIPS (" << j["consistency"].value("lpips_net", std::string("none")) << ") "
      << fmt(number(j["consistency"], "short_lpips_ratio"), 3) << "x\n"
