@@ -265,6 +265,17 @@ void save_png(const std::string& path, const Image& img) {
   });
 }
 
+std::string encode_png(const Image& img) {
+  const auto rgb = to_bytes("a PNG in memory", img);
+  std::string out;
+  auto append = [](void* ctx, void* data, int size) {
+    static_cast<std::string*>(ctx)->append(static_cast<const char*>(data), size_t(size));
+  };
+  if (!stbi_write_png_to_func(append, &out, img.width, img.height, 3, rgb.data(), img.width * 3))
+    throw Error("cannot encode a " + std::to_string(img.width) + "x" + std::to_string(img.height) + " PNG");
+  return out;
+}
+
 host::Tensor to_tensor(const Image& img) {
   return host::Tensor::from_host(img.data, {1, 3, img.height, img.width}, "image");
 }

@@ -51,6 +51,9 @@ void save_png(const std::string& path, const Image& img);  // refuses a .jpg/.jp
 // the file, so PNG bytes never land in a file called .jpg.
 void save_image(const std::string& path, const Image& img);
 
+// The same 8-bit RGB PNG as save_png's, as bytes (a server's answer).
+std::string encode_png(const Image& img);
+
 // Image -> device tensor [1,3,H,W]; tensor [N,3,H,W] (image n) -> Image, values as they are (unclamped).
 host::Tensor to_tensor(const Image& img);
 Image from_tensor(const host::Tensor& t, int n = 0);

@@ -125,9 +125,10 @@ struct BlockSums {
 class CameraContentRender {
  public:
   CameraContentRender(const StyleModel& model, const scene::Scene& scene, const scene::Camera& cam, int chunk,
-                      const RegionHead* region, int supersample, float merge_kept_per_ray)
+                      const RegionHead* region, int supersample, float merge_kept_per_ray,
+                      const std::atomic<bool>* cancel)
       : model_(model), scene_(scene), cam_(cam), chunk_(chunk), region_(region), supersample_(supersample),
-        merge_kept_per_ray_(merge_kept_per_ray), geo_(model.inference_geometry()),
+        merge_kept_per_ray_(merge_kept_per_ray), cancel_(cancel), geo_(model.inference_geometry()),
         centre_head_(model.features.field, const_cast<style::Sict&>(model.sict), false),
         w_(strided_camera(cam, model.stride()).width), h_(strided_camera(cam, model.stride()).height),
         n_(int64_t(w_) * h_), sums_(n_, region != nullptr) {
@@ -151,6 +152,11 @@ class CameraContentRender {
 
   bool quincunx() const { return supersample_ == kQuincunx; }
 
+  // Between renderer calls: a viewer whose camera moved on stops the render here (RenderCancelled).
+  void check_cancelled() const {
+    if (cancel_ && cancel_->load(std::memory_order_relaxed)) throw RenderCancelled();
+  }
+
   Tensor shade(const Tensor& comps) const {
     return model_.sict.forward_factored(comps, model_.features.field.basis.value, false, nullptr);
   }
@@ -161,6 +167,7 @@ class CameraContentRender {
   // rays are shaded per sample; the later calls merge when that call kept >= merge_kept_per_ray samples a
   // ray. On soft geometry SICT on every kept sample is most of a centre ray's cost.
   Shaded shade_rays(const std::vector<float>& o, const std::vector<float>& d, int64_t R) {
+    check_cancelled();
     const Tensor origins = Tensor::from_host(o, {R, 3}, "render origins");
     const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
     const ShadeFn shade_fn = [this](const Tensor& comps) { return shade(comps); };
@@ -263,6 +270,7 @@ class CameraContentRender {
   // One renderer call of B blocks (which[b..b+B)) of G sub-rays each, added into the sums.
   void add_group_call(const std::vector<int64_t>& which, int64_t b, int64_t B, int G, const std::vector<float>& o,
                       const std::vector<float>& d) {
+    check_cancelled();
     const Tensor origins = Tensor::from_host(o, {B * G, 3}, "render origins");
     const Tensor dirs = Tensor::from_host(d, {B * G, 3}, "render directions");
     const ShadeFn shade_fn = [this](const Tensor& comps) { return shade(comps); };
@@ -365,6 +373,7 @@ class CameraContentRender {
   const RegionHead* region_;
   const int supersample_;
   const float merge_kept_per_ray_;
+  const std::atomic<bool>* cancel_;
   const Geometry geo_;
   const SictHead centre_head_;
   const int w_, h_;  // the map's size
@@ -377,12 +386,14 @@ class CameraContentRender {
 
 StyleModel::CameraContent StyleModel::render_camera_content(const scene::Scene& scene, const scene::Camera& cam,
                                                             int chunk, const RegionHead* region, int supersample,
-                                                            float refine_contrast, float merge_kept_per_ray) const {
+                                                            float refine_contrast, float merge_kept_per_ray,
+                                                            const std::atomic<bool>* cancel) const {
   if (chunk < 1) throw Error("style model: chunk must be >= 1");
   if (!valid_supersample(supersample))
     throw Error("style model: supersample must be in 1.." + std::to_string(kMaxSupersample) + " or quincunx, got " +
                 std::to_string(supersample));
-  return CameraContentRender(*this, scene, cam, chunk, region, supersample, merge_kept_per_ray).run(refine_contrast);
+  return CameraContentRender(*this, scene, cam, chunk, region, supersample, merge_kept_per_ray, cancel)
+      .run(refine_contrast);
 }
 
 std::vector<float> StyleModel::pixel_opacity(const scene::Scene& scene, const scene::Camera& cam, int w, int h,

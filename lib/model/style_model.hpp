@@ -12,6 +12,8 @@
 // field's parameters are not listed (frozen).
 #pragma once
 #include <algorithm>
+#include <atomic>
+#include <stdexcept>
 #include <string>
 
 #include "lib/io/checkpoint.hpp"
@@ -76,6 +78,12 @@ enum class StyleDecoderKind { Stage2, VggAdain, VggAdainRelu4 };
 StyleDecoderKind parse_style_decoder(const std::string& s);  // an Error names the accepted values
 const char* style_decoder_name(StyleDecoderKind k);
 class MapDecoder;  // lib/model/map_decoder.hpp: what each kind does
+
+// Thrown by render_camera_content between renderer calls once its cancel flag is set (an interactive viewer
+// whose camera moved on): nothing of the render is kept.
+struct RenderCancelled : std::runtime_error {
+  RenderCancelled() : std::runtime_error("render cancelled") {}
+};
 const MapDecoder& map_decoder_for(StyleDecoderKind kind);
 
 // The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
@@ -230,10 +238,13 @@ class StyleModel : public nn::Module {
   // first renderer call's rays keep at least this many samples a ray, the later calls shade each ray once
   // per depth slab of its own samples (fern: SICT on every kept sample was most of a centre ray's cost).
   // 0: always; infinity: never (the exact average, every sample shaded).
+  // cancel: when given and set (from another thread), the render stops before its next renderer call by
+  // throwing RenderCancelled.
   CameraContent render_camera_content(const scene::Scene& scene, const scene::Camera& cam, int chunk = 4096,
                                       const RegionHead* region = nullptr, int supersample = 1,
                                       float refine_contrast = kRefineContrast,
-                                      float merge_kept_per_ray = kMergeKeptPerRay) const;
+                                      float merge_kept_per_ray = kMergeKeptPerRay,
+                                      const std::atomic<bool>* cancel = nullptr) const;
   // CameraContent::pixel_acc for a map of w x h blocks whose sub-rays' opacity ranged over
   // [acc_lo, acc_hi] per block: rendered one ray a pixel only near silhouettes (see the definition).
   std::vector<float> pixel_opacity(const scene::Scene& scene, const scene::Camera& cam, int w, int h,
