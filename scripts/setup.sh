@@ -6,11 +6,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# libcpp-httplib-dev: `stylerf view`'s HTTP server; chromium, chromium-driver, python3-selenium: its browser test.
 PACKAGES=(build-essential cmake pkg-config python3 python3-pip
           ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
           libclblast-dev clblast-utils libopenexr-dev libboost-program-options-dev doctest-dev
           nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg colmap
-          pybind11-dev python3-dev python3-numpy python3-pytest)
+          pybind11-dev python3-dev python3-numpy python3-pytest
+          libcpp-httplib-dev chromium chromium-driver python3-selenium)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -3,10 +3,13 @@
 // mixes two styles and composes them by a 3D region; previews while the camera moves, the full frame when it
 // stops. API and safety rules: docs/viewer.md.
 #include <httplib.h>
-#include <pthread.h>
 #include <signal.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <boost/program_options.hpp>
+#include <cerrno>
+#include <chrono>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -117,18 +120,26 @@ void warm_up(viewer::FrameRenderer& r, const std::string& style_id) {
   std::cout << "first full frame: " << std::fixed << std::setprecision(2) << full.render_s << " s\n";
 }
 
-// Blocks SIGINT and SIGTERM in every thread (call before starting any) so that one thread takes them with
-// sigwait and stops the server from outside a signal handler.
-sigset_t block_stop_signals() {
-  sigset_t set;
-  sigemptyset(&set);
-  sigaddset(&set, SIGINT);
-  sigaddset(&set, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &set, nullptr);
-  return set;
+// Ctrl-C and SIGTERM: the handler only writes a byte to a pipe (async-signal-safe; any thread may take the
+// signal, including those libraries start before main), and a thread reading the pipe stops the server.
+int g_stop_pipe[2] = {-1, -1};
+
+extern "C" void on_stop_signal(int) {
+  const char byte = 's';
+  [[maybe_unused]] const ssize_t n = ::write(g_stop_pipe[1], &byte, 1);
 }
 
-int serve(const ViewArgs& a, cli::ViewContext& ctx, const sigset_t& stop_signals) {
+void install_stop_signals() {
+  if (::pipe(g_stop_pipe) != 0) throw Error("view: cannot make the pipe that signals stop");
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+int serve(const ViewArgs& a, cli::ViewContext& ctx) {
+  install_stop_signals();  // until here Ctrl-C ends the loading at once, as for any command
   httplib::Server server;
   // Threads for connections: a browser keeps several open per tab; renders queue in the scheduler.
   server.new_task_queue = [] { return new httplib::ThreadPool(32); };
@@ -143,16 +154,20 @@ int serve(const ViewArgs& a, cli::ViewContext& ctx, const sigset_t& stop_signals
   std::cout << "stylerf view: " << url << "\n(Ctrl-C stops it)" << std::endl;
   if (a.open && std::system(("xdg-open '" + url + "' >/dev/null 2>&1 &").c_str()) != 0)
     std::cout << "could not open a browser; open " << url << " yourself\n";
-  bool signalled = false;
+  std::atomic<bool> signalled{false}, listening{true};
   std::thread stopper([&] {
-    int sig = 0;
-    sigwait(&stop_signals, &sig);
+    char byte = 0;
+    while (::read(g_stop_pipe[0], &byte, 1) < 0 && errno == EINTR) {
+    }
+    if (!listening) return;  // listen ended on its own and woke this thread
     signalled = true;
+    while (listening && !server.is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
     ctx.scheduler.stop();  // cancels the render in progress
     server.stop();
   });
   const bool ok = server.listen_after_bind();
-  if (!signalled) pthread_kill(stopper.native_handle(), SIGTERM);  // listen failed: wake the stopper
+  listening = false;
+  if (!signalled) on_stop_signal(0);  // wake the stopper
   stopper.join();
   std::cout << "stylerf view: stopped (" << ctx.scheduler.completed() << " pieces of work, "
             << ctx.scheduler.superseded() << " superseded)" << std::endl;
@@ -162,7 +177,6 @@ int serve(const ViewArgs& a, cli::ViewContext& ctx, const sigset_t& stop_signals
 int run_view(int argc, char** argv) {
   ViewArgs a;
   if (const int code = parse_view_args(argc, argv, a); code >= 0) return code;
-  const sigset_t stop_signals = block_stop_signals();
   cli::init_runtime(a.device, false);
   auto ck = stylerf::io::load_checkpoint(a.ckpt, "");
   if (ck.kind != "style")
@@ -190,7 +204,7 @@ int run_view(int argc, char** argv) {
   viewer::FairScheduler scheduler;
   cli::ViewContext ctx{scene, styles, renderer, scheduler, stylerf::host::Runtime::instance().device().name,
                        is_loopback(a.host) ? "" : random_token(), size_t(a.max_upload_mb) << 20, work.string()};
-  const int rc = serve(a, ctx, stop_signals);
+  const int rc = serve(a, ctx);
   std::error_code ec;
   fs::remove_all(work, ec);
   return rc;

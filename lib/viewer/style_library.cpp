@@ -55,19 +55,21 @@ std::string StyleLibrary::add_upload(const std::string& bytes, const std::string
     f.write(bytes.data(), std::streamsize(bytes.size()));
     if (!f) throw host::Error("cannot keep the uploaded image in " + upload_dir_);
   }
-  const std::string why = bytes.empty() ? "the upload is empty" : io::image_unreadable_reason(path);
-  if (!why.empty()) {
+  // Refusals quote no path of the server's: a client never learns where its upload went.
+  auto refuse = [&](std::string why) {
     std::error_code ec;
     fs::remove(path, ec);
+    for (size_t at = why.find(path); at != std::string::npos; at = why.find(path)) why.replace(at, path.size(), "it");
     throw host::Error("the upload '" + clean_style_name(name) + "' is not an image stylerf can read: " + why);
-  }
+  };
+  const std::string why = bytes.empty() ? "the upload is empty" : io::image_unreadable_reason(path);
+  if (!why.empty()) refuse(why);
   try {
     return add_file(path, name, "upload");
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(path, ec);
-    throw;
+  } catch (const host::Error& e) {  // decodes no further than its header (too large, truncated)
+    refuse(e.what());
   }
+  return "";
 }
 
 std::vector<StyleEntry> StyleLibrary::list() const {
