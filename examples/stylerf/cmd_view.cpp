@@ -14,6 +14,7 @@
 #include <iomanip>
 #include <iostream>
 #include <random>
+#include <set>
 #include <thread>
 
 #include "examples/stylerf/cli_checks.hpp"
@@ -90,10 +91,17 @@ std::string random_token() {
 void add_styles(viewer::StyleLibrary& lib, const stylerf::io::Checkpoint& ck, const std::string& dir) {
   const auto holdout = ck.meta.value("styles", nlohmann::json::object()).value("holdout", nlohmann::json::array());
   int missing = 0;
+  std::set<fs::path> added;  // a held-out style may sit in --styles too: offered once
+  auto key = [](const std::string& path) {
+    std::error_code ec;
+    const fs::path p = fs::weakly_canonical(path, ec);
+    return ec ? fs::path(path) : p;
+  };
   for (const auto& p : holdout) {
     const std::string path = p.get<std::string>();
     try {
       lib.add_file(path, fs::path(path).stem().string(), "holdout");
+      added.insert(key(path));
     } catch (const Error&) {
       ++missing;
     }
@@ -102,7 +110,7 @@ void add_styles(viewer::StyleLibrary& lib, const stylerf::io::Checkpoint& ck, co
   if (!dir.empty()) {
     if (!fs::is_directory(dir)) throw Error("--styles " + dir + ": not a folder");
     for (const auto& f : stylerf::style::style_images_in(dir, &std::cout))
-      lib.add_file(f, fs::path(f).stem().string(), "folder");
+      if (added.insert(key(f)).second) lib.add_file(f, fs::path(f).stem().string(), "folder");
   }
   if (lib.list().empty())
     throw Error("no style image to show: the checkpoint's held-out styles are not here; give --styles DIR");
