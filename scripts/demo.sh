@@ -40,3 +40,4 @@ done
 graph+="[c][p0][p1][p2]hstack=inputs=4,crop=iw-8:ih:0:0"
 ffmpeg -loglevel error -y "${inputs[@]}" -filter_complex "$graph" -frames:v 1 "$OUT/strip.png"
 echo "== done in $(( $(date +%s) - start )) s after the build; open $OUT/index.html"
+echo "   or see it live, restyled by any picture you drop on the page: $S view --ckpt $OUT/style.ckpt --open"

@@ -265,6 +265,20 @@ void save_png(const std::string& path, const Image& img) {
   });
 }
 
+Image from_interleaved(const std::vector<float>& rgb, int w, int h) {
+  if (w <= 0 || h <= 0 || rgb.size() != size_t(3) * w * h)
+    throw Error("from_interleaved: " + std::to_string(rgb.size()) + " values for a " + std::to_string(w) + "x" +
+                std::to_string(h) + " RGB image");
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.data.resize(rgb.size());
+  const size_t plane = size_t(w) * h;
+  for (size_t i = 0; i < plane; ++i)
+    for (size_t c = 0; c < 3; ++c) img.data[c * plane + i] = rgb[i * 3 + c];
+  return img;
+}
+
 std::string encode_png(const Image& img) {
   const auto rgb = to_bytes("a PNG in memory", img);
   std::string out;

@@ -51,6 +51,9 @@ void save_png(const std::string& path, const Image& img);  // refuses a .jpg/.jp
 // the file, so PNG bytes never land in a file called .jpg.
 void save_image(const std::string& path, const Image& img);
 
+// An image from interleaved RGB [h][w][3] (what renderers return).
+Image from_interleaved(const std::vector<float>& rgb, int w, int h);
+
 // The same 8-bit RGB PNG as save_png's, as bytes (a server's answer).
 std::string encode_png(const Image& img);
 

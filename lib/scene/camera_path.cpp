@@ -10,20 +10,6 @@ namespace stylerf::scene {
 
 namespace {
 
-Pose to_pose(const Camera& c) {
-  Pose p;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 4; ++k) p.m[r][k] = c.c2w[r][k];
-  return p;
-}
-
-Camera with_pose(const Camera& intrinsics, const Pose& p) {
-  Camera c = intrinsics;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 4; ++k) c.c2w[r][k] = float(p.m[r][k]);
-  return c;
-}
-
 void need_views(const Scene& s, int frames) {
   if (s.train.empty()) throw host::Error("camera path: scene " + s.name + " has no training views");
   if (frames < 1) throw host::Error("camera path: need at least one frame");
@@ -31,16 +17,20 @@ void need_views(const Scene& s, int frames) {
 
 }  // namespace
 
+double path_focus_depth(const Scene& scene) {
+  // dt = 0.75 of the way in inverse depth, as LLFF renders.
+  const double close = scene.depth_near * 0.9, inf = scene.depth_far * 5.0, dt = 0.75;
+  return close > 0 && inf > 0 ? 1.0 / ((1.0 - dt) / close + dt / inf) : 1.0;
+}
+
 std::vector<Camera> spiral_path(const Scene& scene, int frames) {
   need_views(scene, frames);
   std::vector<Pose> poses;
-  for (const View& v : scene.train) poses.push_back(to_pose(v.camera));
-  for (const View& v : scene.test) poses.push_back(to_pose(v.camera));
+  for (const View& v : scene.train) poses.push_back(pose_of(v.camera));
+  for (const View& v : scene.test) poses.push_back(pose_of(v.camera));
   const Pose avg = average_pose(poses);
   const Vec3 up = normalize(avg.axis(1));
-  // Focus depth: mostly the near content (dt = 0.75 of the way in inverse depth), as LLFF renders.
-  const double close = scene.depth_near * 0.9, inf = scene.depth_far * 5.0, dt = 0.75;
-  const double focal = 1.0 / ((1.0 - dt) / close + dt / inf);
+  const double focal = path_focus_depth(scene);
   // Radii: 90th percentile of |position| per axis in the (recentred) world frame.
   Vec3 rads;
   for (int k = 0; k < 3; ++k) {

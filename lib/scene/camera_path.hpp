@@ -9,6 +9,10 @@
 
 namespace stylerf::scene {
 
+// The spiral's focus: the depth it looks at, mostly the near content (LLFF's weighted harmonic mean of
+// 0.9 x the near and 5 x the far depth, 3 : 1 in inverse depth); 1 where the scene has no depth bounds.
+double path_focus_depth(const Scene& scene);
+
 std::vector<Camera> spiral_path(const Scene& scene, int frames = 120);
 std::vector<Camera> orbit_path(const Scene& scene, int frames = 120);
 // spiral for NDC / forward-facing scenes, orbit otherwise.

@@ -17,6 +17,19 @@ Vec3 normalize(Vec3 a) {
   return n > 0 ? scale(a, 1.0 / n) : a;
 }
 
+Pose pose_of(const Camera& c) {
+  Pose p;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) p.m[r][k] = c.c2w[r][k];
+  return p;
+}
+
+Camera with_pose(Camera c, const Pose& p) {
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) c.c2w[r][k] = float(p.m[r][k]);
+  return c;
+}
+
 Pose view_matrix(Vec3 z, Vec3 up, Vec3 position) {
   Vec3 zz = normalize(z);
   Vec3 x = normalize(cross(up, zz));

@@ -4,6 +4,8 @@
 #include <array>
 #include <vector>
 
+#include "lib/scene/scene.hpp"
+
 namespace stylerf::scene {
 
 using Vec3 = std::array<double, 3>;
@@ -19,6 +21,10 @@ double dot(Vec3 a, Vec3 b);
 Vec3 cross(Vec3 a, Vec3 b);
 double norm(Vec3 a);
 Vec3 normalize(Vec3 a);
+
+// A camera's camera-to-world matrix as a pose, and a camera with another pose (its intrinsics kept).
+Pose pose_of(const Camera& c);
+Camera with_pose(Camera intrinsics, const Pose& p);
 
 // Camera frame with z axis (backwards, OpenGL) along `z`, y close to `up`, at `position`.
 Pose view_matrix(Vec3 z, Vec3 up, Vec3 position);

@@ -4,24 +4,12 @@
 #include <cmath>
 
 #include "host/error.hpp"
+#include "lib/scene/camera_path.hpp"
 #include "lib/scene/poses.hpp"
 
 namespace stylerf::scene {
 
 namespace {
-
-Pose pose_of(const Camera& c) {
-  Pose p;
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 4; ++k) p.m[r][k] = c.c2w[r][k];
-  return p;
-}
-
-Camera with_pose(Camera c, const Pose& p) {
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 4; ++k) c.c2w[r][k] = float(p.m[r][k]);
-  return c;
-}
 
 // Rodrigues: v rotated about the unit axis a by angle t.
 Vec3 rotate(Vec3 v, Vec3 a, double t) {
@@ -84,8 +72,7 @@ Camera forward_camera(const Scene& scene, const Camera& base, const ViewOffset& 
   const ForwardSpan span = forward_span(scene);
   const Pose p = pose_of(base);
   // The point the view looked at: on its axis at the spiral path's focus depth (mostly the near content).
-  const double close = scene.depth_near * 0.9, inf = scene.depth_far * 5.0, dt = 0.75;
-  const double focal = (close > 0 && inf > 0) ? 1.0 / ((1.0 - dt) / close + dt / inf) : 1.0;
+  const double focal = path_focus_depth(scene);
   const Vec3 target = sub(p.axis(3), scale(p.axis(2), focal));
   Vec3 eye = p.axis(3);
   eye = add(eye, scale(span.avg.axis(0), o.yaw * span.rads[0]));

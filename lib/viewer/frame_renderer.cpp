@@ -7,6 +7,7 @@
 
 #include "host/error.hpp"
 #include "lib/model/region.hpp"
+#include "lib/scene/camera_path.hpp"
 #include "lib/scene/poses.hpp"
 
 namespace stylerf::viewer {
@@ -19,17 +20,6 @@ std::string number_key(double v) {
   char buf[40];
   std::snprintf(buf, sizeof buf, "%.17g", v);
   return buf;
-}
-
-io::Image planar(const std::vector<float>& rgb, int w, int h) {
-  io::Image img;
-  img.width = w;
-  img.height = h;
-  img.data.resize(size_t(3) * w * h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c) img.at(c, y, x) = rgb[(size_t(y) * w + x) * 3 + c];
-  return img;
 }
 
 // (1 - t) a + t b of two defined tensors of one shape, on the host (statistics of [1, 512]).
@@ -53,15 +43,9 @@ RegionPlacement RegionPlacement::of(const scene::Scene& scene) {
   if (scene::view_kind(scene) == scene::ViewKind::Forward && !scene.train.empty()) {
     // The box of a forward-facing scene is in NDC: place the region in the world, where the views look.
     std::vector<scene::Pose> poses;
-    for (const auto& v : scene.train) {
-      scene::Pose p;
-      for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 4; ++k) p.m[r][k] = v.camera.c2w[r][k];
-      poses.push_back(p);
-    }
+    for (const auto& v : scene.train) poses.push_back(scene::pose_of(v.camera));
     const scene::Pose avg = scene::average_pose(poses);
-    const double close = scene.depth_near * 0.9, inf = scene.depth_far * 5.0, dt = 0.75;
-    const double focal = (close > 0 && inf > 0) ? 1.0 / ((1.0 - dt) / close + dt / inf) : 1.0;
+    const double focal = scene::path_focus_depth(scene);
     const scene::Vec3 t = scene::sub(avg.axis(3), scene::scale(avg.axis(2), focal));
     c = {t[0], t[1], t[2]};
     half = {0.3 * focal, 0.3 * focal, 0.3 * focal};
@@ -195,7 +179,7 @@ Frame FrameRenderer::render(const FrameRequest& r, const std::atomic<bool>* canc
     rgb = m_.stylize_camera(cc, mixed(r, f.preview), cam.width, cam.height);
   }
   if (!opt_.decoded_background) m_.over_background(rgb, cc, cam.width, cam.height);
-  f.image = planar(rgb, cam.width, cam.height);
+  f.image = io::from_interleaved(rgb, cam.width, cam.height);
   f.render_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return f;
 }
