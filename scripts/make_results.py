@@ -327,6 +327,7 @@ def page(root):
     cons = load(root, "docs/results/consistency.json")["records"]
     gpu = load(root, "docs/results/gpu.json")["records"]
     knobs = load(root, "docs/results/knobs.json")["records"]
+    viewer = load(root, "docs/results/viewer.json")["records"]
     machines = load(root, "docs/results/runs.json")["machines"]
     style_all = style_candidates(style, runs)
     h100 = load(root, "docs/device/h100_device_check.json")
@@ -381,6 +382,7 @@ def page(root):
 
     L += density_section(density) + feature_section(features) + style_section(style_all)
     L += consistency_section(cons) + resolution_section(runs) + budget_section(runs) + demo_section(demo)
+    L += viewer_section(viewer)
     L += knobs_section(knobs) + gpu_section(gpu, h100, h200, root) + machines_section(machines)
     return "\n".join(L) + "\n", svgs
 
@@ -556,6 +558,28 @@ def gpu_section(gpu, h100, h200, root):
 
 
 KNOB_FAMILIES = ["import", "density", "features", "stylize", "evaluate", "compute"]
+
+
+def viewer_section(viewer):
+    L = ["## The live viewer (`stylerf view`)", "",
+         "`bench/view_bench.py` drives the real page in headless Chromium and reads the page's own clock: the first "
+         "preview after the page loads, preview frames a second while the camera is dragged (pointer moves every "
+         "33 ms), a new picture uploaded to its first preview, the refined full frame at a new camera against "
+         "`stylerf stylize` of the same camera, and the server's peak memory over minutes of dragging against "
+         "`stylize`'s. The browser shares the CPU with the server.", ""]
+    rows = []
+    for r in viewer:
+        n = lambda key: num(r, key)
+        rows.append([r["scene"] + ", " + r["resolution"], cell(n("first_preview_ms"), " ms"),
+                     cell(n("preview_fps"), " /s"), cell(n("drop_to_preview_ms"), " ms"),
+                     "%s s / %s s = %sx" % (text(n("refined_s")), text(n("stylize_frame_s")), text(n("refined_ratio"))),
+                     "%s / %s MB (%s MB over %s min)" % (text(n("server_peak_mb")), text(n("stylize_peak_mb")),
+                                                        text(n("rss_drift_mb")), text(n("drag_minutes"))),
+                     r["machine"] + ", " + r["date"], commit_cell(r), cmd_cell(r["command"])])
+    L += table(["scene, size", "first preview", "previews dragging", "picture to preview",
+                "full frame / stylize's", "server / stylize peak RSS (drift)", "machine, date", "commit",
+                "command"], rows)
+    return L + [""]
 
 
 def knobs_section(knobs):
