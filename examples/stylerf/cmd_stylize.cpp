@@ -12,6 +12,7 @@
 // the time to encode the styles, to the first frame, frames/s after it, and per view and style the content
 // and style losses (test views: also 2D AdaIN of the true view, by the same VGG and mask).
 #include <boost/program_options.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -24,8 +25,10 @@
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/io/checkpoint.hpp"
@@ -318,6 +321,9 @@ std::vector<Job> make_jobs(const StylizeArgs& a, const StyleChoice& c, const std
 struct RenderTiming {
   double first_frame_s = -1, frame_time_after = 0, loss_s = 0, content_s = 0;
   int frames = 0;
+  // Several ranks: frames of all ranks, and seconds from the start of the work until rank 0 had them all.
+  int frames_all = 0;
+  double all_s = 0;
   int64_t blocks = 0, refined = 0;  // feature-map blocks rendered, and those given n x n rays
   int merged_views = 0;             // views whose refined blocks were shaded per depth slab
   int slab_views = 0;               // views whose centre rays were shaded per depth slab
@@ -339,6 +345,7 @@ nlohmann::json render_views(const StylizeArgs& a, const ViewWork& w, const std::
   const bool test = a.test();
   nlohmann::json per_view = nlohmann::json::array();
   for (size_t vi = 0; vi < cams.size(); ++vi) {
+    if (!cli::my_view(vi)) continue;  // another rank's (mpirun)
     const auto& cam = cams[vi];
     const auto tc = Clock::now();
     const auto cc = w.m.render_camera_content(w.scene, cam, a.chunk, w.region, a.supersample, a.refine_contrast);
@@ -416,6 +423,11 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
       {"videos", vids},
       {"per_view", per_view}};
   for (const auto& j : jobs) doc["outputs"].push_back({{"name", j.name}, {"dir", j.dir}});
+  doc["ranks"] = {{"ranks", stylerf::host::Dist::world().size()},
+                  {"frames", t.frames_all},
+                  {"frames_per_s_after_encoding", t.frames_all / std::max(1e-9, t.all_s - encode_s)},
+                  {"note", "all ranks' frames over the time from the styles encoded to the last frame at rank 0 "
+                           "(views dealt round robin over the ranks; the timings above are rank 0's own)"}};
   if (c.regions) doc["region"] = a.region;
   if (!a.camera_path.empty()) doc["camera_path"] = a.camera_path;
   if (!c.weights.empty()) doc["mix"] = c.weights;
@@ -493,6 +505,7 @@ int run_stylize(int argc, char** argv) {
   const std::vector<style::StyleCode> codes = encode_styles(enc, scene_stats, choice.styles, style_rows);
   const double encode_s = seconds_since(t_work);
   if (!choice.grid.empty()) {
+    if (!stylerf::host::Dist::world().root()) return 0;  // one sheet: rank 0 alone
     const auto& cam = cams.front();
     const auto cc = m.render_camera_content(scene, cam, a.chunk, nullptr, a.supersample, a.refine_contrast);
     const double closest = mix_grid(m, scene_stats, cc, codes, cam.width, cam.height, !a.decoded_background,
@@ -505,12 +518,28 @@ int run_stylize(int argc, char** argv) {
                                          "\n");
     return 0;
   }
-  const std::vector<Job> jobs = make_jobs(a, choice, codes, scene_stats);
+  // Under mpirun every rank renders its share of the views into a folder of its own; rank 0 collects them.
+  StylizeArgs mine = a;
+  mine.out = cli::rank_output_dir(a.out);
+  const std::vector<Job> jobs = make_jobs(mine, choice, codes, scene_stats);
   if (losses)
     for (const auto& j : jobs) losses->add_style(j.style_path);
   const ViewWork work{m, scene, region.get(), losses.get()};
   RenderTiming timing;
-  const nlohmann::json per_view = render_views(a, work, cams, ids, jobs, t_work, timing);
+  nlohmann::json per_view = render_views(mine, work, cams, ids, jobs, t_work, timing);
+  auto& dist = stylerf::host::Dist::world();
+  timing.frames_all = timing.frames;
+  if (dist.size() > 1) {
+    cli::collect_rank_outputs(mine.out, a.out);
+    per_view = cli::gather_arrays(per_view);
+    std::sort(per_view.begin(), per_view.end(), [](const auto& x, const auto& y) { return x["view"] < y["view"]; });
+    if (losses) losses->merge_ranks();
+    std::vector<double> frames = {double(timing.frames)};
+    dist.allreduce_sum(frames);
+    timing.frames_all = int(frames[0]);
+  }
+  timing.all_s = seconds_since(t_work);
+  if (!dist.root()) return 0;  // rank 0 writes the videos and metrics.json
   finish_stylize(a, choice, work, jobs, cams, style_rows, encode_s, timing, per_view);
   return 0;
 }

@@ -1,6 +1,8 @@
 // stylerf: train and render StyleRF models on OpenCL devices. `stylerf help` lists the commands by workflow.
 #include <sys/resource.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <iostream>
@@ -10,6 +12,7 @@
 #include "examples/stylerf/command_index.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "host/device.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/version.hpp"
@@ -30,7 +33,16 @@ double peak_rss_mb() {
 }
 
 void init_runtime(const std::string& device_spec, bool timing) {
-  auto& rt = host::Runtime::init(device_spec);
+  // Several ranks and no --device: one device each, by the rank's place on its machine.
+  std::string spec = device_spec;
+  const auto& dist = host::Dist::world();
+  if (spec.empty() && dist.size() > 1 && !std::getenv("STYLERF_DEVICE"))
+    spec = std::to_string(dist.local_rank() % std::max<size_t>(1, host::list_devices().size()));
+  auto& rt = host::Runtime::init(spec);
+  if (dist.size() > 1) {
+    const auto names = host::Dist::world().gather("rank " + std::to_string(dist.rank()) + ": " + rt.device().name);
+    for (const auto& n : names) std::cout << n << "\n";
+  }
   if (timing) rt.set_profiling(true);
 }
 
@@ -70,7 +82,9 @@ void usage(std::ostream& os) {
 
 // `stylerf --version`: what was built, and where it can run.
 int print_version() {
-  std::cout << "stylerf " << stylerf::version() << " (commit " << stylerf::git_commit() << ")\nOpenCL devices:\n";
+  std::cout << "stylerf " << stylerf::version() << " (commit " << stylerf::git_commit() << ")\n"
+            << "MPI: " << (stylerf::host::Dist::built_with_mpi() ? "yes (mpirun -np N stylerf ...)" : "no") << "\n"
+            << "OpenCL devices:\n";
   try {
     const auto devices = stylerf::host::list_devices();
     if (devices.empty()) std::cout << "  none found\n";
@@ -102,13 +116,20 @@ int run_command(const cli::Command& c, int argc, char** argv) {
   } catch (const std::exception& e) {
     // A library setting's error names its config field; the user typed a flag.
     const auto* setting = dynamic_cast<const stylerf::host::SettingError*>(&e);
-    std::cerr << "stylerf " << c.name << ": error: "
-              << (setting ? cli::flag_for_field(setting->field()) + " " + setting->problem() : e.what()) << std::endl;
+    auto& dist = stylerf::host::Dist::world();
+    std::cerr << "stylerf " << c.name << ": "
+              << (dist.size() > 1 ? "rank " + std::to_string(dist.rank()) + " of " + std::to_string(dist.size()) + ": "
+                                  : std::string())
+              << "error: " << (setting ? cli::flag_for_field(setting->field()) + " " + setting->problem() : e.what())
+              << std::endl;
+    // The other ranks may be waiting for this one in a collective: end the whole job rather than hang it.
+    if (dist.size() > 1) dist.abort(1);
     try {
       stylerf::host::Runtime::shutdown();
     } catch (const std::exception&) {
     }
   }
+  stylerf::host::Dist::world().finalize();
   return rc;
 }
 }  // namespace
@@ -120,6 +141,8 @@ int main(int argc, char** argv) {
     return argc < 2 ? 2 : 0;
   }
   if (!std::strcmp(argv[1], "--version")) return print_version();
+  // Under mpirun: MPI before any thread of ours, and only rank 0 prints progress (errors still reach stderr).
+  if (stylerf::host::Dist::world().size() > 1 && !stylerf::host::Dist::world().root()) std::cout.rdbuf(nullptr);
   std::vector<char*> args(argv + 1, argv + argc);
   // The old spelling of `eval style` keeps working, with a notice (CHANGELOG.md).
   static char eval_name[] = "eval", style_name[] = "style";

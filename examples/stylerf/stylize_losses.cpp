@@ -1,3 +1,4 @@
+#include "host/dist.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
 
 #include <algorithm>
@@ -105,6 +106,17 @@ nlohmann::json ViewLosses::measure(const std::vector<float>& rgb, int cam_w, siz
     ++sum.adain_views;
   }
   return j;
+}
+
+void ViewLosses::merge_ranks() {
+  std::vector<double> v;
+  for (const Sums& s : sums_) v.insert(v.end(), {s.ours_content, s.ours_style, s.adain_content, s.adain_style,
+                                                 double(s.views), double(s.adain_views)});
+  host::Dist::world().allreduce_sum(v);
+  for (size_t i = 0; i < sums_.size(); ++i) {
+    const double* p = &v[6 * i];
+    sums_[i] = {p[0], p[1], p[2], p[3], int(p[4]), int(p[5])};
+  }
 }
 
 nlohmann::json ViewLosses::means() const {

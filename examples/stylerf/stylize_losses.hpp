@@ -27,6 +27,8 @@ class ViewLosses {
   nlohmann::json measure(const std::vector<float>& rgb, int cam_w, size_t set);
   nlohmann::json means() const;
   std::string summary() const;
+  // Several ranks, each with its share of the views: every rank's sums added, so means() covers all views.
+  void merge_ranks();
 
  private:
   struct Style {

@@ -1,0 +1,20 @@
+// The rendering commands under several MPI ranks (host/dist.hpp): each rank renders its share of the views
+// into a folder of its own, and rank 0 gathers every file into the real output folder, so that the job
+// writes exactly what one process writes. With one rank these are no-ops.
+#pragma once
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace stylerf::cli {
+
+// Whether view i (of the command's list) is this rank's: views are dealt round robin.
+bool my_view(size_t i);
+// Where this rank writes: `out` on rank 0, a fresh temporary folder on the others.
+std::string rank_output_dir(const std::string& out);
+// Collective. Rank 0 writes every other rank's files (their paths relative to their folder kept) under `out`,
+// each atomically; the other ranks remove their folders.
+void collect_rank_outputs(const std::string& rank_dir, const std::string& out);
+// Collective. Every rank's JSON array concatenated on rank 0 (in rank order; others get an empty array).
+nlohmann::json gather_arrays(const nlohmann::json& mine);
+
+}  // namespace stylerf::cli

@@ -1,0 +1,42 @@
+// The processes of one job: MPI's world when the tool was built with MPI (STYLERF_HAVE_MPI) and started by
+// mpirun or srun, else this process alone (rank 0 of 1, every call a no-op or a copy). Nothing here knows
+// what the processes compute: callers split their work by rank() and size() and meet in the calls below.
+// Every rank must make the same calls in the same order (MPI's collectives).
+#pragma once
+#include <string>
+#include <vector>
+
+namespace stylerf::host {
+
+class Dist {
+ public:
+  // The job's process group, MPI initialised on first use when launched under MPI.
+  static Dist& world();
+  // Whether this build can run as several ranks (built with MPI).
+  static bool built_with_mpi();
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  int local_rank() const { return local_rank_; }  // among the ranks on this machine
+  int local_size() const { return local_size_; }
+  bool root() const { return rank_ == 0; }
+
+  void barrier();
+  // Every rank's bytes at `root`, in rank order; the other ranks get an empty list.
+  std::vector<std::string> gather(const std::string& bytes, int root = 0);
+  // root's bytes on every rank.
+  std::string broadcast(const std::string& bytes, int root = 0);
+  // Element-wise sums over the ranks, in place (the same length on every rank).
+  void allreduce_sum(std::vector<double>& values);
+  // Ends the whole job at once (a rank that failed must not leave the others waiting in a collective).
+  [[noreturn]] void abort(int code);
+  // MPI_Finalize when it was initialised; called once at exit.
+  void finalize();
+
+ private:
+  Dist();
+  int rank_ = 0, size_ = 1, local_rank_ = 0, local_size_ = 1;
+  bool mpi_ = false;
+};
+
+}  // namespace stylerf::host
