@@ -6,13 +6,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# libcpp-httplib-dev: `stylerf view`'s HTTP server; chromium, chromium-driver, python3-selenium: its browser test.
+# libcpp-httplib-dev: `stylerf view`'s HTTP server; chromium, chromium-driver, python3-selenium: its browser test;
+# libopenmpi-dev, openmpi-bin: several ranks under mpirun (optional at build time; the suite tests them).
 PACKAGES=(build-essential cmake pkg-config python3 python3-pip
           ocl-icd-opencl-dev opencl-c-headers opencl-clhpp-headers pocl-opencl-icd clinfo
           libclblast-dev clblast-utils libopenexr-dev libboost-program-options-dev doctest-dev
           nlohmann-json3-dev libstb-dev libopenblas-dev ffmpeg colmap
           pybind11-dev python3-dev python3-numpy python3-pytest
-          libcpp-httplib-dev chromium chromium-driver python3-selenium)
+          libcpp-httplib-dev chromium chromium-driver python3-selenium libopenmpi-dev openmpi-bin)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
