@@ -11,6 +11,7 @@
 // Feature checkpoints: depth and the PCA picture are at the feature map's resolution (1/4 for the fast
 // profile); one PCA, fitted to the first frame, colours every frame.
 // Every file is written atomically (temporary file + rename); rays go through the renderer in chunks.
+#include <algorithm>
 #include <boost/program_options.hpp>
 #include <chrono>
 #include <cmath>
@@ -24,6 +25,8 @@
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/rank_outputs.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/feature_pca.hpp"
@@ -169,13 +172,17 @@ void render_path(FrameRenderer& renderer, const stylerf::scene::Scene& scene, co
   const int fps = file.empty() ? 30 : std::max(1, int(std::lround(from_file.fps)));
   std::cout << (file.empty() ? spiral ? "spiral path" : "orbit path" : "camera path " + file) << ", " << path.size()
             << " frames\n";
+  // Under mpirun the frames are dealt round robin; rank 0 collects every rank's files and makes the video.
+  const std::string mine = stylerf::cli::rank_output_dir(out);
   for (size_t i = 0; i < path.size(); ++i) {
+    if (!stylerf::cli::my_view(i)) continue;
     const Frame r = renderer.render(scene, path[i], chunk);
-    save_outputs(r, numbered(out, "frame_", int(i), 4, ".png"), numbered(fs::path(out) / "depth", "depth_", int(i), 4, ".exr"),
-                 numbered(out, "depth_", int(i), 4, ".png"), numbered(out, "features_", int(i), 4, ".png"));
+    save_outputs(r, numbered(mine, "frame_", int(i), 4, ".png"), numbered(fs::path(mine) / "depth", "depth_", int(i), 4, ".exr"),
+                 numbered(mine, "depth_", int(i), 4, ".png"), numbered(mine, "features_", int(i), 4, ".png"));
     if ((i + 1) % 10 == 0 || i + 1 == path.size()) std::cout << "  frame " << i + 1 << "/" << path.size() << std::endl;
   }
-  stylerf::cli::write_video(out, "frame_%04d.png", "video.mp4", fps, std::cout);
+  stylerf::cli::collect_rank_outputs(mine, out);
+  if (stylerf::host::Dist::world().root()) stylerf::cli::write_video(out, "frame_%04d.png", "video.mp4", fps, std::cout);
 }
 
 // --export-camera-path FILE: the built-in path of `frames` frames in nerfstudio's format. Returns the exit code.
@@ -183,6 +190,58 @@ int export_camera_path(const stylerf::scene::Scene& scene, int frames, const std
   stylerf::scene::write_camera_path_json(file, stylerf::scene::default_path(scene, frames));
   std::cout << "camera path (" << frames << " frames, nerfstudio's camera_path.json) -> " << file << "\n";
   return 0;
+}
+
+// --views test: the held-out views (max_views of them, evenly spaced) with PSNR and SSIM, metrics.json. Under
+// mpirun the views are dealt round robin and rank 0 writes everything.
+void render_test_views(FrameRenderer& renderer, const stylerf::scene::Scene& scene, const std::string& ckpt,
+                       int max_views, int chunk, const std::string& out) {
+  if (scene.test.empty()) throw Error("scene " + scene.root + " has no held-out views; use --views path");
+  const int n = static_cast<int>(scene.test.size());
+  const int m = max_views > 0 ? std::min(max_views, n) : n;
+  nlohmann::json table = nlohmann::json::array();
+  double sp = 0, ss = 0, render_s = 0;
+  const std::string mine = stylerf::cli::rank_output_dir(out);
+  for (int j = 0; j < m; ++j) {
+    if (!stylerf::cli::my_view(size_t(j))) continue;
+    const int id = static_cast<int>(int64_t(j) * n / m);
+    const auto& v = scene.test[size_t(id)];
+    const auto t_view = std::chrono::steady_clock::now();
+    const Frame r = renderer.render(scene, v.camera, chunk);
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_view).count();
+    const std::string png = numbered(mine, "test_", id, 3, ".png");
+    save_outputs(r, png, numbered(fs::path(mine) / "depth", "test_", id, 3, "_depth.exr"), numbered(mine, "test_", id, 3, "_depth.png"),
+                 numbered(mine, "test_", id, 3, "_features.png"));
+    const auto a = to_image(r.rgb, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
+    const double p = stylerf::eval::psnr(a.data, b.data), s = stylerf::eval::ssim(a, b);
+    sp += p;
+    ss += s;
+    table.push_back({{"view", id}, {"image", fs::path(png).filename().string()}, {"source", v.image_path},
+                     {"psnr", p}, {"ssim", s}});
+    std::cout << "  view " << id << ": PSNR " << std::fixed << std::setprecision(2) << p << " dB, SSIM "
+              << std::setprecision(4) << s << std::endl;
+  }
+  stylerf::cli::collect_rank_outputs(mine, out);
+  table = stylerf::cli::gather_arrays(table);
+  std::sort(table.begin(), table.end(), [](const auto& x, const auto& y) { return x["view"] < y["view"]; });
+  std::vector<double> sums = {sp, ss, render_s};
+  stylerf::host::Dist::world().allreduce_sum(sums);
+  sp = sums[0];
+  ss = sums[1];
+  render_s = sums[2];  // the renderer's time summed over the ranks: per view as one process measures it
+  if (!stylerf::host::Dist::world().root()) return;
+  nlohmann::json doc{{"checkpoint", ckpt},
+                     {"scene", scene.root},
+                     {"views", table},
+                     {"mean_psnr", sp / m},
+                     {"mean_ssim", ss / m},
+                     // The renderer alone (no files, no metrics): `stylerf run` plans its evaluation by it.
+                     {"timing", {{"render_s_per_view", render_s / m}}},
+                     {"ssim", "11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03, valid filtering"}};
+  const std::string jpath = (fs::path(out) / "metrics.json").string();
+  stylerf::host::write_file_atomic(jpath, doc.dump(2) + "\n");
+  std::cout << "mean PSNR " << std::setprecision(2) << sp / m << " dB, mean SSIM " << std::setprecision(4) << ss / m
+            << " over " << m << " views; " << jpath << "\n";
 }
 
 int run_render(int argc, char** argv) {
@@ -237,41 +296,7 @@ int run_render(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
 
   if (views == "test") {
-    if (scene.test.empty()) throw Error("scene " + scene.root + " has no held-out views; use --views path");
-    const int n = static_cast<int>(scene.test.size());
-    const int m = max_views > 0 ? std::min(max_views, n) : n;
-    nlohmann::json table = nlohmann::json::array();
-    double sp = 0, ss = 0, render_s = 0;
-    for (int j = 0; j < m; ++j) {
-      const int id = static_cast<int>(int64_t(j) * n / m);
-      const auto& v = scene.test[size_t(id)];
-      const auto t_view = std::chrono::steady_clock::now();
-      const Frame r = renderer.render(scene, v.camera, chunk);
-      render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_view).count();
-      const std::string png = numbered(out, "test_", id, 3, ".png");
-      save_outputs(r, png, numbered(fs::path(out) / "depth", "test_", id, 3, "_depth.exr"), numbered(out, "test_", id, 3, "_depth.png"),
-                   numbered(out, "test_", id, 3, "_features.png"));
-      const auto a = to_image(r.rgb, r.width, r.height), b = to_image(v.rgb, r.width, r.height);
-      const double p = stylerf::eval::psnr(a.data, b.data), s = stylerf::eval::ssim(a, b);
-      sp += p;
-      ss += s;
-      table.push_back({{"view", id}, {"image", fs::path(png).filename().string()}, {"source", v.image_path},
-                       {"psnr", p}, {"ssim", s}});
-      std::cout << "  view " << id << ": PSNR " << std::fixed << std::setprecision(2) << p << " dB, SSIM "
-                << std::setprecision(4) << s << std::endl;
-    }
-    nlohmann::json doc{{"checkpoint", ckpt},
-                       {"scene", scene.root},
-                       {"views", table},
-                       {"mean_psnr", sp / m},
-                       {"mean_ssim", ss / m},
-                       // The renderer alone (no files, no metrics): `stylerf run` plans its evaluation by it.
-                       {"timing", {{"render_s_per_view", render_s / m}}},
-                       {"ssim", "11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03, valid filtering"}};
-    const std::string jpath = (fs::path(out) / "metrics.json").string();
-    stylerf::host::write_file_atomic(jpath, doc.dump(2) + "\n");
-    std::cout << "mean PSNR " << std::setprecision(2) << sp / m << " dB, mean SSIM " << std::setprecision(4) << ss / m
-              << " over " << m << " views; " << jpath << "\n";
+    render_test_views(renderer, scene, ckpt, max_views, chunk, out);
   } else {
     render_path(renderer, scene, camera_path_file, path_file, frames, chunk, out);
   }

@@ -57,6 +57,23 @@ def test_two_ranks_write_what_one_process_writes(stages, tmp_path):
     assert m2["ranks"]["ranks"] == 2 and m2["ranks"]["frames"] == 10
 
 
+@pytest.mark.parametrize("views", ["path", "test"])
+def test_render_over_two_ranks_writes_what_one_process_writes(stages, tmp_path, views):
+    args = ["render", "--ckpt", os.path.join(stages.root, "d.ckpt"), "--views", views, "--frames", "5"]
+    one, two = str(tmp_path / "one"), str(tmp_path / "two")
+    for ranks, out in ((1, one), (2, two)):
+        r = mpirun(ranks, *args, "-o", out)
+        assert r.returncode == 0, r.stdout
+    names = files_under(one)
+    assert names == files_under(two) and len(names) >= 5, names
+    for n in names:
+        if n.endswith((".png", ".exr")):
+            assert filecmp.cmp(os.path.join(one, n), os.path.join(two, n), shallow=False), n
+    if views == "test":
+        m1, m2 = (json.load(open(os.path.join(d, "metrics.json"))) for d in (one, two))
+        assert m1["views"] == m2["views"] and m1["mean_psnr"] == pytest.approx(m2["mean_psnr"], rel=1e-12)
+
+
 def test_a_failing_rank_stops_the_job_and_says_which(stages, tmp_path):
     # Every rank fails here (a missing style image), rank 0 or not; the job must end, not hang, and say so.
     r = mpirun(2, "stylize", "--ckpt", stages.style, "--style", str(tmp_path / "missing.png"), "--views", "path",
