@@ -53,12 +53,6 @@ Dist::Dist() {
 #endif
 }
 
-void Dist::barrier() {
-#ifdef STYLERF_HAVE_MPI
-  if (mpi_) MPI_Barrier(MPI_COMM_WORLD);
-#endif
-}
-
 std::vector<std::string> Dist::gather(const std::string& bytes, int root) {
   if (!mpi_) return {bytes};
 #ifdef STYLERF_HAVE_MPI
@@ -87,21 +81,6 @@ std::vector<std::string> Dist::gather(const std::string& bytes, int root) {
   return out;
 #else
   return {bytes};
-#endif
-}
-
-std::string Dist::broadcast(const std::string& bytes, int root) {
-  if (!mpi_) return bytes;
-#ifdef STYLERF_HAVE_MPI
-  long long n = static_cast<long long>(bytes.size());
-  MPI_Bcast(&n, 1, MPI_LONG_LONG, root, MPI_COMM_WORLD);
-  std::string out = rank_ == root ? bytes : std::string(size_t(n), '\0');
-  constexpr long long kPiece = 1 << 30;
-  for (long long at = 0; at < n; at += kPiece)
-    MPI_Bcast(&out[size_t(at)], int(std::min(kPiece, n - at)), MPI_BYTE, root, MPI_COMM_WORLD);
-  return out;
-#else
-  return bytes;
 #endif
 }
 

@@ -21,11 +21,8 @@ class Dist {
   int local_size() const { return local_size_; }
   bool root() const { return rank_ == 0; }
 
-  void barrier();
   // Every rank's bytes at `root`, in rank order; the other ranks get an empty list.
   std::vector<std::string> gather(const std::string& bytes, int root = 0);
-  // root's bytes on every rank.
-  std::string broadcast(const std::string& bytes, int root = 0);
   // Element-wise sums over the ranks, in place (the same length on every rank).
   void allreduce_sum(std::vector<double>& values);
   // Ends the whole job at once (a rank that failed must not leave the others waiting in a collective).

@@ -222,8 +222,7 @@ void render_test_views(FrameRenderer& renderer, const stylerf::scene::Scene& sce
               << std::setprecision(4) << s << std::endl;
   }
   stylerf::cli::collect_rank_outputs(mine, out);
-  table = stylerf::cli::gather_arrays(table);
-  std::sort(table.begin(), table.end(), [](const auto& x, const auto& y) { return x["view"] < y["view"]; });
+  table = stylerf::cli::gather_view_rows(table);
   std::vector<double> sums = {sp, ss, render_s};
   stylerf::host::Dist::world().allreduce_sum(sums);
   sp = sums[0];

@@ -531,8 +531,7 @@ int run_stylize(int argc, char** argv) {
   timing.frames_all = timing.frames;
   if (dist.size() > 1) {
     cli::collect_rank_outputs(mine.out, a.out);
-    per_view = cli::gather_arrays(per_view);
-    std::sort(per_view.begin(), per_view.end(), [](const auto& x, const auto& y) { return x["view"] < y["view"]; });
+    per_view = cli::gather_view_rows(per_view);
     if (losses) losses->merge_ranks();
     std::vector<double> frames = {double(timing.frames)};
     dist.allreduce_sum(frames);

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -90,12 +91,13 @@ void collect_rank_outputs(const std::string& rank_dir, const std::string& out) {
   }
 }
 
-nlohmann::json gather_arrays(const nlohmann::json& mine) {
+nlohmann::json gather_view_rows(const nlohmann::json& mine) {
   auto& d = host::Dist::world();
   if (d.size() == 1) return mine;
   nlohmann::json out = nlohmann::json::array();
   for (const auto& text : d.gather(mine.dump()))
     for (auto& row : nlohmann::json::parse(text)) out.push_back(std::move(row));
+  std::sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x["view"] < y["view"]; });
   return out;
 }
 

@@ -14,7 +14,8 @@ std::string rank_output_dir(const std::string& out);
 // Collective. Rank 0 writes every other rank's files (their paths relative to their folder kept) under `out`,
 // each atomically; the other ranks remove their folders.
 void collect_rank_outputs(const std::string& rank_dir, const std::string& out);
-// Collective. Every rank's JSON array concatenated on rank 0 (in rank order; others get an empty array).
-nlohmann::json gather_arrays(const nlohmann::json& mine);
+// Collective. Every rank's per-view rows (a JSON array of objects with a "view") on rank 0, ordered by view
+// as one process lists them; the other ranks get an empty array.
+nlohmann::json gather_view_rows(const nlohmann::json& mine);
 
 }  // namespace stylerf::cli

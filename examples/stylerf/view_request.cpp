@@ -1,5 +1,6 @@
 #include "examples/stylerf/view_request.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <nlohmann/json.hpp>
 

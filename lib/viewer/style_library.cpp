@@ -1,7 +1,6 @@
 #include "lib/viewer/style_library.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -88,16 +87,11 @@ style::StyleCode StyleLibrary::code(const std::string& id, style::StyleEncoder& 
   std::string path;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (auto it = codes_.find(id); it != codes_.end()) {
-      last_encode_s_ = 0;
-      return it->second;
-    }
+    if (auto it = codes_.find(id); it != codes_.end()) return it->second;
   }
   const auto entry = find(id);
   if (!entry) throw host::Error("no style with id '" + id + "'");
-  const auto t = std::chrono::steady_clock::now();
   const style::StyleCode c = encoder.encode(entry->path).code;
-  last_encode_s_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   std::lock_guard<std::mutex> lock(mu_);
   codes_[id] = c;
   return c;

@@ -40,8 +40,6 @@ class StyleLibrary {
   std::optional<StyleEntry> find(const std::string& id) const;
   // The id's style code (encoded the first time). Throws host::Error for an unknown id.
   style::StyleCode code(const std::string& id, style::StyleEncoder& encoder);
-  // Seconds the last first-time encoding took (0 when it came from memory).
-  double last_encode_s() const { return last_encode_s_; }
 
  private:
   mutable std::mutex mu_;
@@ -49,7 +47,6 @@ class StyleLibrary {
   std::vector<StyleEntry> entries_;
   std::map<std::string, style::StyleCode> codes_;
   int64_t uploads_ = 0;
-  double last_encode_s_ = 0;
 };
 
 // A display name from a client: printable ASCII, at most 64 characters, "style" when nothing is left.
