@@ -91,6 +91,21 @@ void Dist::allreduce_sum(std::vector<double>& values) {
 #endif
 }
 
+void Dist::broadcast(std::vector<double>& values, int root) {
+#ifdef STYLERF_HAVE_MPI
+  if (mpi_ && !values.empty()) MPI_Bcast(values.data(), int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD);
+#else
+  (void)values;
+  (void)root;
+#endif
+}
+
+double Dist::broadcast(double value, int root) {
+  std::vector<double> v{value};
+  broadcast(v, root);
+  return v[0];
+}
+
 void Dist::abort(int code) {
 #ifdef STYLERF_HAVE_MPI
   if (mpi_) MPI_Abort(MPI_COMM_WORLD, code);

@@ -25,6 +25,9 @@ class Dist {
   std::vector<std::string> gather(const std::string& bytes, int root = 0);
   // Element-wise sums over the ranks, in place (the same length on every rank).
   void allreduce_sum(std::vector<double>& values);
+  // `root`'s values on every rank, in place (the same length on every rank).
+  void broadcast(std::vector<double>& values, int root = 0);
+  double broadcast(double value, int root = 0);
   // Ends the whole job at once (a rank that failed must not leave the others waiting in a collective).
   [[noreturn]] void abort(int code);
   // MPI_Finalize when it was initialised; called once at exit.

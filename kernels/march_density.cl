@@ -21,7 +21,7 @@ kernel void march_density_count(MARCH_ARGS, global const float* grid, int rx, in
   const MarchParams P = march_params(lox, loy, loz, hix, hiy, hiz, near, far, step, max_samples);
   const VMLayout L = vm_layout(rx, ry, rz, r0, r1, r2);
   const float3 o = vload3(r, origins), d = vload3(r, dirs);
-  const float jitter = jitter_on ? hash_uniform(seed, (uint)r) : 0.0f;
+  const float jitter = jitter_on ? hash_uniform(seed, ray_base + (uint)r) : 0.0f;
   const float delta = P.step * length(d) * delta_scale;
   float t0;
   const int n = min(ray_candidates(&P, o, d, jitter, &t0), cap);

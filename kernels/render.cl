@@ -85,7 +85,7 @@ inline bool occupied_at(global const uchar* mask, const MaskWalk* W, float t) {
 #define MARCH_ARGS                                                                                            \
   global const float *origins, global const float *dirs, int R, float lox, float loy, float loz, float hix,   \
       float hiy, float hiz, float near, float far, float step, int max_samples, int jitter_on, uint seed,       \
-      global const uchar *mask, int has_mask, int mx, int my, int mz
+      uint ray_base, global const uchar *mask, int has_mask, int mx, int my, int mz
 
 inline MarchParams march_params(float lox, float loy, float loz, float hix, float hiy, float hiz, float near,
                                 float far, float step, int max_samples) {
@@ -105,7 +105,7 @@ kernel void march_count(MARCH_ARGS, global int* counts) {
   if (r >= R) return;
   const MarchParams P = march_params(lox, loy, loz, hix, hiy, hiz, near, far, step, max_samples);
   const float3 o = vload3(r, origins), d = vload3(r, dirs);
-  const float jitter = jitter_on ? hash_uniform(seed, (uint)r) : 0.0f;
+  const float jitter = jitter_on ? hash_uniform(seed, ray_base + (uint)r) : 0.0f;
   float t0;
   const int n = ray_candidates(&P, o, d, jitter, &t0);
   if (!has_mask) {
@@ -127,7 +127,7 @@ kernel void march_write(MARCH_ARGS, global const int* offsets, global const int*
   if (r >= R) return;
   const MarchParams P = march_params(lox, loy, loz, hix, hiy, hiz, near, far, step, max_samples);
   const float3 o = vload3(r, origins), d = vload3(r, dirs);
-  const float jitter = jitter_on ? hash_uniform(seed, (uint)r) : 0.0f;
+  const float jitter = jitter_on ? hash_uniform(seed, ray_base + (uint)r) : 0.0f;
   const float delta = P.step * length(d) * delta_scale;
   float t0;
   const int n = ray_candidates(&P, o, d, jitter, &t0);

@@ -13,6 +13,7 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/scene/scene.hpp"
@@ -63,7 +64,7 @@ namespace cli = stylerf::cli;
 struct DensityArgs {
   std::string dir, out, ndc = "auto", act, final_voxels, init_voxels, upsample_at, mask_at, device, density_rank,
                     app_rank, shading, recipe;
-  int downsample = 0, iters = 0, batch = 4096, log_every = 100, ckpt_every = 1000, eval_views = 0;
+  int downsample = 0, iters = 0, batch = 4096, batch_slices = 1, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
   float lr_grid = -1, lr_net = -1, ert = 1e-4f, backdrop_weight = -1;
   double minutes = 0;
@@ -85,6 +86,9 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "minutes", po::value(&a.minutes), "train for this many minutes: the schedule (events, lr decay) is fitted to it "
                                         "from the measured step rate (replaces --iters)")(
       "batch", po::value(&a.batch)->default_value(4096), "rays per step")(
+      "batch-slices", po::value(&a.batch_slices),
+      "slices of each step's batch, rendered one by one and their gradients summed (default: one per MPI rank, 1 "
+      "without MPI); the ranks share them round robin; a resumed run keeps its checkpoint's unless given")(
       "ndc", po::value(&a.ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
       "view-dependence", po::bool_switch(&a.view_dep), "view-dependent colour (off unless asked for)")(
       "density-activation", po::value(&a.act), "relu | softplus (default: TensoRF's config for the format)")(
@@ -182,6 +186,7 @@ std::unique_ptr<train::DensityTrainer> resume_density_trainer(const DensityArgs&
       std::cout << "  --iters " << a.iters << " replaces the checkpoint's " << had << " (lr decay horizon)\n";
     trainer->set_total_iters(a.iters);
   }
+  if (a.has("batch-slices")) trainer->set_batch_slices(a.batch_slices);
   return trainer;
 }
 
@@ -193,6 +198,7 @@ std::unique_ptr<train::DensityTrainer> new_density_trainer(const DensityArgs& a,
   if (a.iters > 0) cfg.schedule = cfg.schedule.fitted(a.iters);
   cfg.batch = a.batch;
   cfg.seed = a.seed;
+  cfg.batch_slices = a.has("batch-slices") ? a.batch_slices : stylerf::host::Dist::world().size();
   if (!a.act.empty()) cfg.model.act = stylerf::field::parse_density_activation(a.act);
   if (a.vfinal > 0) cfg.schedule.voxels_final = a.vfinal;
   if (a.vinit > 0) cfg.schedule.voxels_init = a.vinit;
@@ -221,7 +227,12 @@ void print_density_setup(train::DensityTrainer& trainer, const stylerf::scene::S
             << (ert > 0 ? "below " + std::to_string(ert) : std::string("off")) << ", background "
             << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
             << "  " << cfg.schedule.describe() << "\n"
-            << "  batch " << cfg.batch << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
+            << "  batch " << cfg.batch
+            << (cfg.batch_slices > 1 ? " in " + std::to_string(cfg.batch_slices) + " slices" : std::string())
+            << (stylerf::host::Dist::world().size() > 1
+                    ? " dealt round robin over " + std::to_string(stylerf::host::Dist::world().size()) + " ranks"
+                    : std::string())
+            << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
             << " betas (" << cfg.beta1 << ", " << cfg.beta2 << "), L1 " << cfg.l1_initial << " -> " << cfg.l1_rest
             << ", TV density " << cfg.tv_density << " app " << cfg.tv_app;
   if (trainer.backdrop_share() > 0)
@@ -274,6 +285,9 @@ int run_train_density(int argc, char** argv) {
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9) << " it/s); checkpoint "
             << a.out << "\n";
+  if (trainer->sync().steps > 0)
+    std::cout << "gradients summed over " << train::sync_summary(trainer->sync(), stylerf::host::Dist::world().size())
+              << "\n";
   report_density_psnr(*trainer, scene, a.eval_views);
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (a.timing) std::cout << stylerf::host::Runtime::instance().timing_report();

@@ -14,6 +14,7 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/model/density_model.hpp"
@@ -34,7 +35,8 @@ namespace model = stylerf::model;
 // All of train-features' options, as parsed (`given`: the options set on the command line).
 struct FeatureArgs {
   std::string density_path, dir, out, profile_name, recipe, device;
-  int downsample = 0, iters = 0, log_every = 50, ckpt_every = 500, eval_views = 5, batch = 4096, patch = 256;
+  int downsample = 0, iters = 0, log_every = 50, ckpt_every = 500, eval_views = 5, batch = 4096, patch = 256,
+      patches_per_step = 1;
   double minutes = 0;
   float tv = -1, content_weight = -1, lr_grid = -1, lr_basis = -1, lr_decoder = -1;
   uint64_t seed = 0;
@@ -65,6 +67,9 @@ int parse_feature_args(int argc, char** argv, FeatureArgs& a) {
       "lr-grid", po::value(&a.lr_grid), "feature grid learning rate (default 0.02)")(
       "lr-basis", po::value(&a.lr_basis), "basis matrix (and background feature) learning rate (default 1e-2)")(
       "lr-decoder", po::value(&a.lr_decoder), "decoder learning rate (default 2e-4 fast, 5e-4 paper)")(
+      "patches-per-step", po::value(&a.patches_per_step),
+      "patches whose gradients a patch step averages (default: one per MPI rank, 1 without MPI); the ranks share "
+      "them round robin and slice each ray step's batch; a resumed run keeps its checkpoint's unless given")(
       "seed", po::value(&a.seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&a.force), "overwrite an existing checkpoint at -o")(
@@ -91,6 +96,7 @@ void apply_feature_flags(const FeatureArgs& a, train::FeatureTrainConfig& cfg) {
   cfg.batch = a.batch;
   cfg.patch = a.patch;
   cfg.seed = a.seed;
+  cfg.patches_per_step = a.given.count("patches-per-step") ? a.patches_per_step : stylerf::host::Dist::world().size();
   if (a.given.count("tv")) cfg.tv = a.tv;
   if (a.given.count("content-weight")) cfg.content_weight = a.content_weight;
   if (a.given.count("lr-grid")) cfg.lr_grid = a.lr_grid;
@@ -157,6 +163,7 @@ std::unique_ptr<train::FeatureTrainer> make_feature_trainer(const FeatureArgs& a
       longer.validate();
       trainer->set_total_iters(a.iters);
     }
+    if (a.given.count("patches-per-step")) trainer->set_patches_per_step(a.patches_per_step);
     if (trainer->done() && a.minutes <= 0)
       throw Error("--resume: checkpoint " + a.out + " is already at iteration " + std::to_string(trainer->iteration()) +
                   " of " + std::to_string(trainer->config().iters) + "; pass a larger --iters to continue");
@@ -176,7 +183,13 @@ void print_feature_setup(train::FeatureTrainer& trainer) {
             << "  feature grid rank " << cfg.field.rank[0] << "/" << cfg.field.rank[1] << "/" << cfg.field.rank[2]
             << " -> basis " << m.field.head.channels() << "x" << cfg.field.channels << "; " << m.param_count() / 1e6
             << "M parameters\n"
-            << "  ray steps of " << cfg.batch << " rays alternate with " << cfg.patch << " px patch steps; Adam lr grid "
+            << "  ray steps of " << cfg.batch << " rays alternate with " << cfg.patch << " px patch steps ("
+            << cfg.patches_per_step << (cfg.patches_per_step == 1 ? " patch" : " patches") << " a step"
+            << (stylerf::host::Dist::world().size() > 1
+                    ? ", dealt round robin over " + std::to_string(stylerf::host::Dist::world().size()) +
+                          " ranks, which slice each ray batch"
+                    : std::string())
+            << "); Adam lr grid "
             << cfg.lr_grid << ", basis " << cfg.lr_basis << ", decoder " << cfg.lr_decoder << ", TV " << cfg.tv
             << std::endl;
 }
@@ -222,6 +235,9 @@ int run_train_features(int argc, char** argv) {
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.iterations / std::max(sum.seconds, 1e-9)
             << " it/s); checkpoint " << a.out << std::endl;
+  if (trainer->sync().steps > 0)
+    std::cout << "gradients summed over " << train::sync_summary(trainer->sync(), stylerf::host::Dist::world().size())
+              << std::endl;
   report_decoded_psnr(*trainer, scene, a.eval_views);
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (a.timing) std::cout << stylerf::host::Runtime::instance().timing_report();

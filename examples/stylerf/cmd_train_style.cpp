@@ -14,6 +14,7 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/runtime.hpp"
 #include "lib/model/map_decoder.hpp"
@@ -37,7 +38,7 @@ struct StyleArgs {
   std::string features_path, styles_dir, out, device, sict_name = "volume-adaptive", dst_name = "bias",
               warm_maps_name, style_decoder_name, recipe_name;
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
-      decoder_warm = 0;
+      decoder_warm = 0, styles_per_step = 1;
   int patch = 256, style_size = 512;
   double minutes = 0;
   float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, warm_share = 1.0f, content_weight = 1.0f;
@@ -79,6 +80,9 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
       "lr-decay", po::value(&a.lr_decay),
       "both learning rates at the end of the run over their start, exponential in the run's progress (its "
       "time with --minutes; the stylizer's from its first step, after --decoder-warm); 1: constant, the paper's")(
+      "styles-per-step", po::value(&a.styles_per_step),
+      "styles (each with its own patch) whose gradients a step averages (default: one per MPI rank, 1 without "
+      "MPI); the ranks share them round robin, and a resumed run keeps its checkpoint's unless given")(
       "seed", po::value(&a.seed)->default_value(0), "random seed")(
       "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o")(
       "force", po::bool_switch(&a.force), "overwrite an existing checkpoint at -o")(
@@ -140,6 +144,7 @@ void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
   if (!model::map_decoder_for(cfg.style_decoder).has_vgg_pool()) cfg.decoder_phases = false;
   cfg.decoder_warm = a.decoder_warm;
   cfg.seed = a.seed;
+  cfg.styles_per_step = a.has("styles-per-step") ? a.styles_per_step : stylerf::host::Dist::world().size();
 }
 
 // Every option checked before anything loads (names and values): the run's own here, the config's by the
@@ -182,7 +187,11 @@ void print_style_setup(train::StyleTrainer& trainer) {
             << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << (cfg.decoder_phases ? ", VGG's pool at its 4 grid phases" : "")
             << "\n"
-            << "  " << trainer.styles().train.size() << " training styles, " << trainer.styles().holdout.size()
+            << "  " << cfg.styles_per_step << (cfg.styles_per_step == 1 ? " style" : " styles") << " a step"
+            << (stylerf::host::Dist::world().size() > 1
+                    ? ", dealt round robin over " + std::to_string(stylerf::host::Dist::world().size()) + " ranks"
+                    : std::string())
+            << "; " << trainer.styles().train.size() << " training styles, " << trainer.styles().holdout.size()
             << " held out; style images resized to " << cfg.style_size << " then cropped to " << cfg.style_crop << "\n"
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
@@ -224,6 +233,7 @@ int run_train_style(int argc, char** argv) {
       longer.validate();
       trainer->set_total_iters(a.iters);
     }
+    if (a.has("styles-per-step")) trainer->set_styles_per_step(a.styles_per_step);
     if (trainer->done() && a.minutes <= 0)
       throw Error("--resume: checkpoint " + a.out + " is already at iteration " + std::to_string(trainer->iteration()) +
                   "; pass a larger --iters to continue");
@@ -246,6 +256,9 @@ int run_train_style(int argc, char** argv) {
   std::cout << "trained " << sum.iterations << " iterations in " << std::fixed << std::setprecision(1) << sum.seconds
             << " s (" << std::setprecision(2) << sum.seconds / std::max(1, sum.iterations) << " s/it); checkpoint "
             << a.out << std::endl;
+  if (trainer->sync().steps > 0)
+    std::cout << "gradients averaged over " << trainer->config().styles_per_step << " styles a step on "
+              << train::sync_summary(trainer->sync(), stylerf::host::Dist::world().size()) << std::endl;
   std::cout << "peak RSS " << std::fixed << std::setprecision(0) << stylerf::cli::peak_rss_mb() << " MB" << std::endl;
   if (a.timing) std::cout << stylerf::host::Runtime::instance().timing_report();
   return 0;

@@ -107,6 +107,19 @@ bool index_complete() {
   return ok;
 }
 
+// The commands that split their work over MPI ranks. Any other, started on several ranks, would do the same
+// work on each and write the same files at once: it is refused (by rank 0; the others leave quietly).
+bool runs_over_ranks(const std::string& command) {
+  static const char* const kSplit[] = {"train-density", "train-features", "train-style", "stylize", "render"};
+  auto& dist = stylerf::host::Dist::world();
+  if (dist.size() == 1 || std::find(std::begin(kSplit), std::end(kSplit), command) != std::end(kSplit)) return true;
+  if (dist.root())
+    std::cerr << "stylerf " << command << ": error: runs on one rank only, and this job has " << dist.size()
+              << " (mpirun -np 1, or no mpirun); the training stages, stylize and render split their work over ranks\n";
+  dist.finalize();
+  return false;
+}
+
 int run_command(const cli::Command& c, int argc, char** argv) {
   int rc = 1;
   try {
@@ -151,7 +164,10 @@ int main(int argc, char** argv) {
     args.front() = eval_name;
     args.insert(args.begin() + 1, style_name);
   }
-  if (const cli::Command* c = find_command(args.front())) return run_command(*c, int(args.size()), args.data());
+  if (const cli::Command* c = find_command(args.front())) {
+    if (!runs_over_ranks(c->name)) return 2;
+    return run_command(*c, int(args.size()), args.data());
+  }
   std::cerr << "stylerf: unknown command '" << argv[1] << "'\n";
   usage(std::cerr);
   return 2;

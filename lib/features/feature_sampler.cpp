@@ -54,14 +54,24 @@ PatchSampler::PatchSampler(const scene::Scene& scene, uint64_t seed, int size) :
                   std::to_string(w) + "x" + std::to_string(h));
 }
 
-Patch PatchSampler::next(int stride) {
+FeatureRays slice(FeatureRays all, size_t begin, size_t n) {
+  if (begin == 0 && n == all.size()) return all;
+  all.rays = scene::slice(std::move(all.rays), begin, n);  // checks the range
+  all.view = std::vector<int32_t>(all.view.begin() + long(begin), all.view.begin() + long(begin + n));
+  all.pixel_xy = std::vector<float>(all.pixel_xy.begin() + long(2 * begin), all.pixel_xy.begin() + long(2 * (begin + n)));
+  return all;
+}
+
+Patch PatchSampler::next(int stride) { return next(stride, rng_); }
+
+Patch PatchSampler::next(int stride, std::mt19937_64& rng) const {
   const int W = scene_->width(), H = scene_->height();
   std::uniform_int_distribution<int> pick_view(0, int(scene_->train.size()) - 1);
   // Corners on the multiple-of-4 lattice that keep the patch inside the image.
   std::uniform_int_distribution<int> pick_x(0, (W - width_) / 4), pick_y(0, (H - height_) / 4);
-  const int view = pick_view(rng_);
-  const int x0 = 4 * pick_x(rng_);
-  const int y0 = 4 * pick_y(rng_);
+  const int view = pick_view(rng);
+  const int x0 = 4 * pick_x(rng);
+  const int y0 = 4 * pick_y(rng);
   return at(view, x0, y0, stride);
 }
 

@@ -25,6 +25,9 @@ struct FeatureRays {
   host::Tensor pixel_xy_tensor() const;  // [R, 2]
 };
 
+// Rays [begin, begin + n) of a batch (one rank's share).
+FeatureRays slice(FeatureRays all, size_t begin, size_t n);
+
 class FeatureRaySampler {
  public:
   FeatureRaySampler(const scene::Scene& scene, uint64_t seed);
@@ -58,6 +61,8 @@ class PatchSampler {
   // one ray per 4x4 block, at its centre (the fast profile, features rendered at relu3_1's resolution);
   // stride 2 lies between.
   Patch next(int stride = 1);
+  // The same draw from the caller's generator (a draw that depends only on the caller's seed).
+  Patch next(int stride, std::mt19937_64& rng) const;
   // The patch of a given view and corner (checked: multiples of 4, inside the image).
   Patch at(int view, int x0, int y0, int stride = 1) const;
 

@@ -165,10 +165,11 @@ void DensityModel::collect_params(std::vector<nn::Param*>& out) {
 }
 
 RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed,
-                               RayContext* ctx) const {
+                               RayContext* ctx, uint32_t ray_base) const {
   RayOptions opt;
   opt.jitter = train;
   opt.seed = seed;
+  opt.ray_base = ray_base;
   if (!rgb.deferred()) {
     opt.background = geo.background_tensor();
     return render_rays(geo, rgb, origins, dirs, opt, ctx);

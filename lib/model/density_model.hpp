@@ -67,8 +67,10 @@ class DensityModel : public nn::Module {
   void collect_params(std::vector<nn::Param*>& out) override;
   nn::Param& density_param();
 
-  // Renders rays with the scene's background (training: jitter with `seed`).
-  RayResult render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed, RayContext* ctx) const;
+  // Renders rays with the scene's background (training: jitter with `seed`; `ray_base`: the first ray's
+  // index in a larger batch the jitter is drawn for).
+  RayResult render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed, RayContext* ctx,
+                   uint32_t ray_base = 0) const;
   // drgb [R,3] -> gradients accumulated into every parameter. dacc [R] (optional): a gradient w.r.t. each
   // ray's opacity over all samples, from a term on the opacity itself (the density stage's backdrop term).
   void render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc = Tensor());

@@ -39,7 +39,7 @@ Geometry Geometry::with_step_ratio(float ratio) const {
   return g;
 }
 
-render::MarchConfig Geometry::march_config(bool jitter, uint32_t seed) const {
+render::MarchConfig Geometry::march_config(bool jitter, uint32_t seed, uint32_t ray_base) const {
   render::MarchConfig mc;
   mc.box_lo = box_lo;
   mc.box_hi = box_hi;
@@ -49,6 +49,7 @@ render::MarchConfig Geometry::march_config(bool jitter, uint32_t seed) const {
   mc.max_samples = max_samples;
   mc.jitter = jitter;
   mc.seed = seed;
+  mc.ray_base = ray_base;
   mc.delta_scale = distance_scale;
   return mc;
 }

@@ -56,7 +56,7 @@ struct Geometry {
   // A copy (the grids and the mask shared, not copied) whose march samples every `ratio` voxel sides; the
   // mask keeps the step it was built with.
   Geometry with_step_ratio(float ratio) const;
-  render::MarchConfig march_config(bool jitter, uint32_t seed) const;
+  render::MarchConfig march_config(bool jitter, uint32_t seed, uint32_t ray_base = 0) const;
   const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels.defined()) ? &mask : nullptr; }
   Tensor background_tensor() const;  // [3], undefined when the scene has no background
   std::string describe() const;      // grid, step, samples per ray, box, mask occupancy

@@ -33,7 +33,7 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
   ert.grid = &g.density;
   ert.act = g.act;
   ert.ert_threshold = g.ert_threshold;
-  render::Samples s = render::march(origins, dirs, g.march_config(opt.jitter, opt.seed), g.active_mask(),
+  render::Samples s = render::march(origins, dirs, g.march_config(opt.jitter, opt.seed, opt.ray_base), g.active_mask(),
                                     g.ert_threshold > 0.0f ? &ert : nullptr);
   if (ctx) {
     *ctx = RayContext{};

@@ -26,6 +26,7 @@ namespace stylerf::model {
 struct RayOptions {
   bool jitter = false;  // training: random offset of each ray's first sample
   uint32_t seed = 0;
+  uint32_t ray_base = 0;  // the first ray's index in the jitter (render::MarchConfig::ray_base)
   Tensor background;    // [C] composited behind the rays, or undefined (none)
 };
 

@@ -80,12 +80,12 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
     staged = Tensor({int64_t(R) * std::max(cap, 1)}, "staged sample density");
     launch_with_local("grid+render+march_density", "march_density_count", field::rank_build_options(g.rank),
                       {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
-                      cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx,
+                      cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), cfg.ray_base, mvox, int(has_mask), mx,
                       my, mz, g.params, g.res[0], g.res[1], g.res[2], g.rank[0], g.rank[1], g.rank[2], int(density->act),
                       cfg.delta_scale, density->ert_threshold, std::max(cap, 1), staged, counts);
   } else {
     launch_with_local("render", "march_count", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
-           cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz, counts);
+           cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), cfg.ray_base, mvox, int(has_mask), mx, my, mz, counts);
   }
   std::vector<int32_t> offsets;
   s.count = exclusive_scan(counts.to_host_i32(), offsets);
@@ -97,7 +97,7 @@ Samples march(const Tensor& origins, const Tensor& dirs, const MarchConfig& cfg,
   s.deltas = Tensor({S}, "sample deltas");
   s.ray_index = Tensor({S}, host::DType::I32, "sample ray index");
   launch_with_local("render", "march_write", "", {size_t(R)}, {kGroup}, origins, dirs, R, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], cfg.near,
-         cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), mvox, int(has_mask), mx, my, mz,
+         cfg.far, cfg.step, cfg.max_samples, int(cfg.jitter), int(cfg.seed), cfg.ray_base, mvox, int(has_mask), mx, my, mz,
          s.ray_offset, counts, s.positions, s.t, s.deltas, s.ray_index, cfg.delta_scale);
   if (density) {
     s.sigma = Tensor({S}, "density");

@@ -26,6 +26,9 @@ struct MarchConfig {
   int max_samples = 1024;   // candidate cap per ray
   bool jitter = false;      // training: random offset of the first sample
   uint32_t seed = 0;        // jitter seed (vary per iteration)
+  // The first ray's index in the jitter's hash: a slice of a batch from ray_base on (one rank's share)
+  // draws the jitter the whole batch draws for those rays.
+  uint32_t ray_base = 0;
   float delta_scale = 1.0f;
 };
 

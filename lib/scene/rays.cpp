@@ -86,4 +86,20 @@ Rays RaySampler::next(int batch) {
   return r;
 }
 
+Rays slice(Rays all, size_t begin, size_t n) {
+  if (begin + n > all.size())
+    throw host::Error("rays: slice [" + std::to_string(begin) + ", " + std::to_string(begin + n) + ") of a batch of " +
+                      std::to_string(all.size()));
+  if (begin == 0 && n == all.size()) return all;
+  auto part = [&](std::vector<float>& v, size_t width) {
+    if (!v.empty()) v = std::vector<float>(v.begin() + long(begin * width), v.begin() + long((begin + n) * width));
+  };
+  part(all.origins, 3);
+  part(all.directions, 3);
+  part(all.rgb, 3);
+  if (!all.pixel.empty())
+    all.pixel = std::vector<int>(all.pixel.begin() + long(begin), all.pixel.begin() + long(begin + n));
+  return all;
+}
+
 }  // namespace stylerf::scene

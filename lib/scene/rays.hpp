@@ -27,6 +27,10 @@ struct Rays {
   size_t size() const { return origins.size() / 3; }
 };
 
+// Rays [begin, begin + n) of a batch (the whole batch when they are all of it: no copy is worth avoiding
+// here, the batch is a few thousand rays).
+Rays slice(Rays all, size_t begin, size_t n);
+
 // World-space ray through the continuous pixel position (px, py) (pixel centres at +0.5); d unit length.
 void pixel_ray(const Camera& cam, float px, float py, float o[3], float d[3]);
 

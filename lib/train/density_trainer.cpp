@@ -14,6 +14,7 @@
 #include "lib/scene/masked_background.hpp"
 #include "lib/train/stage_programs.hpp"
 #include "lib/train/trainer_state.hpp"
+#include "lib/train/data_parallel.hpp"
 #include "lib/train/training_loop.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/ops.hpp"
@@ -28,7 +29,7 @@ using nlohmann::json;
   iters, upsample_at, voxels_init, voxels_final, mask_at, lr_decay_ratio, lr_reset_on_upsample
 #define DENSITY_TRAIN_FIELDS                                                                              \
   batch, lr_grid, lr_net, beta1, beta2, l1_initial, l1_rest, tv_density, tv_app, alpha_mask, \
-      reset_optimizer_on_upsample, seed
+      reset_optimizer_on_upsample, seed, batch_slices
 
 json DensityTrainConfig::to_json() const {
   json j{{"model", model.to_json()}, {"schedule", json::object()}};
@@ -42,7 +43,9 @@ DensityTrainConfig DensityTrainConfig::from_json(const json& j) {
   DensityTrainConfig c;
   c.model = DensityModelConfig::from_json(j.at("model"));
   STYLERF_JSON_GET_FIELDS(j.at("schedule"), c.schedule, DENSITY_SCHEDULE_FIELDS);
-  STYLERF_JSON_GET_FIELDS(j, c, DENSITY_TRAIN_FIELDS);
+  json with_defaults = {{"batch_slices", 1}};  // absent from checkpoints written before it existed
+  with_defaults.update(j);
+  STYLERF_JSON_GET_FIELDS(with_defaults, c, DENSITY_TRAIN_FIELDS);
   c.backdrop_weight = j.value("backdrop_weight", 0.0f);  // checkpoints from before the term trained without it
   return c;
 }
@@ -58,6 +61,9 @@ void DensityTrainConfig::validate() const {
   };
   schedule.validate();
   if (batch < 1 || batch > (1 << 22)) throw SettingError("batch", "must be in [1, 4194304], got " + std::to_string(batch));
+  if (batch_slices < 1 || batch_slices > batch)
+    throw SettingError("batch_slices", "must be in [1, batch = " + std::to_string(batch) + "], got " +
+                                           std::to_string(batch_slices));
   in_range("lr_grid", lr_grid, 1e-8, 10);
   in_range("lr_net", lr_net, 1e-8, 10);
   in_range("beta1", beta1, 0, 0.999999);
@@ -212,46 +218,74 @@ void DensityTrainer::init_optimizer() {
   adam_ = nn::Adam({{"grid", cfg_.lr_grid}, {"network", cfg_.lr_net}}, cfg_.beta1, cfg_.beta2);
 }
 
+void DensityTrainer::slice_terms(const scene::Rays& batch, int64_t lo, int64_t n, int k, std::vector<double>& sums) {
+  const int64_t R = int64_t(batch.size());
+  const scene::Rays rays = scene::slice(batch, size_t(lo), size_t(n));
+  Tensor o = Tensor::from_host(rays.origins, {n, 3}, "batch origins");
+  Tensor d = Tensor::from_host(rays.directions, {n, 3}, "batch directions");
+  Tensor target = Tensor::from_host(rays.rgb, {n, 3}, "batch colours");
+  model::RayContext cache;
+  const model::RayResult out =
+      model_.render(o, d, true, static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k)), &cache, uint32_t(lo));
+  // The backdrop term: weight * mean over the batch of acc on backdrop rays (its gradient is constant).
+  Tensor dacc;
+  if (!backdrop_.empty()) {
+    std::vector<float> g(size_t(n), 0.0f);
+    const auto acc = out.acc.to_host();
+    for (int64_t r = 0; r < n; ++r)
+      if (backdrop_[size_t(rays.pixel[size_t(r)])]) {
+        g[size_t(r)] = cfg_.backdrop_weight / float(R);
+        sums[3] += acc[size_t(r)];
+        sums[4] += 1;
+      }
+    dacc = Tensor::from_host(g, {n}, "backdrop opacity gradient");
+  }
+  const float slice_mse = nn::mse_forward(out.value, target).to_host()[0];
+  sums[0] += double(slice_mse) * double(n) / double(R);
+  sums[1] += double(out.samples);
+  sums[2] += double(out.kept);
+  // The data term's gradient, a mean over the whole batch, through the renderer.
+  model_.render_backward(cache, nn::mse_backward(out.value, target, float(double(n) / double(R))), dacc);
+}
+
 StepStats DensityTrainer::step(bool with_reg) {
   const auto t0 = std::chrono::steady_clock::now();
   StepStats st;
   const int k = iteration_ + 1;
-  const scene::Rays rays = sampler_->next(cfg_.batch);
+  // The batch in batch_slices slices, dealt round robin over the ranks: every rank draws the whole batch
+  // (the same stream) and renders its slices, with the jitter the whole batch draws for those rays. One
+  // slice in one process: the batch at once. Otherwise each slice's gradients are taken off the device and
+  // summed over the slices and the ranks (lib/train/data_parallel.hpp).
+  host::Dist& dist = host::Dist::world();
   const int64_t R = cfg_.batch;
-  Tensor o = Tensor::from_host(rays.origins, {R, 3}, "batch origins");
-  Tensor d = Tensor::from_host(rays.directions, {R, 3}, "batch directions");
-  Tensor target = Tensor::from_host(rays.rgb, {R, 3}, "batch colours");
-
-  model::RayContext cache;
-  model::RayResult out = model_.render(o, d, true, static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k)), &cache);
-  st.samples = out.samples;
-  st.kept = out.kept;
-  const float mse = nn::mse_forward(out.value, target).to_host()[0];
+  const int S = cfg_.batch_slices;
+  const bool batched = S > 1 || dist.size() > 1;
+  const scene::Rays batch = sampler_->next(cfg_.batch);
+  model_.zero_grad();
+  GradientSum grads;
+  std::vector<double> sums(5, 0.0);  // mse, samples, kept, backdrop opacity, backdrop rays
+  for (int j = 0; j < S; ++j) {
+    if (!my_share(j, dist)) continue;
+    const int64_t lo = R * j / S;
+    slice_terms(batch, lo, R * (j + 1) / S - lo, k, sums);
+    if (batched) grads.add(model_.params());
+  }
+  if (batched) {
+    dist.allreduce_sum(sums);
+    sync_.add(grads.average(model_.params(), 1.0, dist));  // the slices' terms add up
+  }
+  const double mse = sums[0];
+  st.samples = int64_t(sums[1]);
+  st.kept = int64_t(sums[2]);
+  st.backdrop_rays = int64_t(sums[4]);
+  st.backdrop_acc = st.backdrop_rays ? sums[3] / double(st.backdrop_rays) : 0.0;
   if (!std::isfinite(mse))
     throw Error("train-density: the loss is " + std::to_string(mse) + " at iteration " + std::to_string(k) +
                 " (diverged; try a lower --lr-grid or another --seed)");
   st.mse = mse;
-  st.psnr = -10.0 * std::log10(std::max(double(mse), 1e-12));
+  st.psnr = -10.0 * std::log10(std::max(mse, 1e-12));
 
-  // Gradients: data term through the renderer, then the regularisers straight into the grid gradients.
-  Tensor drgb = nn::mse_backward(out.value, target, 1.0f);
-  // The backdrop term: weight * mean over the batch of acc on backdrop rays (its gradient is constant).
-  Tensor dacc;
-  if (!backdrop_.empty()) {
-    std::vector<float> g(size_t(R), 0.0f);
-    const auto acc = out.acc.to_host();
-    double sum = 0;
-    for (int64_t r = 0; r < R; ++r)
-      if (backdrop_[size_t(rays.pixel[size_t(r)])]) {
-        g[size_t(r)] = cfg_.backdrop_weight / float(R);
-        sum += acc[size_t(r)];
-        ++st.backdrop_rays;
-      }
-    st.backdrop_acc = st.backdrop_rays ? sum / st.backdrop_rays : 0.0;
-    dacc = Tensor::from_host(g, {R}, "backdrop opacity gradient");
-  }
-  model_.zero_grad();
-  model_.render_backward(cache, drgb, dacc);
+  // The regularisers, straight into the grid gradients (after the sum: every rank adds the same terms once).
   Tensor& ddensity = model_.density_param().grad_buffer();
   Tensor& dapp = model_.rgb.app_param().grad_buffer();
   const field::VMGrid app = model_.rgb.app();

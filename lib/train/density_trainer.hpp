@@ -26,6 +26,7 @@
 #include "lib/nn/adam.hpp"
 #include "lib/train/budget.hpp"
 #include "lib/train/schedule.hpp"
+#include "lib/train/data_parallel.hpp"
 #include "lib/train/training_loop.hpp"
 
 namespace stylerf::train {
@@ -50,6 +51,10 @@ struct DensityTrainConfig {
   float backdrop_weight = kDefaultBackdropWeight;
   bool reset_optimizer_on_upsample = true;
   uint64_t seed = 0;
+  // Slices of a step's batch, each rendered and differentiated on its own and their gradients summed; over
+  // MPI ranks they are dealt round robin (lib/train/data_parallel.hpp), and 1 rank taking N slices takes
+  // the step N ranks take.
+  int batch_slices = 1;
   // Every this many steps (and before every checkpoint) the parameters are checked for NaN/inf: the
   // compositing treats a NaN density as empty and the sigmoid head maps a NaN to a colour, so a corrupted
   // grid need not show in the loss. About 6 ms per check for a 300^3 grid. Not stored in checkpoints.
@@ -87,7 +92,15 @@ class DensityTrainer {
 
   // One step; with_reg also evaluates the regulariser value for reporting.
   StepStats step(bool with_reg = false);
+  void set_batch_slices(int n) {
+    DensityTrainConfig c = cfg_;
+    c.batch_slices = n;
+    c.validate();
+    cfg_.batch_slices = n;
+  }
   int iteration() const { return iteration_; }
+  // The gradient sums over MPI ranks so far (lib/train/data_parallel.hpp).
+  const SyncTotals& sync() const { return sync_; }
   bool done() const { return iteration_ >= cfg_.schedule.iters; }
   const DensityModel& model() const { return model_; }
   DensityModel& model() { return model_; }
@@ -116,6 +129,9 @@ class DensityTrainer {
   // moments through the same crop/resampling.
   void carry_moments(const model::GridCrop& c, const std::function<void()>& change);
   void on_step_done(StepStats& st);
+  // Rays [lo, lo + n) of the step's batch: their data terms' gradients (means over the whole batch) into
+  // the params; sums += their mse share, samples, kept samples, backdrop opacity and backdrop rays.
+  void slice_terms(const scene::Rays& batch, int64_t lo, int64_t n, int k, std::vector<double>& sums);
 
   const scene::Scene* scene_;
   DensityTrainConfig cfg_;
@@ -123,6 +139,7 @@ class DensityTrainer {
   DensityModel model_;
   nn::Adam adam_;  // groups: grid (lr_grid), network (lr_net); rebuilt at upsampling (TensoRF)
   int iteration_ = 0;
+  SyncTotals sync_;
   float l1_weight_ = 0;
   std::unique_ptr<scene::RaySampler> sampler_;
   // 1 for each training pixel (RaySampler's pixel index) on the backdrop; empty: no backdrop term.

@@ -29,7 +29,8 @@ using nlohmann::json;
 // ---- config ------------------------------------------------------------------------------------------------
 #define FEATURE_FIELD_FIELDS rank, channels, init_scale  // FeatureFieldConfig's, flat in the config's JSON
 #define FEATURE_TRAIN_FIELDS \
-  iters, batch, patch, lr_grid, lr_basis, lr_decoder, beta1, beta2, lr_decay_ratio, tv, content_weight, seed
+  iters, batch, patch, lr_grid, lr_basis, lr_decoder, beta1, beta2, lr_decay_ratio, tv, content_weight, seed, \
+      patches_per_step
 
 json FeatureTrainConfig::to_json() const {
   json j{{"profile", model::decoder_profile_name(profile)}};
@@ -42,7 +43,9 @@ FeatureTrainConfig FeatureTrainConfig::from_json(const json& j) {
   FeatureTrainConfig c;
   c.profile = model::parse_decoder_profile(j.at("profile").get<std::string>());
   STYLERF_JSON_GET_FIELDS(j, c.field, FEATURE_FIELD_FIELDS);
-  STYLERF_JSON_GET_FIELDS(j, c, FEATURE_TRAIN_FIELDS);
+  json with_defaults = {{"patches_per_step", 1}};  // absent from checkpoints written before it existed
+  with_defaults.update(j);
+  STYLERF_JSON_GET_FIELDS(with_defaults, c, FEATURE_TRAIN_FIELDS);
   return c;
 }
 
@@ -69,6 +72,8 @@ void FeatureTrainConfig::validate() const {
   if (patch < 8 || patch % 8) throw SettingError("patch", "must be a positive multiple of 8, got " + std::to_string(patch));
   for (auto [field, lr] : {std::pair{"lr_grid", lr_grid}, std::pair{"lr_basis", lr_basis}, std::pair{"lr_decoder", lr_decoder}})
     if (!(lr > 0.0f) || !std::isfinite(lr)) throw SettingError(field, "must be a positive number, got " + std::to_string(lr));
+  if (patches_per_step < 1 || patches_per_step > 1024)
+    throw SettingError("patches_per_step", "must be in [1, 1024], got " + std::to_string(patches_per_step));
   if (!(tv >= 0.0f) || !std::isfinite(tv)) throw SettingError("tv", "must be >= 0, got " + std::to_string(tv));
   if (!(content_weight >= 0.0f) || !std::isfinite(content_weight))
     throw SettingError("content_weight", "must be >= 0, got " + std::to_string(content_weight));
@@ -135,6 +140,13 @@ void FeatureTrainer::set_total_iters(int iters) {
   cfg_.iters = iters;
 }
 
+void FeatureTrainer::set_patches_per_step(int n) {
+  FeatureTrainConfig c = cfg_;
+  c.patches_per_step = n;
+  c.validate();
+  cfg_.patches_per_step = n;
+}
+
 static double read_scalar(const Tensor& t) { return t.to_host()[0]; }
 
 double FeatureTrainer::view_feature_mse(int view) {
@@ -155,31 +167,54 @@ double FeatureTrainer::view_feature_mse(int view) {
 }
 
 FeatureStepStats FeatureTrainer::ray_step(int k) {
+  // The batch in patches_per_step slices, dealt round robin over the ranks: every rank draws the whole
+  // batch and renders its slices, with the jitter the whole batch draws for those rays; the loss is the
+  // whole batch's mean. One slice in one process: the batch at once.
+  host::Dist& dist = host::Dist::world();
+  const int64_t R = cfg_.batch;
+  const int S = cfg_.patches_per_step;
+  if (R < S) throw Error("train-features: a batch of " + std::to_string(R) + " rays cannot be cut in " +
+                         std::to_string(S) + " slices (--batch, --patches-per-step)");
+  const bool batched = S > 1 || dist.size() > 1;
+  const features::FeatureRays all = rays_->next(cfg_.batch);
+  GradientSum grads;
+  std::vector<double> sums(3, 0.0);  // mse, samples, kept
+  for (int j = 0; j < S; ++j) {
+    if (!my_share(j, dist)) continue;
+    const int64_t lo = R * j / S, n = R * (j + 1) / S - lo;
+    const features::FeatureRays fr = features::slice(all, size_t(lo), size_t(n));
+    Tensor o = Tensor::from_host(fr.rays.origins, {n, 3}, "feature batch origins");
+    Tensor d = Tensor::from_host(fr.rays.directions, {n, 3}, "feature batch directions");
+    Tensor target = features::gather_targets(targets_.maps, fr.view_tensor(), fr.pixel_xy_tensor());
+    model::FeatureField::Context ctx;
+    model::RayOptions opt;
+    opt.jitter = true;
+    opt.seed = static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k));
+    opt.ray_base = uint32_t(lo);
+    model::RayResult r = model_.field.render(model_.geo, o, d, opt, &ctx);
+    sums[0] += read_scalar(nn::mse_forward(r.value, target)) * double(n) / double(R);
+    sums[1] += double(r.samples);
+    sums[2] += double(r.kept);
+    model_.field.render_backward(model_.geo, ctx, nn::mse_backward(r.value, target, float(double(n) / double(R))),
+                                 Tensor());
+    if (batched) grads.add(model_.params());
+  }
+  if (batched) {
+    dist.allreduce_sum(sums);
+    sync_.add(grads.average(model_.params(), 1.0, dist));  // the slices' terms add up
+  }
   FeatureStepStats st;
-  const features::FeatureRays fr = rays_->next(cfg_.batch);
-  const int64_t R = int64_t(fr.size());
-  Tensor o = Tensor::from_host(fr.rays.origins, {R, 3}, "feature batch origins");
-  Tensor d = Tensor::from_host(fr.rays.directions, {R, 3}, "feature batch directions");
-  Tensor target = features::gather_targets(targets_.maps, fr.view_tensor(), fr.pixel_xy_tensor());
-  model::FeatureField::Context ctx;
-  model::RayOptions opt;
-  opt.jitter = true;
-  opt.seed = static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k));
-  model::RayResult r = model_.field.render(model_.geo, o, d, opt, &ctx);
-  const Tensor mse = nn::mse_forward(r.value, target);
-  model_.field.render_backward(model_.geo, ctx, nn::mse_backward(r.value, target, 1.0f), Tensor());
-  st.feature_mse = read_scalar(mse);
-  st.samples = r.samples;
-  st.kept = r.kept;
+  st.feature_mse = sums[0];
+  st.samples = int64_t(sums[1]);
+  st.kept = int64_t(sums[2]);
   st.rays = R;
   return st;
 }
 
-FeatureStepStats FeatureTrainer::patch_step(int k) {
+FeatureStepStats FeatureTrainer::patch_step(int k, const features::Patch& p, int j, GradientSum* sum) {
   FeatureStepStats st;
   st.patch = true;
   const int s = model_.stride();
-  const features::Patch p = patches_->next(s);
   const int h = p.height / s, w = p.width / s;
   const int64_t R = int64_t(h) * w;
   Tensor o = Tensor::from_host(p.rays.origins, {R, 3}, "patch origins");
@@ -188,6 +223,7 @@ FeatureStepStats FeatureTrainer::patch_step(int k) {
   model::RayOptions opt;
   opt.jitter = true;
   opt.seed = static_cast<uint32_t>(cfg_.seed * 7919 + uint64_t(k));
+  opt.ray_base = uint32_t(int64_t(j) * R);  // each patch of a step its own jitter
   model::RayResult r = model_.field.render(model_.geo, o, d, opt, &fctx);
   Tensor map = nn::rows_to_image(r.value, h, w);
   nn::ConvStack::Ctx dctx;
@@ -201,6 +237,7 @@ FeatureStepStats FeatureTrainer::patch_step(int k) {
   const ReconstructionLoss loss = reconstruction_loss(vgg_, rgb, gt, ft, cfg_.content_weight);
   Tensor dmap = model_.decoder.backward(dctx, loss.drgb, true);
   model_.field.render_backward(model_.geo, fctx, nn::rows_to_image_backward(dmap), Tensor());
+  if (sum) sum->add(model_.params());
   st.pixel_mse = loss.pixel_mse;
   st.content = cfg_.content_weight * loss.feature_mse;
   st.samples = r.samples;
@@ -209,15 +246,42 @@ FeatureStepStats FeatureTrainer::patch_step(int k) {
   return st;
 }
 
+FeatureStepStats FeatureTrainer::patch_steps(int k) {
+  host::Dist& dist = host::Dist::world();
+  const int B = cfg_.patches_per_step;
+  if (B == 1 && dist.size() == 1) return patch_step(k, patches_->next(model_.stride()), 0, nullptr);
+  // Every rank draws every patch of the step (the same stream) and renders its own share.
+  GradientSum sum;
+  FeatureStepStats st;
+  std::vector<double> sums(5, 0.0);  // pixel mse, content, samples, kept, rays
+  for (int j = 0; j < B; ++j) {
+    const features::Patch p = patches_->next(model_.stride());
+    if (!my_share(j, dist)) continue;
+    const FeatureStepStats one = patch_step(k, p, j, &sum);
+    sums[0] += one.pixel_mse, sums[1] += one.content;
+    sums[2] += double(one.samples), sums[3] += double(one.kept), sums[4] += double(one.rays);
+  }
+  dist.allreduce_sum(sums);
+  sync_.add(sum.average(model_.params(), B, dist));
+  st.patch = true;
+  st.pixel_mse = sums[0] / B;
+  st.content = sums[1] / B;
+  st.samples = int64_t(sums[2]);
+  st.kept = int64_t(sums[3]);
+  st.rays = int64_t(sums[4]);
+  return st;
+}
+
 FeatureStepStats FeatureTrainer::step() {
   const auto t0 = std::chrono::steady_clock::now();
   const int k = iteration_ + 1;
   model_.zero_grad();
-  FeatureStepStats st = (k % 2 == 1) ? ray_step(k) : patch_step(k);
+  FeatureStepStats st = (k % 2 == 1) ? ray_step(k) : patch_steps(k);
   const double loss = st.patch ? st.pixel_mse + st.content : st.feature_mse;
   if (!std::isfinite(loss))
     throw Error("train-features: the loss is " + std::to_string(loss) + " at iteration " + std::to_string(k) +
                 " (diverged; try lower learning rates or another --seed)");
+  // The regulariser after the sums over slices and ranks: every rank adds the same term once.
   const field::VMGrid grid = model_.field.head.grid();
   if (cfg_.tv > 0) field::tv_backward(grid, cfg_.tv * 2e-2f, model_.field.head.grid_param().grad_buffer());
   // lr decays geometrically to lr_decay_ratio over the run (TensoRF's lr_factor per step).

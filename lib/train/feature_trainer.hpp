@@ -26,6 +26,7 @@
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
+#include "lib/train/data_parallel.hpp"
 #include "lib/train/training_loop.hpp"
 
 namespace stylerf::train {
@@ -43,6 +44,10 @@ struct FeatureTrainConfig {
   float lr_decay_ratio = 0.1f;
   float tv = 10.0f;               // StyleRF: Blender 10, LLFF 80
   float content_weight = 0.1f;    // (relu4_1 MSE + relu3_1 MSE) x this in patch steps (the paper's 0.1; fast: 0)
+  // Patches a patch step averages the gradients of, and slices a ray step's batch is rendered in (their
+  // gradients summed); over MPI ranks both are dealt round robin (lib/train/data_parallel.hpp): 1 rank
+  // taking N of them takes the step N ranks take.
+  int patches_per_step = 1;
   uint64_t seed = 0;
   int finite_check_every = 50;
 
@@ -78,6 +83,9 @@ class FeatureTrainer {
   const FeatureTrainConfig& config() const { return cfg_; }
   model::FeatureModel& model() { return model_; }
   void set_total_iters(int iters);
+  void set_patches_per_step(int n);
+  // The gradient sums over MPI ranks or a step's patches so far (lib/train/data_parallel.hpp).
+  const SyncTotals& sync() const { return sync_; }
   // MSE of the rendered features (no jitter) against the targets over every pixel of training view
   // `view`: a fixed yardstick, unlike the loss of random batches.
   double view_feature_mse(int view);
@@ -89,7 +97,10 @@ class FeatureTrainer {
   // A fresh model's background feature starts as VGG's relu3_1 of the background colour.
   void init_background_feature();
   FeatureStepStats ray_step(int k);
-  FeatureStepStats patch_step(int k);
+  // A patch step: cfg_.patches_per_step patches (this rank's share of them), their gradients averaged.
+  FeatureStepStats patch_steps(int k);
+  // One patch, the step's j-th; its gradients go to `sum` when given.
+  FeatureStepStats patch_step(int k, const features::Patch& p, int j, GradientSum* sum);
 
   const scene::Scene* scene_;
   FeatureTrainConfig cfg_;
@@ -100,6 +111,7 @@ class FeatureTrainer {
   std::unique_ptr<features::FeatureRaySampler> rays_;
   std::unique_ptr<features::PatchSampler> patches_;
   int iteration_ = 0;
+  SyncTotals sync_;
 };
 
 // Decoded-RGB PSNR (and SSIM) of held-out views; max_views > 0 takes that many evenly spaced.

@@ -16,6 +16,7 @@
 #include "lib/io/image.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/train/data_parallel.hpp"
 #include "lib/train/training_loop.hpp"
 #include "lib/train/stage_programs.hpp"
 #include "lib/train/trainer_state.hpp"
@@ -31,7 +32,7 @@ using nlohmann::json;
 // ---- config and style sets --------------------------------------------------------------------------------
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
-      warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed
+      warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed, styles_per_step
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -46,7 +47,8 @@ json StyleTrainConfig::to_json() const {
 StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
-  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0}};
+  json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0},
+                  {"styles_per_step", 1}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -78,6 +80,8 @@ void StyleTrainConfig::validate() const {
   if (warm_start < 0) throw SettingError("warm_start", "must be >= 0, got " + std::to_string(warm_start));
   if (!(warm_share > 0 && warm_share <= 1))
     throw SettingError("warm_share", "must be in (0, 1], got " + std::to_string(warm_share));
+  if (styles_per_step < 1 || styles_per_step > 1024)
+    throw SettingError("styles_per_step", "must be in [1, 1024], got " + std::to_string(styles_per_step));
   if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
   if (running_init_patches < 0)
     throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
@@ -186,7 +190,6 @@ void StyleTrainer::init(std::ostream* log) {
   }
   const uint64_t s = cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(iteration_);
   patches_ = std::make_unique<features::PatchSampler>(*scene_, s + 1, cfg_.patch);
-  rng_.seed(s + 2);
 }
 
 void StyleTrainer::init_running_stats(std::ostream* log) {
@@ -221,18 +224,18 @@ void StyleTrainer::init_running_stats(std::ostream* log) {
   if (log) *log << "SICT running statistics initialised from the kept samples of " << n << " training patches" << std::endl;
 }
 
-StyleStepStats StyleTrainer::rendered_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
-                                           style::Dst::StyleContext& sctx) {
+StyleStepStats StyleTrainer::rendered_step(int64_t sub, std::mt19937_64& draw, const StyleTargets& style_targets,
+                                           const style::StyleCode& code, style::Dst::StyleContext& sctx) {
   StyleStepStats st;
   const int s = model_.stride();
-  const features::Patch p = patches_->next(s);
+  const features::Patch p = patches_->next(s, draw);
   const int h = p.height / s, w = p.width / s;
   const int64_t R = int64_t(h) * w;
   model::StyleModel::Context ctx;
   const model::StyleModel::Content content =
       model_.render_content(Tensor::from_host(p.rays.origins, {R, 3}, "patch origins"),
                             Tensor::from_host(p.rays.directions, {R, 3}, "patch directions"), true,
-                            uint32_t(cfg_.seed * 7919 + uint64_t(k)), &ctx);
+                            uint32_t(cfg_.seed * 7919 + uint64_t(sub) + 1), &ctx);
   st.rays = R;
   st.kept = content.kept;
   OpacityMask mask;
@@ -262,13 +265,12 @@ StyleStepStats StyleTrainer::rendered_step(int k, const StyleTargets& style_targ
   return st;
 }
 
-StyleStepStats StyleTrainer::warm_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
-                                       style::Dst::StyleContext& sctx) {
-  (void)k;
+StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets& style_targets,
+                                       const style::StyleCode& code, style::Dst::StyleContext& sctx) {
   StyleStepStats st;
   st.warm = true;
   const bool rendered = cfg_.warm_maps == WarmMaps::Rendered;
-  const features::Patch p = patches_->next(4);
+  const features::Patch p = patches_->next(4, draw);
   const int h = p.height / 4, w = p.width / 4;
   const int64_t R = int64_t(h) * w;
   // The map pixels of the patch's blocks: block centres (4j + 2) sit exactly on the map's pixel centres.
@@ -400,51 +402,95 @@ Tensor StyleTrainer::content_target(const features::Patch& p) {
   return t;
 }
 
-StyleStepStats StyleTrainer::step() {
-  const auto t0 = std::chrono::steady_clock::now();
-  const int k = iteration_ + 1;
-  if (styles_.train.empty()) throw Error("train-style: no training styles");
+StyleStepStats StyleTrainer::sub_step(int64_t g, StepKind kind) {
+  // Every draw of sub-batch g (its style, crop and patch) comes from g and the seed alone, so a step's
+  // sub-batches are the same whichever rank takes them.
+  std::mt19937_64 draw(cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(g) * 0xD1B54A32D192ED03ULL + 1);
   std::uniform_int_distribution<size_t> pick(0, styles_.train.size() - 1);
-  const std::string& path = styles_.train[pick(rng_)];
+  const std::string& path = styles_.train[pick(draw)];
   auto crop = [&] {
     auto source = style_sources_.find(path);
     if (source == style_sources_.end())
       source = style_sources_.emplace(path, style::load_style_source(path, cfg_.style_size)).first;
-    // Draws the crop's corner from rng_ only when the crop is smaller than the image.
-    return style::crop_style_image(source->second, cfg_.style_crop, &rng_, path);
+    // Draws the crop's corner only when the crop is smaller than the image.
+    return style::crop_style_image(source->second, cfg_.style_crop, &draw, path);
   };
-  model_.zero_grad();
   StyleStepStats st;
-  if (k <= cfg_.decoder_warm) {
+  if (kind == StepKind::DecoderWarm) {
     const Tensor simg = crop();
     st = decoder_warm_step(simg, vgg_.forward(simg, 4, false));  // the style branch is not used
   } else {
     const auto style = encoded_style(path, cfg_.style_size == cfg_.style_crop, crop);
     style::Dst::StyleContext sctx;
     const style::StyleCode code = model_.style_code(style->taps, &sctx);
-    bool warm = k <= cfg_.decoder_warm + cfg_.warm_start;
-    if (warm && schedule_progress_ >= cfg_.warm_share) {
-      // The warm start's share of the minutes is spent: it ends here, and the config (hence the checkpoint)
-      // records the steps it took, so a resumed run goes on with rendered steps.
-      cfg_.warm_start = k - 1 - cfg_.decoder_warm;
-      warm = false;
-    }
-    if (!warm && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
-      rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
-      targets_ = features::FeatureTargets{};
-    }
-    st = warm ? warm_step(k, style->targets, code, sctx) : rendered_step(k, style->targets, code, sctx);
+    st = kind == StepKind::Warm ? warm_step(draw, style->targets, code, sctx)
+                                : rendered_step(g, draw, style->targets, code, sctx);
   }
   st.style_name = stem(path);
+  return st;
+}
+
+StyleStepStats StyleTrainer::step() {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int k = iteration_ + 1;
+  if (styles_.train.empty()) throw Error("train-style: no training styles");
+  StepKind kind = k <= cfg_.decoder_warm ? StepKind::DecoderWarm
+                  : k <= cfg_.decoder_warm + cfg_.warm_start ? StepKind::Warm
+                                                            : StepKind::Rendered;
+  if (kind == StepKind::Warm && schedule_progress_ >= cfg_.warm_share) {
+    // The warm start's share of the minutes is spent: it ends here, and the config (hence the checkpoint)
+    // records the steps it took, so a resumed run goes on with rendered steps.
+    cfg_.warm_start = k - 1 - cfg_.decoder_warm;
+    kind = StepKind::Rendered;
+  }
+  if (kind != StepKind::Warm && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
+    rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
+    targets_ = features::FeatureTargets{};
+  }
+  model_.zero_grad();
+  // One style a step in one process: the step is that style's. Otherwise this rank's share of the step's
+  // styles, their gradients and SICT's running statistics then averaged over every rank's.
+  host::Dist& dist = host::Dist::world();
+  const int B = cfg_.styles_per_step;
+  const bool batched = B > 1 || dist.size() > 1;
+  std::unique_ptr<BufferMoves> moves;
+  if (batched) moves = std::make_unique<BufferMoves>(model_.sict.buffers());
+  const std::vector<nn::Param*> stepped = kind == StepKind::DecoderWarm ? model_.decoder_params() : model_.params();
+  GradientSum grads;
+  StyleStepStats st;
+  std::vector<double> sums(5, 0.0);  // content, style, contributing styles, rays, kept
+  for (int j = 0; j < B; ++j) {
+    if (!my_share(j, dist)) continue;
+    if (moves) moves->restart();
+    const StyleStepStats one = sub_step(int64_t(k - 1) * B + j, kind);
+    if (moves && kind == StepKind::Rendered && !one.skipped) moves->add();
+    if (batched && !one.skipped) grads.add(stepped);
+    if (st.style_name.empty()) st = one;
+    if (!one.skipped) sums[0] += one.content, sums[1] += one.style, sums[2] += 1;
+    sums[3] += double(one.rays), sums[4] += double(one.kept);
+  }
+  if (batched) {
+    dist.allreduce_sum(sums);
+    moves->finish(dist);
+    st.skipped = sums[2] == 0;
+    st.content = st.skipped ? 0 : sums[0] / sums[2];
+    st.style = st.skipped ? 0 : sums[1] / sums[2];
+    st.rays = int64_t(sums[3]);
+    st.kept = int64_t(sums[4]);
+    if (B > 1) st.style_name += " +" + std::to_string(B - 1);
+  }
+  st.decoder_warm = kind == StepKind::DecoderWarm;
+  st.warm = kind == StepKind::Warm;
   if (!st.skipped) {
     if (!std::isfinite(st.content + st.style))
-      throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + path +
+      throw Error("train-style: the loss is not finite at iteration " + std::to_string(k) + " (style " + st.style_name +
                   "); try lower learning rates or another --seed");
+    if (batched) sync_.add(grads.average(stepped, sums[2], dist));
     set_step_lrs(k, st.decoder_warm);
     // The decoder warm-up steps the decoder only: the stylizer's zeroed gradients would advance its Adam
     // clocks, and a stylizer that starts after 1500 such steps would begin without bias correction (its
     // first ~100 updates up to ~3x their intended size).
-    adam_.step(st.decoder_warm ? model_.decoder_params() : model_.params());
+    adam_.step(stepped);
   }
   iteration_ = k;
   if (cfg_.finite_check_every > 0 && k % cfg_.finite_check_every == 0) {

@@ -44,6 +44,7 @@
 #include "lib/nn/vgg.hpp"
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
+#include "lib/train/data_parallel.hpp"
 #include "lib/train/training_loop.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
@@ -68,6 +69,9 @@ struct StyleTrainConfig {
   float warm_share = 1.0f;
   WarmMaps warm_maps = WarmMaps::Vgg;  // what those steps read
   model::StyleDecoderKind style_decoder = model::StyleDecoderKind::Stage2;  // which decoder draws the maps
+  // Styles (each with its own patch) a step averages the gradients of; over MPI ranks they are dealt round
+  // robin (lib/train/data_parallel.hpp), and 1 rank taking N of them takes the step N ranks take.
+  int styles_per_step = 1;
   int running_init_patches = 4; // patches measured for SICT's initial running statistics (0: PyTorch's 0/1)
   // Saved with the model: the rays per block inference uses by default (kSupersampleByScene: settled here by
   // the scene, model::default_inference_supersample).
@@ -121,6 +125,12 @@ class StyleTrainer {
   int iteration() const { return iteration_; }
   bool done() const { return iteration_ >= cfg_.iters; }
   void set_total_iters(int iters) { cfg_.iters = iters; }
+  void set_styles_per_step(int n) {
+    StyleTrainConfig c = cfg_;
+    c.styles_per_step = n;
+    c.validate();
+    cfg_.styles_per_step = n;
+  }
   // Where the run stands in [0, 1] for the lr decay; a time-budgeted run passes its elapsed fraction (its
   // step count is only an estimate, refitted as it goes). Unset (< 0): iteration / iters.
   void set_schedule_progress(double f) { schedule_progress_ = f; }
@@ -128,6 +138,8 @@ class StyleTrainer {
   const StyleSet& styles() const { return styles_; }
   model::StyleModel& model() { return model_; }
   const nn::Adam& optimizer() const { return adam_; }
+  // The gradient averagings over ranks (or over a step's styles) so far (lib/train/data_parallel.hpp).
+  const SyncTotals& sync() const { return sync_; }
   // Mean losses of a fixed patch (the first training view's centre) under each held-out style (at most
   // max_styles of them), SICT in inference mode.
   HoldoutLoss evaluate_holdout(int max_styles = 0);
@@ -162,9 +174,12 @@ class StyleTrainer {
   // 1/4, the demo's scene) each view's is kept (up to kContentTargetBytes), else computed per step.
   Tensor content_target(const features::Patch& p);
   static constexpr size_t kContentTargetBytes = size_t(256) << 20;
-  StyleStepStats rendered_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
-                               style::Dst::StyleContext& sctx);
-  StyleStepStats warm_step(int k, const StyleTargets& style_targets, const style::StyleCode& code,
+  // One style of a step (sub-batch g of the run: its draws come from g alone; rendered_step's `sub` is g).
+  enum class StepKind { DecoderWarm, Warm, Rendered };
+  StyleStepStats sub_step(int64_t g, StepKind kind);
+  StyleStepStats rendered_step(int64_t sub, std::mt19937_64& draw, const StyleTargets& style_targets,
+                               const style::StyleCode& code, style::Dst::StyleContext& sctx);
+  StyleStepStats warm_step(std::mt19937_64& draw, const StyleTargets& style_targets, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
   void set_group_lr(const std::string& group, float lr);  // "stylizer" or "decoder": its Adam rate this step
@@ -181,7 +196,6 @@ class StyleTrainer {
   double schedule_progress_ = -1;
   double stylizer_start_ = -1;  // the run's progress at the stylizer's first step (its lr decay starts there)
   std::unique_ptr<features::PatchSampler> patches_;
-  std::mt19937_64 rng_;
   // Each training style decoded and resized to style_size once (116 styles at 512: 365 MB of host memory).
   std::unordered_map<std::string, io::Image> style_sources_;
   std::unordered_map<std::string, std::shared_ptr<const EncodedStyle>> encoded_styles_;  // by path
@@ -189,6 +203,7 @@ class StyleTrainer {
   std::unordered_map<int64_t, Tensor> content_targets_;  // by the patch's view and corner
   size_t content_target_bytes_ = 0;
   int iteration_ = 0;
+  SyncTotals sync_;
   nlohmann::json features_meta_;
 };
 

@@ -1,14 +1,20 @@
 """Several ranks under mpirun (Open MPI, `--oversubscribe`: 2 ranks on PoCL's one CPU device), against the
-tiny trained scene of the `stages` fixture: `stylize` over 2 ranks writes exactly the files 1 process
-writes (every frame and depth map bitwise, the same per-view losses), and a rank that fails stops the
-whole job with a message naming it. Skipped, and reported so, where MPI is absent or the tool was built
-without it.
+tiny trained scene of the `stages` fixture: `stylize` and `render` over 2 ranks write exactly the files 1
+process writes (every frame and depth map bitwise, the same per-view losses); `train-style` over 2 ranks
+(2 styles a step) takes the steps 1 process taking 2 styles a step takes, and resumes on 1 rank; a rank
+that fails or is killed stops the whole job with a message naming it, the last checkpoint intact; a
+command that does not split its work refuses several ranks. Skipped, and reported so, where MPI is absent
+or the tool was built without it.
 """
 import filecmp
 import json
 import os
 import shutil
+import signal
+import struct
 import subprocess
+import time
+from array import array
 
 import pytest
 
@@ -80,3 +86,152 @@ def test_a_failing_rank_stops_the_job_and_says_which(stages, tmp_path):
                "--frames", "2", "-o", str(tmp_path / "out"), timeout=120)
     assert r.returncode != 0
     assert "missing.png" in r.stdout and "error" in r.stdout
+
+
+def checkpoint_tensors(path: str) -> dict:
+    """A checkpoint's float32 tensors by name (safetensors: a little-endian u64 header length, a JSON header)."""
+    with open(path, "rb") as f:
+        n = struct.unpack("<Q", f.read(8))[0]
+        header = json.loads(f.read(n))
+        data = f.read()
+    out = {}
+    for name, info in header.items():
+        if name != "__metadata__" and info["dtype"] == "F32":
+            begin, end = info["data_offsets"]
+            out[name] = array("f", data[begin:end])
+    return out
+
+
+def largest_relative_difference(a: str, b: str) -> float:
+    """Over every tensor of two checkpoints: max |a - b| over the tensor's largest |a| (1 where it is 0)."""
+    ta, tb = checkpoint_tensors(a), checkpoint_tensors(b)
+    assert sorted(ta) == sorted(tb)
+    worst = 0.0
+    for name, x in ta.items():
+        y = tb[name]
+        assert len(x) == len(y), name
+        scale = max((abs(v) for v in x), default=0.0) or 1.0
+        worst = max(worst, max((abs(u - v) for u, v in zip(x, y)), default=0.0) / scale)
+    return worst
+
+
+# 8 2D warm-start steps, then rendered steps: both kinds of step, the second with SICT's running statistics.
+# Constant learning rates: a run of 10 steps resumed to 20 then has the rates of a run of 20.
+STYLE_ARGS = ["--warm-start", "8", "--holdout-styles", "1", "--eval-every", "0", "--log-every", "5", "--lr-decay", "1"]
+# An upsampling and an alpha-mask update within the 20 steps, so the ranks must take those events alike too.
+DENSITY_ARGS = ["--iters", "20", "--batch", "1024", "--upsample-at", "8", "--mask-at", "12", "--init-voxels", "32768",
+                "--final-voxels", "64000", "--log-every", "5"]
+
+
+def stage_commands(stages):
+    """Each stage's command for 20 steps, and its flag for the sub-batches a step of one process takes."""
+    return {
+        "density": (["train-density", "--scene", stages.scene, *DENSITY_ARGS], "--batch-slices"),
+        "features": (["train-features", "--density", stages.density, "--iters", "20", "--log-every", "5"],
+                     "--patches-per-step"),
+        "style": (["train-style", "--features", stages.features, "--styles", stages.styles, *STYLE_ARGS, "--iters", "20"],
+                  "--styles-per-step"),
+    }
+
+
+@pytest.fixture(scope="module")
+def stage_runs(stages, tmp_path_factory):
+    """Each stage for 20 steps on 2 ranks, on 1 rank taking both ranks' sub-batches, and on 1 rank taking one."""
+    root = tmp_path_factory.mktemp("mpi-stages")
+    paths = {}
+    for stage, (cmd, flag) in stage_commands(stages).items():
+        for name, ranks, extra in (("two", 2, []), ("one_by_two", 1, [flag, "2"]), ("one", 1, [])):
+            paths[stage, name] = str(root / f"{stage}-{name}.ckpt")
+            r = mpirun(ranks, *cmd, *extra, "-o", paths[stage, name])
+            assert r.returncode == 0, r.stdout
+            if name == "two":
+                assert "round robin over 2 ranks" in r.stdout, r.stdout
+                assert "gradients summed over 2 ranks" in r.stdout or "on 2 ranks" in r.stdout, r.stdout
+    return paths
+
+
+@pytest.mark.parametrize("stage", ["density", "features", "style"])
+def test_two_ranks_train_as_one_process_taking_both_ranks_sub_batches(stage_runs, stage):
+    # Every parameter, Adam moment and running statistic of the checkpoints (measured: bitwise equal).
+    assert largest_relative_difference(stage_runs[stage, "two"], stage_runs[stage, "one_by_two"]) <= 1e-5
+    if stage == "density":
+        # The slices are one batch cut in two: the whole batch at once differs only in the order of the sums.
+        assert largest_relative_difference(stage_runs[stage, "two"], stage_runs[stage, "one"]) <= 1e-4
+    else:
+        # The ranks did take different patches or styles: one a step is another run.
+        assert largest_relative_difference(stage_runs[stage, "two"], stage_runs[stage, "one"]) > 1e-3
+
+
+def test_a_two_rank_style_checkpoint_resumes_on_one_rank_where_it_left_off(stages, stage_runs, tmp_path):
+    cmd, _ = stage_commands(stages)["style"]
+    half = str(tmp_path / "half.ckpt")
+    r = mpirun(2, *[a if a != "20" else "10" for a in cmd], "-o", half)
+    assert r.returncode == 0, r.stdout
+    r = mpirun(1, "train-style", "--resume", "--iters", "20", *STYLE_ARGS, "-o", half)
+    assert r.returncode == 0, r.stdout
+    assert "resuming from" in r.stdout and "2 styles a step" in r.stdout, r.stdout
+    # Each style's draws depend on its index alone, and the optimiser's state is in the checkpoint.
+    assert largest_relative_difference(stage_runs["style", "two"], half) <= 1e-5
+
+
+@pytest.mark.parametrize("stage", ["density", "features"])
+def test_a_two_rank_checkpoint_resumes_on_one_rank(stages, stage_runs, stage, tmp_path):
+    ckpt = str(tmp_path / "resumed.ckpt")
+    shutil.copy(stage_runs[stage, "two"], ckpt)
+    command = ["train-density", "--scene", stages.scene] if stage == "density" else ["train-features"]
+    r = mpirun(1, *command, "--resume", "--iters", "24", "--log-every", "2", "-o", ckpt)
+    assert r.returncode == 0, r.stdout
+    assert "resuming from" in r.stdout and "it 24/24" in r.stdout, r.stdout
+    # The step still takes the two ranks' sub-batches: the checkpoint keeps them.
+    assert "in 2 slices" in r.stdout if stage == "density" else "2 patches a step" in r.stdout, r.stdout
+
+
+def rank_pids(marker: str, rank: int):
+    """The pids of processes whose command line holds `marker` and whose Open MPI rank is `rank`."""
+    pids = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if marker.encode() not in f.read():
+                    continue
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                if f"OMPI_COMM_WORLD_RANK={rank}".encode() in f.read().split(b"\0"):
+                    pids.append(int(pid))
+        except OSError:
+            continue
+    return pids
+
+
+def test_a_killed_rank_stops_training_and_leaves_the_last_checkpoint(stages, tmp_path):
+    out = str(tmp_path / "killed.ckpt")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", POCL_MAX_PTHREAD_COUNT="1")
+    job = subprocess.Popen(["mpirun", "-np", "2", "--oversubscribe", cli_path(), "train-style", "--features",
+                            stages.features, "--styles", stages.styles, *STYLE_ARGS, "--iters", "100000",
+                            "--ckpt-every", "3", "-o", out], env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.time() + 300
+        while not os.path.exists(out) and time.time() < deadline and job.poll() is None:
+            time.sleep(0.5)
+        assert os.path.exists(out), "no checkpoint was written"
+        victims = rank_pids(out, 1)
+        assert len(victims) == 1, victims
+        os.kill(victims[0], signal.SIGKILL)
+        output, _ = job.communicate(timeout=120)  # the job ends, bounded: no rank waits forever
+    finally:
+        if job.poll() is None:
+            job.kill()
+    assert job.returncode != 0
+    assert "rank 1" in output, output
+    # The last checkpoint loads, and training goes on from it on one rank.
+    r = mpirun(1, "train-style", "--resume", "--minutes", "0.02", *STYLE_ARGS, "-o", out)
+    assert r.returncode == 0, r.stdout
+    assert "resuming from" in r.stdout
+
+
+def test_a_command_that_does_not_split_its_work_refuses_two_ranks(stages, tmp_path):
+    r = mpirun(2, "make-scene", "-o", str(tmp_path / "scene"), "--size", "16", "--num-views", "4")
+    assert r.returncode != 0
+    assert "runs on one rank only" in r.stdout, r.stdout
+    assert not os.path.exists(tmp_path / "scene")
