@@ -60,7 +60,7 @@ std::vector<RefSample> ref_march(const float* o, const float* d, int r, const Ma
     }
   }
   if (!(tmax >= tmin)) return {};
-  const double jitter = c.jitter ? hash_uniform(c.seed, uint32_t(r)) : 0.0;
+  const double jitter = c.jitter ? hash_uniform(c.seed, c.ray_base + uint32_t(r)) : 0.0;
   const double span = (tmax - tmin) / c.step - jitter;
   if (span < 0) return {};
   if (std::fabs(span - std::round(span)) < 1e-4) ambiguous = true;
@@ -184,6 +184,34 @@ TEST_CASE("ray marching matches the CPU reference: counts, offsets, positions, t
   Samples s = render::march(to, td, c, nullptr);
   for (int n : s.ray_count.to_host_i32()) CHECK(n <= 7);
   check_march(s, o, d, c, nullptr, {1, 1, 1});
+}
+
+TEST_CASE("ray marching a slice of a batch from ray_base on draws the jitter the whole batch draws there") {
+  std::vector<float> o, d;
+  make_rays(300, 1, o, d);
+  const int R = int(o.size() / 3), lo = R / 3;
+  MarchConfig c;
+  c.step = 0.05f;
+  c.max_samples = 200;
+  c.far = 6.0f;
+  c.jitter = true;
+  c.seed = 99;
+  const Samples whole = render::march(Tensor::from_host(o, {R, 3}), Tensor::from_host(d, {R, 3}), c, nullptr);
+  const std::vector<float> po(o.begin() + 3 * lo, o.end()), pd(d.begin() + 3 * lo, d.end());
+  c.ray_base = uint32_t(lo);
+  const Samples part = render::march(Tensor::from_host(po, {R - lo, 3}), Tensor::from_host(pd, {R - lo, 3}), c, nullptr);
+  check_march(part, po, pd, c, nullptr, {1, 1, 1});  // the reference hashes ray_base + r too
+  const auto wc = whole.ray_count.to_host_i32(), wo = whole.ray_offset.to_host_i32();
+  const auto pc = part.ray_count.to_host_i32();
+  const auto wt = whole.t.to_host(), pt = part.t.to_host();
+  REQUIRE(part.count > 0);
+  REQUIRE(size_t(whole.count - part.count) == size_t(wo[size_t(lo)]));
+  for (int r = lo; r < R; ++r) REQUIRE(pc[size_t(r - lo)] == wc[size_t(r)]);
+  for (size_t i = 0; i < pt.size(); ++i) REQUIRE(pt[i] == wt[size_t(wo[size_t(lo)]) + i]);
+  // Without the base the slice's jitter is another draw.
+  c.ray_base = 0;
+  const auto other = render::march(Tensor::from_host(po, {R - lo, 3}), Tensor::from_host(pd, {R - lo, 3}), c, nullptr).t.to_host();
+  CHECK(other != pt);
 }
 
 TEST_CASE("ray marching skips empty alpha-mask voxels exactly like the reference") {

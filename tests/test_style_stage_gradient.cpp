@@ -116,7 +116,7 @@ const std::vector<Recipe>& recipes() {
   return r;
 }
 
-// What the trainer's first rendered step reads: its patch (the trainer's patch sampler, same seed), the
+// What the trainer's first rendered step reads: its patch (drawn as the trainer draws it), the
 // style's taps and targets, the true patch's relu4_1, the jitter seed, and the opacity mask.
 struct StepInputs {
   features::Patch patch;
@@ -134,9 +134,11 @@ StepInputs first_step_inputs(const train::StyleTrainConfig& cfg, model::StyleMod
                              const std::string& style_path) {
   StepInputs in;
   const int s = m.stride();
-  // StyleTrainer::init: the patch sampler's seed at iteration 0 (no patches drawn before the first step).
-  features::PatchSampler patches(testing::small_scene(), cfg.seed * 0x9E3779B97F4A7C15ULL + 1, cfg.patch);
-  in.patch = patches.next(s);
+  // The first step's draws: its style (one training style here), no crop (the whole image), its patch.
+  features::PatchSampler patches(testing::small_scene(), 0, cfg.patch);
+  std::mt19937_64 draw = train::StyleTrainer::sub_batch_draws(cfg.seed, 0);
+  std::uniform_int_distribution<size_t>(0, 0)(draw);
+  in.patch = patches.next(s, draw);
   in.h = in.patch.height / s;
   in.w = in.patch.width / s;
   const int64_t R = int64_t(in.h) * in.w;

@@ -405,7 +405,7 @@ Tensor StyleTrainer::content_target(const features::Patch& p) {
 StyleStepStats StyleTrainer::sub_step(int64_t g, StepKind kind) {
   // Every draw of sub-batch g (its style, crop and patch) comes from g and the seed alone, so a step's
   // sub-batches are the same whichever rank takes them.
-  std::mt19937_64 draw(cfg_.seed * 0x9E3779B97F4A7C15ULL + uint64_t(g) * 0xD1B54A32D192ED03ULL + 1);
+  std::mt19937_64 draw = sub_batch_draws(cfg_.seed, g);
   std::uniform_int_distribution<size_t> pick(0, styles_.train.size() - 1);
   const std::string& path = styles_.train[pick(draw)];
   auto crop = [&] {
@@ -443,7 +443,7 @@ StyleStepStats StyleTrainer::step() {
     cfg_.warm_start = k - 1 - cfg_.decoder_warm;
     kind = StepKind::Rendered;
   }
-  if (kind != StepKind::Warm && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
+  if (kind == StepKind::Rendered && (rendered_maps_.maps.maps.defined() || targets_.maps.defined())) {
     rendered_maps_ = RenderedWarmMaps{};  // the warm start is over: its maps (2 GB at 800x800) go
     targets_ = features::FeatureTargets{};
   }

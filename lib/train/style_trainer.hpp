@@ -122,6 +122,12 @@ class StyleTrainer {
   StyleTrainer(const scene::Scene& scene, const io::Checkpoint& ck, std::ostream* log);
 
   StyleStepStats step();
+  // The generator of sub-batch g's draws (g = step index x styles_per_step + its place in the step): its
+  // style (uniform over the training styles), the style crop's corner (when smaller than the image), then
+  // its patch (PatchSampler::next), in that order.
+  static std::mt19937_64 sub_batch_draws(uint64_t seed, int64_t g) {
+    return std::mt19937_64(seed * 0x9E3779B97F4A7C15ULL + uint64_t(g) * 0xD1B54A32D192ED03ULL + 1);
+  }
   int iteration() const { return iteration_; }
   bool done() const { return iteration_ >= cfg_.iters; }
   void set_total_iters(int iters) { cfg_.iters = iters; }
