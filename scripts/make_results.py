@@ -328,6 +328,7 @@ def page(root):
     gpu = load(root, "docs/results/gpu.json")["records"]
     knobs = load(root, "docs/results/knobs.json")["records"]
     viewer = load(root, "docs/results/viewer.json")["records"]
+    mpi = load(root, "docs/results/mpi.json")
     machines = load(root, "docs/results/runs.json")["machines"]
     style_all = style_candidates(style, runs)
     h100 = load(root, "docs/device/h100_device_check.json")
@@ -382,7 +383,7 @@ def page(root):
 
     L += density_section(density) + feature_section(features) + style_section(style_all)
     L += consistency_section(cons) + resolution_section(runs) + budget_section(runs) + demo_section(demo)
-    L += viewer_section(viewer)
+    L += viewer_section(viewer) + mpi_section(mpi, h100)
     L += knobs_section(knobs) + gpu_section(gpu, h100, h200, root) + machines_section(machines)
     return "\n".join(L) + "\n", svgs
 
@@ -580,6 +581,59 @@ def viewer_section(viewer):
                 "full frame / stylize's", "server / stylize peak RSS (drift)", "machine, date", "commit",
                 "command"], rows)
     return L + [""]
+
+
+def mpi_section(mpi, h100):
+    L = ["<a id=\"more-than-one-device\"></a>", "## More than one device (MPI)", "",
+         "Each stage's same step (2 sub-batches: 2 ray slices, 2 patches or 2 styles) taken by one rank with one "
+         "core and by two ranks with one core each (`mpirun --bind-to core`, `POCL_MAX_PTHREAD_COUNT=1`), one run "
+         "after the other, alone on the machine. Steps a second over the training seconds each run prints "
+         "(loading and kernel builds not counted). *Exchange*: taking the gradient off the device, summing it "
+         "over the ranks in double (`MPI_Allreduce` over shared memory) and putting it back, each step.", ""]
+    rows = []
+    for r in mpi["records"]:
+        n = lambda key: num(r, key)
+        rows.append([r["stage"], r["step"], cell(n("one_steps_s"), " /s"), cell(n("two_steps_s"), " /s"),
+                     "**%sx**" % text(n("speedup")), cell(n("gradient_mb"), " MB"),
+                     "%s ms (%s%% of a step)" % (text(n("exchange_ms")), text(n("exchange_pct"))),
+                     r["machine"] + ", " + r["date"], commit_cell(r), cmd_cell(r["command"])])
+    L += table(["stage", "the step", "1 rank", "2 ranks", "2 / 1", "gradient a step", "exchange (2 ranks)",
+                "machine, date", "commit", "command"], rows)
+    pr = mpi["projection"]
+    link = pr["links"]
+    L += ["", "### Eight GPUs, projected", "",
+          "From a step's time on one %s (docs/device/h100_device_check.json) and the paper profile's gradient "
+          "(bytes B, float32: %s; %s), for N = 8 GPUs each taking one sub-batch (eight styles a step): "
+          "t_N = t_1 + t_x with, as implemented (the gradient through host memory: OpenCL has no device-to-device "
+          "collective), t_x = 2 B / PCIe + 2 (N - 1) / N x 2 B / link (a ring all-reduce of doubles), and, for "
+          "comparison, a device-side float ring over NVLink: t_x = 2 (N - 1) / N x B / NVLink. Throughput: "
+          "N t_1 / t_N steps' worth a second against one GPU. Assumed: PCIe %s GB/s each way, NVLink %s GB/s, "
+          "100 Gb/s Ethernet %s GB/s, one machine's shared memory %s GB/s; latency ignored (%s)." % (
+              h100["device"], cmd_cell(pr["gradient_command"]), pr["gradient_note"], text(link["pcie_gb_s"]), text(link["nvlink_gb_s"]),
+              text(link["ethernet_gb_s"]), text(link["shared_memory_gb_s"]), pr["latency_note"]), ""]
+    rows = []
+    N = 8
+    for st in pr["stages"]:
+        t1 = float(h100_step(h100, st["h100_part"], st["h100_key"]))
+        B = float(st["gradient_mb"]) * 1e6
+        ring = 2.0 * (N - 1) / N
+        host = lambda gb_s: 2 * B / (float(link["pcie_gb_s"]) * 1e9) + ring * 2 * B / (float(gb_s) * 1e9)
+        cells = []
+        for tx in (host(link["shared_memory_gb_s"]), host(link["ethernet_gb_s"]),
+                   ring * B / (float(link["nvlink_gb_s"]) * 1e9)):
+            cells.append("%.1f ms: %.1fx" % (1e3 * tx, N * t1 / (t1 + tx)))
+        rows.append([st["stage"], "%.1f ms" % (1e3 * t1), cell(st["gradient_mb"], " MB")] + cells)
+    L += table(["stage (paper profile)", "t_1 on one H100", "B", "one machine, host path", "8 machines, 100 GbE",
+                "NVLink, device-side"], rows)
+    L += ["", "What scales: styles, patches and ray slices over ranks of equal speed. What does not: the whole "
+          "gradient goes round every step however few voxels the step touched (the density and feature grids), "
+          "and a step waits for its slowest rank, so a CPU rank beside a GPU slows the GPU to the CPU's pace. "
+          "`stylize` over ranks: [the knobs table](#other-knobs-and-choices-that-are-always-on).", ""]
+    return L
+
+
+def h100_step(h100, part, key):
+    return h100["parts"][part][key]
 
 
 def knobs_section(knobs):
