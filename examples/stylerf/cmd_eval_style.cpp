@@ -11,7 +11,9 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
+#include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/model/block_refine.hpp"
@@ -43,6 +45,51 @@ StyleMeans style_means(const std::vector<stylerf::train::StyleEvalRow>& rows) {
   }
   m.structure = !rows.empty() && rows[0].structure_views > 0;
   return m;
+}
+
+// A row and back, every field, for the ranks' rows to reach rank 0 ("view": its style's place in the list).
+nlohmann::json row_to_json(const stylerf::train::StyleEvalRow& r, size_t index) {
+  return {{"view", index},
+          {"style", r.style},
+          {"losses", {r.ours_content, r.ours_style, r.adain_content, r.adain_style, r.ours_lpips, r.adain_lpips}},
+          {"ours_taps", r.ours_style_tap},
+          {"adain_taps", r.adain_style_tap},
+          {"structure_views", r.structure_views}};
+}
+
+stylerf::train::StyleEvalRow row_from_json(const nlohmann::json& j) {
+  stylerf::train::StyleEvalRow r;
+  r.style = j.at("style").get<std::string>();
+  const auto l = j.at("losses").get<std::vector<double>>();
+  r.ours_content = l.at(0), r.ours_style = l.at(1), r.adain_content = l.at(2), r.adain_style = l.at(3);
+  r.ours_lpips = l.at(4), r.adain_lpips = l.at(5);
+  r.ours_style_tap = j.at("ours_taps").get<decltype(r.ours_style_tap)>();
+  r.adain_style_tap = j.at("adain_taps").get<decltype(r.adain_style_tap)>();
+  r.structure_views = j.at("structure_views").get<int>();
+  return r;
+}
+
+// The styles dealt round robin over the ranks (lib/train/style_eval.hpp evaluates each rank's share), their
+// sheets gathered under `images` and their rows on rank 0 in the list's order; the other ranks get none.
+std::vector<stylerf::train::StyleEvalRow> evaluate_over_ranks(const stylerf::model::StyleModel& model,
+                                                             stylerf::nn::VggEncoder& vgg,
+                                                             stylerf::style::AdainModel& adain,
+                                                             const stylerf::scene::Scene& scene,
+                                                             const std::vector<std::string>& styles,
+                                                             stylerf::train::StyleEvalOptions opt) {
+  std::vector<std::string> mine;
+  std::vector<size_t> index;
+  for (size_t i = 0; i < styles.size(); ++i)
+    if (my_view(i)) mine.push_back(styles[i]), index.push_back(i);
+  const std::string images = opt.image_dir;
+  if (!images.empty()) opt.image_dir = rank_output_dir(images);
+  const auto rows = stylerf::train::evaluate_styles(model, vgg, adain, scene, mine, opt);
+  if (!images.empty()) collect_rank_outputs(opt.image_dir, images);
+  nlohmann::json js = nlohmann::json::array();
+  for (size_t i = 0; i < rows.size(); ++i) js.push_back(row_to_json(rows[i], index[i]));
+  std::vector<stylerf::train::StyleEvalRow> all;
+  for (const auto& j : gather_view_rows(js)) all.push_back(row_from_json(j));
+  return all;
 }
 
 // A value when it was measured, else JSON null.
@@ -156,7 +203,8 @@ int run_eval_style(int argc, char** argv) {
   opt.image_dir = images;
   opt.lpips = &lpips;
   opt.log = &std::cout;
-  const auto rows = train::evaluate_styles(model, vgg, adain, scene, styles, opt);
+  const auto rows = evaluate_over_ranks(model, vgg, adain, scene, styles, opt);
+  if (!stylerf::host::Dist::world().root()) return 0;  // rank 0 reports
   const StyleMeans mean = style_means(rows);
   print_style_table(std::cout, rows, mean, lpips_net, lpips.min_side());
   if (!json_path.empty()) {

@@ -109,13 +109,15 @@ bool index_complete() {
 
 // The commands that split their work over MPI ranks. Any other, started on several ranks, would do the same
 // work on each and write the same files at once: it is refused (by rank 0; the others leave quietly).
-bool runs_over_ranks(const std::string& command) {
-  static const char* const kSplit[] = {"train-density", "train-features", "train-style", "stylize", "render"};
+bool runs_over_ranks(const std::string& command, const std::string& sub) {
+  static const char* const kSplit[] = {"train-density", "train-features", "train-style", "stylize", "render",
+                                       "eval style"};
   auto& dist = stylerf::host::Dist::world();
-  if (dist.size() == 1 || std::find(std::begin(kSplit), std::end(kSplit), command) != std::end(kSplit)) return true;
+  const std::string name = command == "eval" && !sub.empty() ? command + " " + sub : command;
+  if (dist.size() == 1 || std::find(std::begin(kSplit), std::end(kSplit), name) != std::end(kSplit)) return true;
   if (dist.root())
-    std::cerr << "stylerf " << command << ": error: runs on one rank only, and this job has " << dist.size()
-              << " (mpirun -np 1, or no mpirun); the training stages, stylize and render split their work over ranks\n";
+    std::cerr << "stylerf " << name << ": error: runs on one rank only, and this job has " << dist.size()
+              << " (mpirun -np 1, or no mpirun); the training stages, stylize, render and eval style split their work over ranks\n";
   dist.finalize();
   return false;
 }
@@ -165,7 +167,7 @@ int main(int argc, char** argv) {
     args.insert(args.begin() + 1, style_name);
   }
   if (const cli::Command* c = find_command(args.front())) {
-    if (!runs_over_ranks(c->name)) return 2;
+    if (!runs_over_ranks(c->name, args.size() > 1 ? args[1] : "")) return 2;
     return run_command(*c, int(args.size()), args.data());
   }
   std::cerr << "stylerf: unknown command '" << argv[1] << "'\n";

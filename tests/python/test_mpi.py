@@ -1,10 +1,10 @@
 """Several ranks under mpirun (Open MPI, `--oversubscribe`: 2 ranks on PoCL's one CPU device), against the
-tiny trained scene of the `stages` fixture: `stylize` and `render` over 2 ranks write exactly the files 1
-process writes (every frame and depth map bitwise, the same per-view losses); `train-style` over 2 ranks
-(2 styles a step) takes the steps 1 process taking 2 styles a step takes, and resumes on 1 rank; a rank
-that fails or is killed stops the whole job with a message naming it, the last checkpoint intact; a
-command that does not split its work refuses several ranks. Skipped, and reported so, where MPI is absent
-or the tool was built without it.
+tiny trained scene of the `stages` fixture: `stylize`, `render` and `eval style` over 2 ranks write exactly
+the files 1 process writes (every frame and depth map bitwise, the same per-view losses); each training
+stage over 2 ranks takes the steps 1 process taking both ranks' sub-batches takes, and its checkpoint
+resumes on 1 rank; a rank that fails or is killed stops the whole job with a message naming it, the last
+checkpoint intact; a command that does not split its work refuses several ranks. Skipped, and reported
+so, where MPI is absent or the tool was built without it.
 """
 import filecmp
 import json
@@ -184,6 +184,19 @@ def test_a_two_rank_checkpoint_resumes_on_one_rank(stages, stage_runs, stage, tm
     assert "resuming from" in r.stdout and "it 24/24" in r.stdout, r.stdout
     # The step still takes the two ranks' sub-batches: the checkpoint keeps them.
     assert "in 2 slices" in r.stdout if stage == "density" else "2 patches a step" in r.stdout, r.stdout
+
+
+def test_eval_style_over_two_ranks_writes_what_one_process_writes(stages, tmp_path):
+    args = ["eval", "style", "--ckpt", stages.style, "--styles", stages.styles, "--max-views", "2"]
+    for ranks in (1, 2):
+        r = mpirun(ranks, *args, "-o", str(tmp_path / f"sheets{ranks}"), "--json", str(tmp_path / f"eval{ranks}.json"))
+        assert r.returncode == 0, r.stdout
+        assert "mean over 3 styles" in r.stdout, r.stdout
+    assert (tmp_path / "eval1.json").read_text() == (tmp_path / "eval2.json").read_text()
+    names = files_under(str(tmp_path / "sheets1"))
+    assert len(names) == 3 and names == files_under(str(tmp_path / "sheets2"))
+    for n in names:
+        assert filecmp.cmp(str(tmp_path / "sheets1" / n), str(tmp_path / "sheets2" / n), shallow=False), n
 
 
 def rank_pids(marker: str, rank: int):
