@@ -2,6 +2,11 @@
 // mpirun or srun, else this process alone (rank 0 of 1, every call a no-op or a copy). Nothing here knows
 // what the processes compute: callers split their work by rank() and size() and meet in the calls below.
 // Every rank must make the same calls in the same order (MPI's collectives).
+//
+// A rank that hangs (stopped, deadlocked, stuck in a driver) would leave the others waiting in a collective
+// forever: every collective here first meets the others with a time limit. The ranks send each other a small
+// sign of life (alive(), and every meeting); when one has not been heard from for `timeout_s()` seconds while
+// the others wait, the job ends with an error naming it. A rank that dies is ended by the launcher itself.
 #pragma once
 #include <string>
 #include <vector>
@@ -28,6 +33,11 @@ class Dist {
   // `root`'s values on every rank, in place (the same length on every rank).
   void broadcast(std::vector<double>& values, int root = 0);
   double broadcast(double value, int root = 0);
+  // A sign of life between collectives, for work that is long between them (a rank's share of frames): call it
+  // after each unit of work. Cheap: at most one message a second.
+  void alive();
+  // How long a rank may stay silent while the others wait: STYLERF_RANK_TIMEOUT_S, else 300 s.
+  double timeout_s() const { return timeout_s_; }
   // Ends the whole job at once (a rank that failed must not leave the others waiting in a collective).
   [[noreturn]] void abort(int code);
   // MPI_Finalize when it was initialised; called once at exit.
@@ -35,8 +45,16 @@ class Dist {
 
  private:
   Dist();
+  // Every rank reaches this point before a collective starts, or the job ends naming the silent rank.
+  void meet(const char* collective);
+  void send_signs_of_life(bool now);
+  void read_signs_of_life();
   int rank_ = 0, size_ = 1, local_rank_ = 0, local_size_ = 1;
   bool mpi_ = false;
+  double timeout_s_ = 300;
+  long meetings_ = 0;             // collectives started by this rank
+  std::vector<double> heard_at_;  // when each rank was last heard from (rank 0: all; others: rank 0)
+  double sent_at_ = -1e300;
 };
 
 }  // namespace stylerf::host

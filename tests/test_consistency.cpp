@@ -355,6 +355,14 @@ TEST_CASE("hand-computed path: per-pair RMSE, the range's mean over pairs, and a
   CHECK(j["short"]["pairs"][2]["rmse"].is_null());
   CHECK(j["short"]["pairs"][2]["left_out"]["off_image"] == 16);
   CHECK(double(j["short"]["rmse"]) == doctest::Approx(0.23660254037844387).epsilon(1e-5));
+  // Read back (how MPI ranks send scores to rank 0): every number the same, the empty pair's NaN kept.
+  const auto back = eval::ConsistencyScore::from_json(nlohmann::json::parse(j.dump()));
+  CHECK(back.to_json().dump() == j.dump());
+  CHECK(back.short_range.rmse == sr.rmse);
+  CHECK(back.long_range.lpips == lr.lpips);
+  CHECK(back.short_range.pairs[1].stats.valid == 4);
+  CHECK(std::isnan(back.short_range.pairs[2].rmse));
+  CHECK(std::isnan(back.short_range.pairs[2].lpips));
 
   // Without a single valid pair the range has no score (NaN), not 0.
   const std::vector<io::Image> far_apart{frames[0], frames[3], frames[0]};

@@ -23,7 +23,9 @@
 #include "examples/stylerf/eval_setup.hpp"
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/frame_outputs.hpp"
+#include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/path_frames.hpp"
@@ -281,7 +283,11 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
     std::cout << "  content of " << w.path.cams.size() << " frames rendered once for all styles ("
               << fmt(seconds_since(t), 1) << " s)" << std::endl;
   }
+  // Styles are dealt round robin over MPI ranks (one process: all of them); rank 0 has the first style, whose
+  // frames make the side-by-side video.
+  nlohmann::json mine = nlohmann::json::array();
   for (size_t si = 0; si < styles.size(); ++si) {
+    if (!my_view(si)) continue;
     const std::string& st = styles[si];
     const auto t = Clock::now();
     const auto a = eval::adain_frames(adain, w.rgb, eval::load_style_for_eval(st));
@@ -301,6 +307,22 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
       if (si == 0 && mi == 0) first_stylerf = f;
     }
     std::cout << "    (" << fmt(seconds_since(t), 1) << " s)" << std::endl;
+    nlohmann::json row = {{"view", si}, {"adain", adain_rows.scores.back().to_json()}, {"models", nlohmann::json::array()}};
+    for (const auto& r : rows) row["models"].push_back(r.scores.back().to_json());
+    mine.push_back(row);
+  }
+  if (host::Dist::world().size() > 1) {  // every rank's styles on rank 0, in the list's order
+    adain_rows.styles.clear(), adain_rows.scores.clear();
+    for (auto& r : rows) r.styles.clear(), r.scores.clear();
+    for (const auto& row : gather_view_rows(mine)) {
+      const std::string& st = styles[row.at("view").get<size_t>()];
+      adain_rows.styles.push_back(st);
+      adain_rows.scores.push_back(eval::ConsistencyScore::from_json(row.at("adain")));
+      for (size_t mi = 0; mi < rows.size(); ++mi) {
+        rows[mi].styles.push_back(st);
+        rows[mi].scores.push_back(eval::ConsistencyScore::from_json(row.at("models").at(mi)));
+      }
+    }
   }
   rows.insert(rows.begin(), adain_rows);
   return rows;
@@ -364,7 +386,7 @@ SceneResult eval_scene(const TableArgs& a, const TableInputs& in, size_t gi, sty
     folder = scene.name + "_" + std::to_string(k);
   used_folders.push_back(folder);
   const fs::path sdir = fs::path(a.out) / folder;
-  fs::create_directories(sdir);
+  if (host::Dist::world().root()) fs::create_directories(sdir);
   std::cout << "== " << scene.name << " (" << group.front() << "): " << styles.size() << " styles\n";
   // The RGB floor's frames and the geometry every method is warped by, from one render of the density.
   const auto t_rgb = Clock::now();
@@ -383,7 +405,7 @@ SceneResult eval_scene(const TableArgs& a, const TableInputs& in, size_t gi, sty
   for (auto& m : score_styles({scene, path, rgb, dist, a.p}, in.style_cks[gi], styles, adain, first_adain,
                               first_stylerf))
     res.methods.push_back(m);
-  write_scene_outputs(sdir, res, first_adain, first_stylerf, a.fps);
+  if (host::Dist::world().root()) write_scene_outputs(sdir, res, first_adain, first_stylerf, a.fps);
   res.json = {{"scene", scene.name},
               {"checkpoints", group},
               {"frames", {path.cams.front().width, path.cams.front().height}},
@@ -458,7 +480,7 @@ int run_eval_table(int argc, char** argv) {
   std::unique_ptr<eval::Lpips> lpips;
   if (!a.no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));
   const auto dist = lpips_distance(lpips.get());
-  fs::create_directories(a.out);
+  if (host::Dist::world().root()) fs::create_directories(a.out);
   const auto t_all = Clock::now();
   std::vector<SceneResult> results;
   std::vector<std::string> used_folders;
@@ -476,6 +498,7 @@ int run_eval_table(int argc, char** argv) {
                         {"seconds", total},
                         {"scenes", nlohmann::json::array()}};
   for (const auto& r : results) doc["scenes"].push_back(r.json);
+  if (!host::Dist::world().root()) return 0;  // rank 0 writes the table
   host::write_file_atomic((fs::path(a.out) / "table.md").string(), md);
   host::write_file_atomic((fs::path(a.out) / "table.json").string(), doc.dump(2) + "\n");
   std::cout << "\n" << md << "-> " << a.out << "/table.md, table.json\n";

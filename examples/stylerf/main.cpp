@@ -111,13 +111,13 @@ bool index_complete() {
 // work on each and write the same files at once: it is refused (by rank 0; the others leave quietly).
 bool runs_over_ranks(const std::string& command, const std::string& sub) {
   static const char* const kSplit[] = {"train-density", "train-features", "train-style", "stylize", "render",
-                                       "eval style"};
+                                       "eval style", "eval table"};
   auto& dist = stylerf::host::Dist::world();
   const std::string name = command == "eval" && !sub.empty() ? command + " " + sub : command;
   if (dist.size() == 1 || std::find(std::begin(kSplit), std::end(kSplit), name) != std::end(kSplit)) return true;
   if (dist.root())
     std::cerr << "stylerf " << name << ": error: runs on one rank only, and this job has " << dist.size()
-              << " (mpirun -np 1, or no mpirun); the training stages, stylize, render and eval style split their work over ranks\n";
+              << " (mpirun -np 1, or no mpirun); the training stages, stylize, render, eval style and eval table split their work over ranks\n";
   dist.finalize();
   return false;
 }

@@ -7,7 +7,8 @@
 
 namespace stylerf::cli {
 
-// Whether view i (of the command's list) is this rank's: views are dealt round robin.
+// Whether view i (of the command's list) is this rank's: views are dealt round robin. Ask it as the rank
+// reaches each view: it is the rank's sign of life to the others (host::Dist::alive).
 bool my_view(size_t i);
 // Where this rank writes: `out` on rank 0, a fresh temporary folder on the others.
 std::string rank_output_dir(const std::string& out);

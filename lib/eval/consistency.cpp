@@ -69,6 +69,7 @@ nlohmann::json range_json(const RangeScore& r) {
                      {"rmse", number(p.rmse)},
                      {"lpips", number(p.lpips)},
                      {"valid_fraction", p.valid_fraction},
+                     {"valid_pixels", p.stats.valid},
                      {"left_out", {{"background", p.stats.background},
                                    {"no_depth", p.stats.no_depth},
                                    {"off_image", p.stats.off_image},
@@ -116,6 +117,42 @@ ConsistencyScore score_frames(const std::vector<io::Image>& frames, const PathWa
 
 nlohmann::json ConsistencyScore::to_json() const {
   return {{"short", range_json(short_range)}, {"long", range_json(long_range)}};
+}
+
+namespace {
+double number_or_nan(const nlohmann::json& v) { return v.is_null() ? std::nan("") : v.get<double>(); }
+
+RangeScore range_from_json(const nlohmann::json& j) {
+  RangeScore r;
+  r.k = j.at("k").get<int>();
+  r.rmse = number_or_nan(j.at("rmse"));
+  r.lpips = number_or_nan(j.at("lpips"));
+  r.skipped = j.at("skipped").get<int>();
+  r.valid_fraction = j.at("valid_fraction").get<double>();
+  for (const auto& pj : j.at("pairs")) {
+    PairScore p;
+    p.t = pj.at("t").get<int>();
+    p.s = pj.at("s").get<int>();
+    p.rmse = number_or_nan(pj.at("rmse"));
+    p.lpips = number_or_nan(pj.at("lpips"));
+    p.valid_fraction = pj.at("valid_fraction").get<double>();
+    p.stats.valid = pj.at("valid_pixels").get<int64_t>();
+    const auto& out = pj.at("left_out");
+    p.stats.background = out.at("background").get<int64_t>();
+    p.stats.no_depth = out.at("no_depth").get<int64_t>();
+    p.stats.off_image = out.at("off_image").get<int64_t>();
+    p.stats.occluded = out.at("occluded").get<int64_t>();
+    r.pairs.push_back(p);
+  }
+  return r;
+}
+}  // namespace
+
+ConsistencyScore ConsistencyScore::from_json(const nlohmann::json& j) {
+  ConsistencyScore s;
+  s.short_range = range_from_json(j.at("short"));
+  s.long_range = range_from_json(j.at("long"));
+  return s;
 }
 
 }  // namespace stylerf::eval

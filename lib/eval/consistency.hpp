@@ -57,6 +57,8 @@ struct RangeScore {
 struct ConsistencyScore {
   RangeScore short_range, long_range;
   nlohmann::json to_json() const;
+  // to_json's inverse, exact (how ranks send their scores to rank 0).
+  static ConsistencyScore from_json(const nlohmann::json& j);
 };
 
 // frames: the method's images of the path, one per warp frame, same sizes. lpips may be null (RMSE only).

@@ -5,6 +5,7 @@
 #include <iomanip>
 #include <ostream>
 
+#include "host/dist.hpp"
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/scene_style_stats.hpp"
@@ -92,6 +93,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
       return masked ? opt.lpips->distance(truth_image, s, pixel_mask) : opt.lpips->distance(truth_image, s);
     };
     for (size_t si = 0; si < styles.size(); ++si) {
+      host::Dist::world().alive();  // under MPI the other ranks may be waiting for this share of styles
       const auto ours_rgb = m.stylize_camera(cc, codes[si], W, H);
       const Tensor ours = planar_crop(ours_rgb, W, He, We);
       Tensor ad = style::adain_stylize(adain, truth, style_imgs[si], 1.0f);

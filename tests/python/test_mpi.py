@@ -1,10 +1,10 @@
 """Several ranks under mpirun (Open MPI, `--oversubscribe`: 2 ranks on PoCL's one CPU device), against the
-tiny trained scene of the `stages` fixture: `stylize`, `render` and `eval style` over 2 ranks write exactly
-the files 1 process writes (every frame and depth map bitwise, the same per-view losses); each training
-stage over 2 ranks takes the steps 1 process taking both ranks' sub-batches takes, and its checkpoint
-resumes on 1 rank; a rank that fails or is killed stops the whole job with a message naming it, the last
-checkpoint intact; a command that does not split its work refuses several ranks. Skipped, and reported
-so, where MPI is absent or the tool was built without it.
+tiny trained scene of the `stages` fixture: `stylize`, `render`, `eval style` and `eval table` over 2 ranks
+write exactly the files 1 process writes (every frame and depth map bitwise, the same per-view losses and
+scores); each training stage over 2 ranks takes the steps 1 process taking both ranks' sub-batches takes,
+and its checkpoint resumes on 1 rank; a rank that fails, is killed or hangs stops the whole job with a
+message naming it, the last checkpoint intact; a command that does not split its work refuses several
+ranks. Skipped, and reported so, where MPI is absent or the tool was built without it.
 """
 import filecmp
 import json
@@ -199,6 +199,29 @@ def test_eval_style_over_two_ranks_writes_what_one_process_writes(stages, tmp_pa
         assert filecmp.cmp(str(tmp_path / "sheets1" / n), str(tmp_path / "sheets2" / n), shallow=False), n
 
 
+def test_eval_table_over_two_ranks_writes_what_one_process_writes(stages, tmp_path):
+    args = ["eval", "table", "--scene-ckpts", f"{stages.density},{stages.style}", "--styles", stages.styles,
+            "--max-styles", "3", "--scored-frames", "9", "--path-frames", "30", "--no-lpips"]
+    tables = []
+    for ranks in (1, 2):
+        out = tmp_path / f"table{ranks}"
+        r = mpirun(ranks, *args, "-o", str(out))
+        assert r.returncode == 0, r.stdout
+        table = json.loads((out / "table.json").read_text())
+        table.pop("seconds")  # the only thing that may differ: the time it took
+        tables.append(table)
+        names = files_under(str(out))
+        assert "table.md" in names and any(n.endswith("side_by_side.mp4") for n in names), names
+    assert tables[0] == tables[1]
+    assert len(tables[0]["scenes"][0]["methods"][1]["per_style"]) == 3
+    md = [(tmp_path / f"table{k}" / "table.md").read_text().rsplit("\n(", 1)[0] for k in (1, 2)]
+    assert md[0] == md[1]
+    frames = sorted(n for n in files_under(str(tmp_path / "table1")) if n.endswith(".png"))
+    assert frames and frames == sorted(n for n in files_under(str(tmp_path / "table2")) if n.endswith(".png"))
+    for n in frames:
+        assert filecmp.cmp(str(tmp_path / "table1" / n), str(tmp_path / "table2" / n), shallow=False), n
+
+
 def rank_pids(marker: str, rank: int):
     """The pids of processes whose command line holds `marker` and whose Open MPI rank is `rank`."""
     pids = []
@@ -241,6 +264,54 @@ def test_a_killed_rank_stops_training_and_leaves_the_last_checkpoint(stages, tmp
     r = mpirun(1, "train-style", "--resume", "--minutes", "0.02", *STYLE_ARGS, "-o", out)
     assert r.returncode == 0, r.stdout
     assert "resuming from" in r.stdout
+
+
+@pytest.mark.parametrize("victim", [1, 0])
+def test_a_stopped_rank_ends_the_job_in_bounded_time_naming_it(stages, tmp_path, victim):
+    """A rank that hangs without dying (SIGSTOP) is named by one that waits for it, within the time limit."""
+    out = str(tmp_path / "stopped.ckpt")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", POCL_MAX_PTHREAD_COUNT="1", STYLERF_RANK_TIMEOUT_S="5")
+    job = subprocess.Popen(["mpirun", "-np", "2", "--oversubscribe", cli_path(), "train-style", "--features",
+                            stages.features, "--styles", stages.styles, *STYLE_ARGS, "--iters", "100000",
+                            "--ckpt-every", "3", "-o", out], env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True)
+    victims = []
+    try:
+        deadline = time.time() + 300
+        while not os.path.exists(out) and time.time() < deadline and job.poll() is None:
+            time.sleep(0.5)
+        assert os.path.exists(out), "no checkpoint was written"
+        victims = rank_pids(out, victim)
+        assert len(victims) == 1, victims
+        os.kill(victims[0], signal.SIGSTOP)
+        stopped_at = time.time()
+        output, _ = job.communicate(timeout=90)  # 5 s of silence, then the job ends
+        ended_after = time.time() - stopped_at
+    finally:
+        for pid in victims:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        if job.poll() is None:
+            job.kill()
+    assert job.returncode != 0
+    assert f"rank {victim} of 2 has not been heard from" in output, output
+    assert ended_after < 60, ended_after
+    r = mpirun(1, "train-style", "--resume", "--minutes", "0.02", *STYLE_ARGS, "-o", out)
+    assert r.returncode == 0, r.stdout
+    assert "resuming from" in r.stdout
+
+
+def test_a_bad_rank_time_limit_is_refused_by_name(stages, tmp_path):
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", STYLERF_RANK_TIMEOUT_S="soon")
+    r = subprocess.run(["mpirun", "-np", "2", "--oversubscribe", cli_path(), "make-scene", "-o",
+                        str(tmp_path / "scene")], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       text=True, timeout=120)
+    assert r.returncode != 0
+    assert "STYLERF_RANK_TIMEOUT_S='soon' is not a positive number of seconds" in r.stdout, r.stdout
 
 
 def test_a_command_that_does_not_split_its_work_refuses_two_ranks(stages, tmp_path):
