@@ -32,7 +32,9 @@
 #include "examples/stylerf/run_provenance.hpp"
 #include "examples/stylerf/run_report.hpp"
 #include "lib/eval/eval_budget.hpp"
+#include "host/dist.hpp"
 #include "host/error.hpp"
+#include "lib/io/process.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/map_decoder.hpp"
 #include "lib/model/scene_style_stats.hpp"
@@ -96,8 +98,9 @@ Budget split_budget(double minutes, const std::string& stage_minutes, const std:
 }
 
 struct RunOptions {
-  std::string scene, styles, out, recipe = "fast", device, stage_minutes, stage_iters;
+  std::string scene, styles, out, recipe = "fast", device, stage_minutes, stage_iters, mpirun = "mpirun";
   std::vector<std::string> stylize;
+  int ranks = 1;  // >1: the steps that split their work run under mpirun on this many ranks
   int downsample = 0, holdout = 12, frames = 60, eval_views = 5, table_frames = 16, max_videos = 3;
   double minutes = 90;
   bool minutes_given = false;  // --minutes on the command line (with --stage-iters: fit the evaluation to it)
@@ -113,6 +116,14 @@ std::vector<std::string> args(const RunOptions& o, T... a) {
   std::vector<std::string> v{a...};
   for (const auto& c : common(o)) v.push_back(c);
   return v;
+}
+
+// "mpirun --hostfile hosts" -> its words (no quoting: a launcher's options do not need it).
+std::vector<std::string> launcher_words(const std::string& s) {
+  std::vector<std::string> w;
+  std::istringstream in(s);
+  for (std::string x; in >> x;) w.push_back(x);
+  return w;
 }
 
 // The options; returns false (after printing the help) when there is nothing to run, with `rc` to exit with.
@@ -139,7 +150,13 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
       "table-frames", po::value(&o.table_frames)->default_value(16), "frames scored by the consistency table")(
       "check", po::bool_switch(&o.check),
       "exit non-zero when the result is degenerate (style loss > 1.5x AdaIN's, mix corners < 0.01 apart, "
-      "short-range RMSE > 0.8x AdaIN's)")("device", po::value(&o.device), stylerf::cli::kDeviceHelp);
+      "short-range RMSE > 0.8x AdaIN's)")(
+      "ranks", po::value(&o.ranks)->default_value(1),
+      "MPI ranks, one device each: the training stages, the videos, eval style and the consistency table run "
+      "under mpirun -np N (the other steps as one process)")(
+      "mpirun", po::value(&o.mpirun)->default_value("mpirun"),
+      "the launcher of --ranks' steps with its options (\"mpirun --hostfile hosts --bind-to core\"); it is given "
+      "-np N")("device", po::value(&o.device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
   po::notify(vm);
@@ -155,6 +172,15 @@ bool parse_run_options(int argc, char** argv, RunOptions& o, int& rc) {
   for (const auto& s : o.stylize) {
     const std::string why = io::image_unreadable_reason(s);
     if (!why.empty()) throw Error("--stylize " + s + ": " + why);
+  }
+  if (o.ranks < 1 || o.ranks > 4096) throw Error("--ranks must be in [1, 4096]");
+  if (o.ranks > 1) {
+    if (!host::Dist::built_with_mpi())
+      throw Error("--ranks " + std::to_string(o.ranks) + ": this stylerf was built without MPI (install libopenmpi-dev "
+                  "and build again; stylerf --version says)");
+    const auto words = launcher_words(o.mpirun);
+    if (words.empty() || io::find_program(words.front()).empty())
+      throw Error("--mpirun '" + o.mpirun + "': " + (words.empty() ? std::string("empty") : "'" + words.front() + "' is not on PATH (Debian: openmpi-bin)"));
   }
   if (o.frames < 2 || o.eval_views < 0 || o.table_frames < 8 || o.max_videos < 1 || o.holdout < 1)
     throw Error("--frames must be >= 2, --eval-views >= 0, --max-videos and --holdout-styles >= 1, --table-frames >= 8");
@@ -484,6 +510,7 @@ int run_pipeline(int argc, char** argv) {
   const fs::path out(o.out);
   const std::string self = fs::read_symlink("/proc/self/exe").string();
   PipelineSteps steps(o.out, self);
+  if (o.ranks > 1) steps.split_over_ranks(o.ranks, launcher_words(o.mpirun));
   print_training_plan(o, budget);
   const std::string styles_fp = folder_fingerprint(o.styles);
   Checkpoints ck;

@@ -11,6 +11,7 @@
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/command_index.hpp"
 #include "examples/stylerf/commands.hpp"
+#include "examples/stylerf/split_commands.hpp"
 #include "host/device.hpp"
 #include "host/dist.hpp"
 #include "host/error.hpp"
@@ -107,17 +108,17 @@ bool index_complete() {
   return ok;
 }
 
-// The commands that split their work over MPI ranks. Any other, started on several ranks, would do the same
-// work on each and write the same files at once: it is refused (by rank 0; the others leave quietly).
+// A command that does not split its work over MPI ranks (split_commands.hpp), started on several, would do
+// the same work on each and write the same files at once: it is refused (by rank 0; the others leave quietly).
 bool runs_over_ranks(const std::string& command, const std::string& sub) {
-  static const char* const kSplit[] = {"train-density", "train-features", "train-style", "stylize", "render",
-                                       "eval style", "eval table"};
   auto& dist = stylerf::host::Dist::world();
+  if (dist.size() == 1 || cli::splits_over_ranks(command, sub)) return true;
   const std::string name = command == "eval" && !sub.empty() ? command + " " + sub : command;
-  if (dist.size() == 1 || std::find(std::begin(kSplit), std::end(kSplit), name) != std::end(kSplit)) return true;
   if (dist.root())
     std::cerr << "stylerf " << name << ": error: runs on one rank only, and this job has " << dist.size()
-              << " (mpirun -np 1, or no mpirun); the training stages, stylize, render, eval style and eval table split their work over ranks\n";
+              << " (mpirun -np 1, or no mpirun); the training stages, stylize, render, eval style and eval table "
+                 "split their work over ranks"
+              << (command == "run" ? "; `stylerf run --ranks N` starts those under mpirun itself" : "") << "\n";
   dist.finalize();
   return false;
 }

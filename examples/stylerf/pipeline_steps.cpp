@@ -10,6 +10,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "examples/stylerf/split_commands.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/io/process.hpp"
@@ -69,10 +70,18 @@ PipelineSteps::PipelineSteps(std::string out, std::string self) : out_(std::move
   }
 }
 
+void PipelineSteps::split_over_ranks(int ranks, std::vector<std::string> launcher) {
+  ranks_ = ranks;
+  launcher_ = std::move(launcher);
+}
+
 PipelineSteps::Result PipelineSteps::run(const std::string& name, const std::vector<std::string>& args,
                                          const std::string& output, const std::string& extra_key) {
+  const bool split = ranks_ > 1 && !args.empty() && splits_over_ranks(args[0], args.size() > 1 ? args[1] : "");
   std::string joined;
   for (const auto& a : args) joined += a + '\x1f';
+  // N ranks train differently (N styles or patches a step by default): the count is part of the step.
+  if (split) joined += "ranks=" + std::to_string(ranks_) + '\x1f';
   Result r;
   r.key = io::sha256_hex(joined + '\x1e' + extra_key);
   const auto& prev = record_.value(name, nlohmann::json::object());
@@ -83,13 +92,23 @@ PipelineSteps::Result PipelineSteps::run(const std::string& name, const std::vec
               << " s), kept: " << output << std::endl;
     return r;
   }
-  std::string shown;
+  std::string program = self_, shown = "stylerf";
+  std::vector<std::string> full = args;
+  if (split) {
+    program = launcher_.front();
+    full.assign(launcher_.begin() + 1, launcher_.end());
+    for (const auto& a : {std::string("-np"), std::to_string(ranks_), self_}) full.push_back(a);
+    full.insert(full.end(), args.begin(), args.end());
+    shown.clear();
+    for (const auto& a : launcher_) shown += (shown.empty() ? "" : " ") + a;
+    shown += " -np " + std::to_string(ranks_) + " stylerf";
+  }
   for (const auto& a : args) shown += " " + a;
-  std::cout << "== " << name << ": stylerf" << shown << std::endl;
+  std::cout << "== " << name << ": " << shown << std::endl;
   const std::string log = (fs::path(out_) / "logs" / (name + ".log")).string();
   const auto t0 = std::chrono::steady_clock::now();
   double rss = 0;
-  const int rc = run_child(self_, args, log, rss);
+  const int rc = run_child(program, full, log, rss);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (rc != 0)
     throw Error("step '" + name + "' failed (exit status " + std::to_string(rc) + "); its output is in " + log);

@@ -35,11 +35,18 @@ class PipelineSteps {
   Result run(const std::string& name, const std::vector<std::string>& args, const std::string& output,
              const std::string& extra_key = "");
 
+  // Steps whose command splits over MPI ranks (split_commands.hpp) run as `<launcher...> -np <ranks> self
+  // <args...>` (launcher: "mpirun" and its options); the rank count is part of their key. ranks 1: as one
+  // process, keys as before.
+  void split_over_ranks(int ranks, std::vector<std::string> launcher);
+
   // Per step: its key, seconds and peak resident memory (MB).
   const nlohmann::json& record() const { return record_; }
 
  private:
   std::string out_, self_;
+  int ranks_ = 1;
+  std::vector<std::string> launcher_;
   nlohmann::json record_;
 };
 

@@ -222,6 +222,36 @@ def test_eval_table_over_two_ranks_writes_what_one_process_writes(stages, tmp_pa
         assert filecmp.cmp(str(tmp_path / "table1" / n), str(tmp_path / "table2" / n), shallow=False), n
 
 
+def test_run_starts_the_steps_that_split_under_mpirun(stages, tmp_path):
+    code, out = run_cli("demo-images", "-o", str(tmp_path), "--size", "64", "--num-styles", "8")
+    assert code == 0, out
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", POCL_MAX_PTHREAD_COUNT="1")
+    args = [cli_path(), "run", "--scene", stages.scene, "--styles", str(tmp_path / "styles"), "-o",
+            str(tmp_path / "run"), "--holdout-styles", "2", "--stage-iters", "150,20,6", "--frames", "3",
+            "--eval-views", "1", "--table-frames", "8", "--max-videos", "1", "--ranks", "2"]
+    r = subprocess.run(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout
+    for step in ("density", "features", "style", "style_eval", "videos", "consistency"):
+        assert f"== {step}: mpirun -np 2 stylerf " in r.stdout, (step, r.stdout)
+    log = (tmp_path / "run" / "logs" / "style.log").read_text()
+    assert "rank 1:" in log and "2 styles a step" in log, log
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["style_loss_ratio"] > 0
+    assert (tmp_path / "run" / "videos" / "metrics.json").exists()
+    # Resumed with the same ranks: every step kept.
+    again = subprocess.run(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
+    assert again.returncode == 0, again.stdout
+    assert ": stylerf" not in again.stdout and "-np 2 stylerf" not in again.stdout, again.stdout
+    # A launcher that is not there is refused before any work.
+    bad_args = [str(tmp_path / "bad") if a == str(tmp_path / "run") else a for a in args]
+    bad = subprocess.run([*bad_args, "--mpirun", "no-such-mpirun --bind-to core"], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         text=True, timeout=60)
+    assert bad.returncode != 0
+    assert "--mpirun 'no-such-mpirun --bind-to core': 'no-such-mpirun' is not on PATH" in bad.stdout, bad.stdout
+    assert not (tmp_path / "bad").exists()
+
+
 def rank_pids(marker: str, rank: int):
     """The pids of processes whose command line holds `marker` and whose Open MPI rank is `rank`."""
     pids = []
@@ -319,3 +349,7 @@ def test_a_command_that_does_not_split_its_work_refuses_two_ranks(stages, tmp_pa
     assert r.returncode != 0
     assert "runs on one rank only" in r.stdout, r.stdout
     assert not os.path.exists(tmp_path / "scene")
+    r = mpirun(2, "run", "--scene", stages.scene, "--styles", stages.styles, "-o", str(tmp_path / "run"))
+    assert r.returncode != 0
+    assert "`stylerf run --ranks N` starts those under mpirun itself" in r.stdout, r.stdout
+    assert not os.path.exists(tmp_path / "run")
