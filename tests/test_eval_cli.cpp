@@ -199,6 +199,30 @@ TEST_CASE("eval table: Markdown, JSON, plot and side-by-side frames") {
   CHECK(pair.width == 2 * testing::small_scene().width());
 }
 
+TEST_CASE("eval style --vgg-map-row: the style module on the true views' own VGG maps, beside the rendered row") {
+  const auto& ck = checkpoints();
+  const fs::path dir = testing::small_work_dir() / "eval_style_vgg_map";
+  fs::create_directories(dir);
+  const auto with = run("eval style --ckpt '" + ck.style + "' --max-views 1 --vgg-map-row --json '" +
+                        (dir / "with.json").string() + "'");
+  REQUIRE_MESSAGE(with.code == 0, with.output);
+  CHECK(with.output.find("ours on the true views' VGG maps (no radiance field) / AdaIN: style loss") != std::string::npos);
+  const auto j = read_json(dir / "with.json");
+  REQUIRE(j.contains("on_vgg_maps"));
+  for (const char* k : {"style_loss_ratio", "content_loss_ratio"}) {
+    CAPTURE(k);
+    const double v = j["on_vgg_maps"][k].get<double>();
+    CHECK(std::isfinite(v));
+    CHECK(v > 0);
+    CHECK(v != j[k].get<double>());  // a different input than the rendered map
+  }
+  const auto without = run("eval style --ckpt '" + ck.style + "' --max-views 1 --json '" + (dir / "without.json").string() + "'");
+  REQUIRE_MESSAGE(without.code == 0, without.output);
+  const auto k = read_json(dir / "without.json");
+  CHECK_FALSE(k.contains("on_vgg_maps"));
+  CHECK(k["style_loss_ratio"] == j["style_loss_ratio"]);  // the rendered row is the same either way
+}
+
 TEST_CASE("eval: bad input is refused before any work, naming the problem") {
   const auto& ck = checkpoints();
   auto expect = [](const std::string& args, const std::string& needle) {

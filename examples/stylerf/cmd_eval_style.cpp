@@ -54,7 +54,8 @@ nlohmann::json row_to_json(const stylerf::train::StyleEvalRow& r, size_t index) 
           {"losses", {r.ours_content, r.ours_style, r.adain_content, r.adain_style, r.ours_lpips, r.adain_lpips}},
           {"ours_taps", r.ours_style_tap},
           {"adain_taps", r.adain_style_tap},
-          {"structure_views", r.structure_views}};
+          {"structure_views", r.structure_views},
+          {"vgg_map", {r.vgg_map_content, r.vgg_map_style, r.vgg_map_lpips, r.vgg_map ? 1.0 : 0.0}}};
 }
 
 stylerf::train::StyleEvalRow row_from_json(const nlohmann::json& j) {
@@ -66,6 +67,8 @@ stylerf::train::StyleEvalRow row_from_json(const nlohmann::json& j) {
   r.ours_style_tap = j.at("ours_taps").get<decltype(r.ours_style_tap)>();
   r.adain_style_tap = j.at("adain_taps").get<decltype(r.adain_style_tap)>();
   r.structure_views = j.at("structure_views").get<int>();
+  const auto v = j.at("vgg_map").get<std::vector<double>>();
+  r.vgg_map_content = v.at(0), r.vgg_map_style = v.at(1), r.vgg_map_lpips = v.at(2), r.vgg_map = v.at(3) != 0;
   return r;
 }
 
@@ -143,6 +146,16 @@ void print_style_table(std::ostream& os, const std::vector<stylerf::train::Style
   os << std::endl;
 }
 
+// With --vgg-map-row: the style module on the true views' own VGG maps, mean ratios to AdaIN's (JSON, printed).
+nlohmann::json vgg_map_ratios(const std::vector<stylerf::train::StyleEvalRow>& rows, const StyleMeans& m) {
+  double c = 0, s = 0, l = 0;
+  for (const auto& r : rows) c += r.vgg_map_content, s += r.vgg_map_style, l += r.vgg_map_lpips;
+  const double k = double(std::max<size_t>(1, rows.size()));
+  return {{"style_loss_ratio", s / k / m.adain_style},
+          {"content_loss_ratio", c / k / m.adain_content},
+          {"structure_lpips_ratio", optional(m.structure, l / k / m.adain_lpips)}};
+}
+
 }  // namespace
 
 // `stylerf eval style` (cmd_eval.cpp dispatches it).
@@ -151,6 +164,7 @@ int run_eval_style(int argc, char** argv) {
   std::string ckpt, styles_dir, images, json_path, device;
   std::string lpips_net = stylerf::eval::lpips_net_name(stylerf::eval::kDefaultLpipsNet);
   int views = 5, max_styles = 0;
+  bool vgg_map_row = false;
   std::string supersample_text = "0";
   float refine_contrast = stylerf::model::kRefineContrast;
   po::options_description desc("stylerf eval style --ckpt STYLE_CKPT [options]");
@@ -161,6 +175,9 @@ int run_eval_style(int argc, char** argv) {
       "output,o", po::value(&images), "folder for one PNG per style: truth | ours | AdaIN (first view)")(
       "json", po::value(&json_path), "also write the per-style losses and the ratios to this JSON file")(
       "lpips-net", po::value(&lpips_net)->default_value(lpips_net), "LPIPS trunk of the structure score: vgg | alex")(
+      "vgg-map-row", po::bool_switch(&vgg_map_row),
+      "also score ours on each true view's own VGG relu3_1 map instead of the rendered one: the style module "
+      "with perfect content, to tell what the radiance field's map loses from what the style loses")(
       "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
       "device", po::value(&device), stylerf::cli::kDeviceHelp);
@@ -202,13 +219,23 @@ int run_eval_style(int argc, char** argv) {
   opt.refine_contrast = refine_contrast;
   opt.image_dir = images;
   opt.lpips = &lpips;
+  opt.vgg_map_row = vgg_map_row;
   opt.log = &std::cout;
   const auto rows = evaluate_over_ranks(model, vgg, adain, scene, styles, opt);
   if (!stylerf::host::Dist::world().root()) return 0;  // rank 0 reports
   const StyleMeans mean = style_means(rows);
   print_style_table(std::cout, rows, mean, lpips_net, lpips.min_side());
+  const nlohmann::json on_maps = vgg_map_row ? vgg_map_ratios(rows, mean) : nlohmann::json();
+  if (vgg_map_row)
+    std::cout << "ours on the true views' VGG maps (no radiance field) / AdaIN: style loss "
+              << on_maps["style_loss_ratio"].get<double>() << "x, content loss "
+              << on_maps["content_loss_ratio"].get<double>() << "x, LPIPS to the true view "
+              << (on_maps["structure_lpips_ratio"].is_null()
+                      ? std::string("not measured")
+                      : std::to_string(on_maps["structure_lpips_ratio"].get<double>()) + "x")
+              << "\n";
   if (!json_path.empty()) {
-    const nlohmann::json doc = {{"checkpoint", ckpt},
+    nlohmann::json doc = {{"checkpoint", ckpt},
                                 {"views", views},
                                 {"supersample", stylerf::model::supersample_name(opt.supersample)},
                                 {"refine_contrast", opt.supersample != 1 ? refine_contrast : 0.0f},
@@ -217,6 +244,7 @@ int run_eval_style(int argc, char** argv) {
                                 {"content_loss_ratio", mean.ours_content / mean.adain_content},
                                 {"structure_lpips_net", lpips_net},
                                 {"structure_lpips_ratio", optional(mean.structure, mean.ours_lpips / mean.adain_lpips)}};
+    if (vgg_map_row) doc["on_vgg_maps"] = on_maps;
     stylerf::host::write_file_atomic(json_path, doc.dump(2) + "\n");
   }
   return 0;

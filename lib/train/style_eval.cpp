@@ -9,6 +9,7 @@
 #include "host/error.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/scene_style_stats.hpp"
+#include "lib/nn/layout.hpp"
 #include "lib/train/style_trainer.hpp"
 
 namespace stylerf::train {
@@ -49,6 +50,21 @@ io::Image clamped_image(const Tensor& t) {
 }
 
 }  // namespace
+
+// The style module on a true view's relu3_1 map [1, 256, h, w], as the 2D warm start trains it (SICT with the
+// map's own statistics, full opacity): RGB [1, 3, 4h, 4w], clamped to [0, 1].
+Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const style::StyleCode& code) {
+  const int h = int(relu31.shape()[2]), w = int(relu31.shape()[3]);
+  style::Sict::Context sc;
+  const Tensor c = m.sict.forward(nn::image_to_rows(relu31), true, &sc);
+  const Tensor acc = Tensor::full({int64_t(h) * w}, 1.0f, "full opacity");
+  const Tensor rgb = m.decode_map(nn::rows_to_image(m.dst.apply(c, acc, code, nullptr), h, w), &code, nullptr);
+  auto v = rgb.to_host();
+  for (float& x : v) x = std::clamp(x, 0.0f, 1.0f);
+  Tensor out = rgb;
+  out.upload(v);
+  return out;
+}
 
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
                                           const scene::Scene& scene, const std::vector<std::string>& styles,
@@ -114,6 +130,15 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         r.ours_style_tap[t] += lo.style_tap[t] / count;
         r.adain_style_tap[t] += la.style_tap[t] / count;
       }
+      if (opt.vgg_map_row) {
+        const Tensor on_map = stylise_vgg_map(m, ft[2], codes[si]);
+        const StyleLossValues lm =
+            style_losses(vgg.forward(on_map, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
+        r.vgg_map = true;
+        r.vgg_map_content += lm.content / count;
+        r.vgg_map_style += lm.style / count;
+        if (score_structure) r.vgg_map_lpips += structure(on_map);
+      }
       // The pictures show ours as stylize does, over the scene's background (the losses above are masked
       // by opacity instead, so what the decoder draws in empty space never counts).
       std::vector<float> shown_rgb = ours_rgb;
@@ -144,7 +169,8 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
       *opt.log << "  view " << vi + 1 << "/" << count << " done (" << styles.size() << " styles)" << std::endl;
   }
   for (StyleEvalRow& r : rows)
-    if (r.structure_views > 0) r.ours_lpips /= r.structure_views, r.adain_lpips /= r.structure_views;
+    if (r.structure_views > 0)
+      r.ours_lpips /= r.structure_views, r.adain_lpips /= r.structure_views, r.vgg_map_lpips /= r.structure_views;
   return rows;
 }
 

@@ -33,6 +33,11 @@ struct StyleEvalRow {
   // StyleEvalOptions::lpips is unset or the views are below the trunk's smallest side.
   double ours_lpips = 0, adain_lpips = 0;
   int structure_views = 0;
+  // StyleEvalOptions::vgg_map_row: ours on the true view's own relu3_1 map instead of the radiance field's
+  // (SICT with the map's statistics, DST, the decoder): what the style module does with perfect content.
+  // Set apart from the rendered row, it tells the structure the field's map loses from what the style loses.
+  double vgg_map_content = 0, vgg_map_style = 0, vgg_map_lpips = 0;
+  bool vgg_map = false;
 };
 struct StyleEvalOptions {
   int views = 5;            // test views, evenly spaced (0: all)
@@ -40,6 +45,7 @@ struct StyleEvalOptions {
   int supersample = 1;      // content rays per block and axis (StyleModel::render_camera_content)
   float refine_contrast = model::kRefineContrast;  // those rays only where the map has edges; 0: every block
   const eval::Lpips* lpips = nullptr;  // set: the structure score (StyleEvalRow::*_lpips) too
+  bool vgg_map_row = false;            // also StyleEvalRow::vgg_map_* (a diagnosis; one more 2D frame a style)
   std::ostream* log = nullptr;
 };
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
