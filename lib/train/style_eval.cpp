@@ -51,6 +51,25 @@ io::Image clamped_image(const Tensor& t) {
 
 }  // namespace
 
+namespace {
+
+// Pictures of one size [1, 3, H, W] side by side in one PNG (truth | ours | AdaIN), clamped to [0, 1].
+void save_sheet(const std::string& path, const std::vector<Tensor>& parts) {
+  const int He = int(parts.front().shape()[2]), We = int(parts.front().shape()[3]), n = int(parts.size());
+  io::Image sheet;
+  sheet.width = n * We;
+  sheet.height = He;
+  sheet.data.assign(size_t(3) * sheet.width * He, 0.0f);
+  for (int k = 0; k < n; ++k) {
+    const auto p = parts[size_t(k)].to_host();
+    for (int c = 0; c < 3; ++c)
+      for (int y = 0; y < He; ++y)
+        for (int x = 0; x < We; ++x)
+          sheet.at(c, y, k * We + x) = std::clamp(p[(size_t(c) * He + y) * We + x], 0.0f, 1.0f);
+  }
+  io::save_png(path, sheet);
+}
+
 // The style module on a true view's relu3_1 map [1, 256, h, w], as the 2D warm start trains it (SICT with the
 // map's own statistics, full opacity): RGB [1, 3, 4h, 4w], clamped to [0, 1].
 Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const style::StyleCode& code) {
@@ -65,6 +84,8 @@ Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const s
   out.upload(v);
   return out;
 }
+
+}  // namespace
 
 std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEncoder& vgg, style::AdainModel& adain,
                                           const scene::Scene& scene, const std::vector<std::string>& styles,
@@ -149,21 +170,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         r.adain_lpips += structure(ad);
         ++r.structure_views;
       }
-      if (!opt.image_dir.empty() && vi == 0) {
-        io::Image sheet;
-        sheet.width = 3 * We;
-        sheet.height = He;
-        sheet.data.assign(size_t(3) * sheet.width * He, 0.0f);
-        const Tensor parts[3] = {truth, shown, ad};
-        for (int k = 0; k < 3; ++k) {
-          const auto p = parts[k].to_host();
-          for (int c = 0; c < 3; ++c)
-            for (int y = 0; y < He; ++y)
-              for (int x = 0; x < We; ++x)
-                sheet.at(c, y, k * We + x) = std::clamp(p[(size_t(c) * He + y) * We + x], 0.0f, 1.0f);
-        }
-        io::save_png(opt.image_dir + "/" + r.style + ".png", sheet);
-      }
+      if (!opt.image_dir.empty() && vi == 0) save_sheet(opt.image_dir + "/" + r.style + ".png", {truth, shown, ad});
     }
     if (opt.log)
       *opt.log << "  view " << vi + 1 << "/" << count << " done (" << styles.size() << " styles)" << std::endl;
