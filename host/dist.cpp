@@ -186,16 +186,19 @@ std::vector<std::string> Dist::gather(const std::string& bytes, int root) {
 
 void Dist::allreduce_sum(std::vector<double>& values) {
 #ifdef STYLERF_HAVE_MPI
-  if (mpi_ && !values.empty()) meet("allreduce");
-  if (mpi_ && !values.empty())
+  if (mpi_ && !values.empty()) {
+    meet("allreduce");
     MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  }
 #endif
 }
 
 void Dist::broadcast(std::vector<double>& values, int root) {
 #ifdef STYLERF_HAVE_MPI
-  if (mpi_ && !values.empty()) meet("broadcast");
-  if (mpi_ && !values.empty()) MPI_Bcast(values.data(), int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD);
+  if (mpi_ && !values.empty()) {
+    meet("broadcast");
+    MPI_Bcast(values.data(), int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD);
+  }
 #else
   (void)values;
   (void)root;

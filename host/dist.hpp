@@ -5,7 +5,7 @@
 //
 // A rank that hangs (stopped, deadlocked, stuck in a driver) would leave the others waiting in a collective
 // forever: every collective here first meets the others with a time limit. The ranks send each other a small
-// sign of life (alive(), and every meeting); when one has not been heard from for `timeout_s()` seconds while
+// sign of life (alive(), and every meeting); when one has not been heard from for STYLERF_RANK_TIMEOUT_S seconds (300) while
 // the others wait, the job ends with an error naming it. A rank that dies is ended by the launcher itself.
 #pragma once
 #include <string>
@@ -36,8 +36,6 @@ class Dist {
   // A sign of life between collectives, for work that is long between them (a rank's share of frames): call it
   // after each unit of work. Cheap: at most one message a second.
   void alive();
-  // How long a rank may stay silent while the others wait: STYLERF_RANK_TIMEOUT_S, else 300 s.
-  double timeout_s() const { return timeout_s_; }
   // Ends the whole job at once (a rank that failed must not leave the others waiting in a collective).
   [[noreturn]] void abort(int code);
   // MPI_Finalize when it was initialised; called once at exit.
@@ -51,7 +49,7 @@ class Dist {
   void read_signs_of_life();
   int rank_ = 0, size_ = 1, local_rank_ = 0, local_size_ = 1;
   bool mpi_ = false;
-  double timeout_s_ = 300;
+  double timeout_s_ = 300;       // STYLERF_RANK_TIMEOUT_S
   long meetings_ = 0;             // collectives started by this rank
   std::vector<double> heard_at_;  // when each rank was last heard from (rank 0: all; others: rank 0)
   double sent_at_ = -1e300;

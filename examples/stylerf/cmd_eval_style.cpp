@@ -55,7 +55,7 @@ nlohmann::json row_to_json(const stylerf::train::StyleEvalRow& r, size_t index) 
           {"ours_taps", r.ours_style_tap},
           {"adain_taps", r.adain_style_tap},
           {"structure_views", r.structure_views},
-          {"vgg_map", {r.vgg_map_content, r.vgg_map_style, r.vgg_map_lpips, r.vgg_map ? 1.0 : 0.0}}};
+          {"vgg_map", {r.vgg_map_content, r.vgg_map_style, r.vgg_map_lpips}}};
 }
 
 stylerf::train::StyleEvalRow row_from_json(const nlohmann::json& j) {
@@ -68,7 +68,7 @@ stylerf::train::StyleEvalRow row_from_json(const nlohmann::json& j) {
   r.adain_style_tap = j.at("adain_taps").get<decltype(r.adain_style_tap)>();
   r.structure_views = j.at("structure_views").get<int>();
   const auto v = j.at("vgg_map").get<std::vector<double>>();
-  r.vgg_map_content = v.at(0), r.vgg_map_style = v.at(1), r.vgg_map_lpips = v.at(2), r.vgg_map = v.at(3) != 0;
+  r.vgg_map_content = v.at(0), r.vgg_map_style = v.at(1), r.vgg_map_lpips = v.at(2);
   return r;
 }
 

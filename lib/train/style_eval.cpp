@@ -53,6 +53,14 @@ io::Image clamped_image(const Tensor& t) {
 
 namespace {
 
+// The picture with its values clamped to [0, 1], in place (as it would be shown).
+Tensor clamped(Tensor t) {
+  auto v = t.to_host();
+  for (float& x : v) x = std::clamp(x, 0.0f, 1.0f);
+  t.upload(v);
+  return t;
+}
+
 // Pictures of one size [1, 3, H, W] side by side in one PNG (truth | ours | AdaIN), clamped to [0, 1].
 void save_sheet(const std::string& path, const std::vector<Tensor>& parts) {
   const int He = int(parts.front().shape()[2]), We = int(parts.front().shape()[3]), n = int(parts.size());
@@ -77,12 +85,7 @@ Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const s
   style::Sict::Context sc;
   const Tensor c = m.sict.forward(nn::image_to_rows(relu31), true, &sc);
   const Tensor acc = Tensor::full({int64_t(h) * w}, 1.0f, "full opacity");
-  const Tensor rgb = m.decode_map(nn::rows_to_image(m.dst.apply(c, acc, code, nullptr), h, w), &code, nullptr);
-  auto v = rgb.to_host();
-  for (float& x : v) x = std::clamp(x, 0.0f, 1.0f);
-  Tensor out = rgb;
-  out.upload(v);
-  return out;
+  return clamped(m.decode_map(nn::rows_to_image(m.dst.apply(c, acc, code, nullptr), h, w), &code, nullptr));
 }
 
 }  // namespace
@@ -133,12 +136,7 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
       host::Dist::world().alive();  // under MPI the other ranks may be waiting for this share of styles
       const auto ours_rgb = m.stylize_camera(cc, codes[si], W, H);
       const Tensor ours = planar_crop(ours_rgb, W, He, We);
-      Tensor ad = style::adain_stylize(adain, truth, style_imgs[si], 1.0f);
-      {
-        auto a = ad.to_host();
-        for (float& x : a) x = std::clamp(x, 0.0f, 1.0f);
-        ad.upload(a);
-      }
+      const Tensor ad = clamped(style::adain_stylize(adain, truth, style_imgs[si], 1.0f));
       const StyleLossValues lo = style_losses(vgg.forward(ours, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
       const StyleLossValues la = style_losses(vgg.forward(ad, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
       StyleEvalRow& r = rows[si];
@@ -155,7 +153,6 @@ std::vector<StyleEvalRow> evaluate_styles(const model::StyleModel& m, nn::VggEnc
         const Tensor on_map = stylise_vgg_map(m, ft[2], codes[si]);
         const StyleLossValues lm =
             style_losses(vgg.forward(on_map, 4, false), ft[3], style_targets_of[si], masked ? &mask : nullptr, w, nullptr);
-        r.vgg_map = true;
         r.vgg_map_content += lm.content / count;
         r.vgg_map_style += lm.style / count;
         if (score_structure) r.vgg_map_lpips += structure(on_map);

@@ -37,7 +37,6 @@ struct StyleEvalRow {
   // (SICT with the map's statistics, DST, the decoder): what the style module does with perfect content.
   // Set apart from the rendered row, it tells the structure the field's map loses from what the style loses.
   double vgg_map_content = 0, vgg_map_style = 0, vgg_map_lpips = 0;
-  bool vgg_map = false;
 };
 struct StyleEvalOptions {
   int views = 5;            // test views, evenly spaced (0: all)
