@@ -13,6 +13,8 @@
 #include "bench/timing.hpp"
 #include "lib/model/region.hpp"
 #include "lib/nn/columns.hpp"
+#include "lib/nn/layout.hpp"
+#include "lib/style/content_skip.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/nn/reduce_path.hpp"
 #include "lib/style/sict.hpp"
@@ -33,7 +35,7 @@ void row(const char* op, const char* shape, const Timing& t, double flops, doubl
 void bench_ops_style(const BenchOptions& opt) {
   const int K = opt.quick ? 8192 : 131072, C = 256, E = 32, L = 4096, R = 4096;
   const int reps = opt.quick ? 1 : std::max(opt.repeats, 3);
-  std::printf("style-stage kernels (kernels/sict.cl, dst.cl, columns.cl), best of %d wall times\n", reps);
+  std::printf("style-stage kernels (kernels/sict.cl, dst.cl, columns.cl, layout.cl copy_columns), best of %d wall times\n", reps);
   std::printf("  %-26s %-18s %9s %9s %8s\n", "op", "shape", "ms", "GFLOP/s", "GB/s");
   const Tensor x = Tensor::full({K, C}, 0.5f), dy256 = Tensor::full({K, C}, 0.1f);
   const Tensor mean = Tensor::full({C}, 0.1f), var = Tensor::full({C}, 2.0f);
@@ -68,6 +70,26 @@ void bench_ops_style(const BenchOptions& opt) {
   const double apply_flops = double(R) * 2.0 * (E * C + C);
   row("DST apply fwd", "[4096,32]->256", best_of(reps, [&] { d.apply(c, acc, code, &actx); }), apply_flops, 0);
   row("DST apply bwd", "[4096,256]", best_of(reps, [&] { d.apply_backward(actx, dy, true); }), 2 * apply_flops, 0);
+  // The content skip on a training patch's rays: the field's 144 components beside SICT's 32 columns (3D maps)
+  // and a 2D map's 256 features (no basis); and the column copies that carry the components.
+  style::ContentSkip skip = style::ContentSkip::create(0);
+  const int F = 144;
+  const Tensor wide = Tensor::full({R, E + F}, 0.2f), basis = Tensor::full({F, C}, 0.05f), feats = Tensor::full({R, C}, 0.3f);
+  const style::ContentSkip::Input in3{wide, E, acc, basis, mean, var}, in2{feats, 0, acc, Tensor(), mean, var};
+  Tensor y = Tensor::zeros({R, C});
+  style::ContentSkip::Context sk3, sk2;
+  const double skip3 = double(R) * 2.0 * (F * C + C), skip2 = double(R) * 3.0 * C;
+  row("content skip fwd (F=144)", "[4096,144]->256", best_of(reps, [&] { skip.forward_add(in3, code.std, y, &sk3); }),
+      skip3, 0);
+  row("content skip bwd (F=144)", "[4096,256]", best_of(reps, [&] { skip.backward(sk3, dy); }), skip3 + 2.0 * F * C, 0);
+  row("content skip fwd (2D)", "[4096,256]", best_of(reps, [&] { skip.forward_add(in2, code.std, y, &sk2); }), skip2,
+      0);
+  row("content skip bwd (2D)", "[4096,256]", best_of(reps, [&] { skip.backward(sk2, dy); }), 4.0 * R * C, 0);
+  const Tensor sict_out = Tensor::full({K, E}, 0.1f), comps = Tensor::full({K, F}, 0.2f);
+  row("concat columns", "[K,32]+[K,144]", best_of(reps, [&] { nn::concat_columns(sict_out, comps); }), 0,
+      2.0 * 4.0 * K * (E + F));
+  const Tensor wideK = Tensor::full({K, E + F}, 0.1f);
+  row("take columns", "[K,176]->[K,32]", best_of(reps, [&] { nn::take_columns(wideK, 0, E); }), 0, 2.0 * 4.0 * K * E);
   // Zero-shot composition: the region indicator of K samples (NDC space, a sphere): 12 B read + 4 written.
   const Tensor pos = Tensor::full({K, 3}, 0.1f);
   model::RegionSpace space;

@@ -1,4 +1,5 @@
-// Layout ops: a dense 2-D transpose, dst[c, r] = src[r, c] for src [rows, cols] and dst [cols, rows].
+// Layout ops: a dense 2-D transpose, dst[c, r] = src[r, c] for src [rows, cols] and dst [cols, rows]; and
+// copies of column blocks between row-major matrices (copy_columns, at the end).
 //
 // lib/nn/layout.cpp builds both directions of [R,C] rows <-> [1,C,H,W] image on it: rows_to_image
 // transposes [H*W, C] into [C, H*W]; image_to_rows is the reverse transpose. Each is the other's
@@ -57,4 +58,16 @@ __kernel void transpose2d(__global const float* src, int src_off, __global float
   const int re = min(r0 + TILE, rows), ce = min(c0 + TILE, cols);
   for (int c = c0; c < ce; ++c)
     for (int r = r0; r < re; ++r) d[(long)c * rows + r] = s[(long)r * cols + c];
+}
+
+// Column blocks: dst[r, dst_col + j] = src[r, src_col + j] for j < n, rows of ld_src / ld_dst floats.
+// Global: (ceil(n / 8), rows); a work-item copies 8 consecutive floats of one row.
+__kernel void copy_columns(__global const float* src, int ld_src, int src_col, __global float* dst, int ld_dst,
+                           int dst_col, int n, int rows) {
+  const int j0 = get_global_id(0) * 8, r = get_global_id(1);
+  if (r >= rows) return;
+  __global const float* s = src + (long)r * ld_src + src_col;
+  __global float* d = dst + (long)r * ld_dst + dst_col;
+  const int je = min(j0 + 8, n);
+  for (int j = j0; j < je; ++j) d[j] = s[j];
 }

@@ -6,6 +6,8 @@
 //    rows than the bias-gradient block; bad inputs (N = 0, mismatched shapes) give errors naming the op.
 #include <doctest/doctest.h>
 
+#include <array>
+
 #include <string>
 #include <vector>
 
@@ -155,6 +157,46 @@ TEST_CASE("layout: bad shapes give errors naming the op") {
   testing::expect_error([&] { nn::image_to_rows(Tensor::zeros({2, 4, 3, 4})); }, "image_to_rows: image must be a non-empty [1, C, H, W]");
   testing::expect_error([&] { nn::image_to_rows_backward(rows, 4, 4); }, "image_to_rows_backward: rows [12, 4] has 12 rows");
   testing::expect_error([&] { nn::rows_to_image_backward(Tensor::zeros({4, 12})); }, "rows_to_image_backward: dimage must be");
+}
+
+TEST_CASE("layout: column blocks are concatenated and taken exactly; taking's backward places the gradient, zero elsewhere") {
+  // Widths not a multiple of the kernel's 8 columns a work-item, one row, and a renderer call's rows.
+  for (const auto& [R, A, B] : std::vector<std::array<int, 3>>{{1, 1, 1}, {7, 32, 13}, {4096, 32, 144}, {33, 9, 20}}) {
+    CAPTURE(R);
+    CAPTURE(A);
+    CAPTURE(B);
+    const auto a = testing::random_normal(size_t(R) * A, 300), b = testing::random_normal(size_t(R) * B, 301);
+    const Tensor ab = nn::concat_columns(Tensor::from_host(a, {R, A}), Tensor::from_host(b, {R, B}));
+    REQUIRE(ab.shape() == host::Shape{R, A + B});
+    const auto v = ab.to_host();
+    bool exact = true;
+    for (int r = 0; r < R; ++r) {
+      for (int j = 0; j < A; ++j) exact &= v[size_t(r) * (A + B) + j] == a[size_t(r) * A + j];
+      for (int j = 0; j < B; ++j) exact &= v[size_t(r) * (A + B) + A + j] == b[size_t(r) * B + j];
+    }
+    CHECK(exact);
+    CHECK(nn::take_columns(ab, 0, A).to_host() == a);
+    CHECK(nn::take_columns(ab, A, B).to_host() == b);
+    // take_columns is linear: <g, take(x)> = <place(g), x>, exact for a gradient that is the placed g.
+    const Tensor dx = nn::take_columns_backward(Tensor::from_host(b, {R, B}), A, A + B);
+    REQUIRE(dx.shape() == host::Shape{R, A + B});
+    const auto d = dx.to_host();
+    bool placed = true;
+    for (int r = 0; r < R; ++r) {
+      for (int j = 0; j < A; ++j) placed &= d[size_t(r) * (A + B) + j] == 0.0f;
+      for (int j = 0; j < B; ++j) placed &= d[size_t(r) * (A + B) + A + j] == b[size_t(r) * B + j];
+    }
+    CHECK(placed);
+  }
+}
+
+TEST_CASE("layout: column blocks out of range or of mismatched rows give errors naming the op") {
+  const Tensor x = Tensor::zeros({4, 10});
+  testing::expect_error([&] { nn::take_columns(x, 6, 5); }, "take_columns: columns [6, 11) of [4, 10]");
+  testing::expect_error([&] { nn::take_columns(x, -1, 2); }, "take_columns: columns [-1, 1)");
+  testing::expect_error([&] { nn::concat_columns(x, Tensor::zeros({3, 2})); }, "concat_columns: a [4, 10] and b [3, 2] differ in rows");
+  testing::expect_error([&] { nn::concat_columns(Tensor::zeros({4}), x); }, "concat_columns: a must be [R, C]");
+  testing::expect_error([&] { nn::take_columns_backward(x, 2, 11); }, "take_columns_backward: [4, 10] at column 2 does not fit 11 columns");
 }
 
 // ---- linear ----------------------------------------------------------------------------------------------

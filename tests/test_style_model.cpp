@@ -9,6 +9,8 @@
 //    average, a frozen decoder);
 //  - the vgg-adain style decoder (VGG's relu3_1 -> relu4_1 tail, then AdaIN's decoder): what it computes,
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
+//  - the content skip: the field's components carried beside SICT's columns, training in 2D and rendered steps
+//    (its gain moves), its checkpoint round trip, the ablations without running statistics refused;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -759,6 +761,53 @@ TEST_CASE("the 2D warm start (on VGG or rendered maps) and the ablation switches
     }
     CHECK(t.model().first_nonfinite().empty());
   }
+}
+
+TEST_CASE("the content skip: the components ride beside SICT's columns; it trains in 2D and rendered steps; it round-trips") {
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1);
+  auto cfg = small_config(4);
+  cfg.content_skip = true;
+  cfg.warm_start = 2;
+  cfg.warm_maps = train::WarmMaps::Rendered;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).content_skip);
+  auto old = cfg.to_json();
+  old.erase("content_skip");  // a checkpoint written before the option existed: the paper's module
+  CHECK_FALSE(train::StyleTrainConfig::from_json(old).content_skip);
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  auto& m = t.model();
+  const int F = int(m.features.field.basis.value.dim(0));
+  CHECK(m.content_channels() == style::Sict::kEmbed + F);
+  const auto& cam = testing::small_scene().test[0].camera;
+  const auto cc = m.render_camera_content(testing::small_scene(), cam);
+  CHECK(cc.content.c.dim(1) == style::Sict::kEmbed + F);
+  const auto gain0 = m.skip.gain.value.to_host(), fc0 = m.dst.fc_w.value.to_host();
+  CHECK(gain0 == std::vector<float>(256, 1.0f));
+  int warm = 0, rendered = 0;
+  while (!t.done()) {
+    const auto st = t.step();
+    CHECK(std::isfinite(st.content + st.style));
+    warm += st.warm;
+    rendered += !st.warm && !st.skipped;
+  }
+  CHECK(warm == 2);
+  CHECK(rendered > 0);
+  CHECK(m.skip.gain.value.to_host() != gain0);
+  CHECK(m.dst.fc_w.value.to_host() != fc0);
+  CHECK(m.first_nonfinite().empty());
+  const std::string path = (testing::small_work_dir() / "style_skip.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  const auto loaded = model::StyleModel::load(io::load_checkpoint(path, "style"));
+  CHECK(loaded.content_skip);
+  CHECK(loaded.skip.gain.value.to_host() == m.skip.gain.value.to_host());
+  check_same_stylized_view(m, loaded, styles.holdout[0]);
+  // The skip normalises with SICT's running statistics: the ablations without them are refused by name.
+  for (const auto mode : {style::SictMode::VanillaIn, style::SictMode::None})
+    testing::expect_error(
+        [&] {
+          model::StyleModel::create(small_features(model::DecoderProfile::Fast), mode, true, 1,
+                                    model::StyleDecoderKind::Stage2, true);
+        },
+        "the content skip normalises with SICT's running statistics");
 }
 
 TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr_decay_ratio") {

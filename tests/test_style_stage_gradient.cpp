@@ -1,12 +1,12 @@
 // The style stage's loss end to end, on the generated scene (its images have alpha: the opacity mask and the
 // background feature's compositing are active), for the fast recipe (vgg-adain-relu4 decoder with its pool
-// phases, content weight 3) and the paper's losses (stage 2's decoder, content weight 1), at a 32 px patch:
+// phases, the content skip, content weight 3) and the paper's losses (stage 2's decoder, content weight 1), at a 32 px patch:
 //  - wiring: the test's copy of a rendered training step (StyleTrainer::rendered_step's calls, the trainer's
 //    patch, style and jitter) gives the trainer's first-step loss, and its backward the trainer's gradient;
 //  - the loss value: the documented weights times a double-precision reference of both terms from the taps;
 //  - the gradient against central differences along random directions (tests/stage_gradient.hpp): over every
-//    trainable parameter, and per layer (SICT's weight and bias, each DST layer, each decoder layer); the
-//    decoder's input gradient along a random direction of its input;
+//    trainable parameter, and per layer (SICT's weight and bias, each DST layer, the content skip's gain, each
+//    decoder layer); the decoder's input gradient along a random direction of its input;
 //  - the stylizer's part of the chain alone, precisely: SICT's, DST's and the style branch's gradients are
 //    J^T G for the decoder's input gradient G, so central differences of <G, decoder input> check them without
 //    the decoder's and VGG's float32 noise and ReLU kinks; the same for the style's relu3_1 features, whose
@@ -109,7 +109,7 @@ struct Recipe {
 
 const std::vector<Recipe>& recipes() {
   static const std::vector<Recipe> r = {
-      {"fast recipe (vgg-adain-relu4, content x3)", small(train::style_recipe(train::Recipe::Fast), 11),
+      {"fast recipe (vgg-adain-relu4, content skip, content x3)", small(train::style_recipe(train::Recipe::Fast), 11),
        kFastContentWeight},
       {"paper losses (stage 2's decoder, content x1)", small(train::style_recipe(train::Recipe::Paper), 12),
        kPaperContentWeight}};
@@ -184,17 +184,19 @@ StepResult style_step(model::StyleModel& m, nn::VggEncoder& vgg, const StepInput
   const Tensor drgb = vgg.backward(grads);
   vgg.release();
   r.dmap_rows = nn::rows_to_image_backward(m.decode_map_backward(ctx.decoder, drgb, true));
-  const style::Dst::ApplyGrads g = m.dst.apply_backward(ctx.dst, r.dmap_rows, true);
-  model::render_rays_backward(m.features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
+  const style::Dst::ApplyGrads g = m.transform_backward(ctx, r.dmap_rows);
+  const Tensor dvalues = m.content_skip ? nn::take_columns_backward(g.dc, 0, m.content_channels()) : g.dc;
+  model::render_rays_backward(m.features.geo, *ctx.head, ctx.rays, dvalues, Tensor(), nullptr);
   r.dstyle_rows = m.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, true);
   return r;
 }
 
-// The decoder's input rows [h w, 256] of the step (DST's output, the background feature composited), on the host.
+// The decoder's input rows [h w, 256] of the step (DST's output and the content skip's, the background feature
+// composited), on the host.
 std::vector<float> map_rows(model::StyleModel& m, const StepInputs& in, const nn::VggFeatures& style_taps) {
   model::StyleModel::Context ctx;
   const model::StyleModel::Content content = m.render_content(in.origins, in.dirs, true, in.jitter, &ctx);
-  Tensor y = m.dst.apply(content.c, content.kept_acc, m.style_code(style_taps, nullptr), nullptr);
+  Tensor y = m.transform(content.c, content.kept_acc, m.style_code(style_taps, nullptr), nullptr);
   render::background_forward(y, content.acc, m.features.field.background.value);
   return y.to_host();
 }
@@ -369,7 +371,7 @@ Stage& stage(size_t i) {
 }
 
 bool is_stylizer(const std::string& block) {
-  return block.rfind("style.sict.", 0) == 0 || block.rfind("style.dst.", 0) == 0;
+  return block.rfind("style.sict.", 0) == 0 || block.rfind("style.dst.", 0) == 0 || block.rfind("style.skip.", 0) == 0;
 }
 
 // SICT's weight and bias each alone, every other layer's weight and bias together.

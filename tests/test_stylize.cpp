@@ -79,12 +79,13 @@ double worst_rel(const std::vector<float>& got, const std::vector<double>& want)
   return got.size() == want.size() ? worst / scale : 1e9;
 }
 
-model::StyleModel small_style_model() {
+model::StyleModel small_style_model(bool content_skip = false) {
   model::FeatureFieldConfig fc;
   fc.rank = {8, 8, 8};
   model::StyleModel m = model::StyleModel::create(
       model::FeatureModel::create(testing::small_geometry(), fc, model::DecoderProfile::Fast, 3),
-      style::SictMode::VolumeAdaptive, true, 5);
+      style::SictMode::VolumeAdaptive, true, 5, model::StyleDecoderKind::Stage2, content_skip);
+  if (content_skip) m.skip.gain.value.upload(testing::random_uniform(256, 8, 0.5f, 1.5f));
   m.sict.running_mean.value = Tensor::from_host(testing::random_normal(256, 6, 0.05f), {256});
   m.sict.running_var.value = Tensor::from_host(testing::random_uniform(256, 7, 0.01f, 0.05f), {256});
   return m;
@@ -158,8 +159,10 @@ TEST_CASE("region specs: clear errors") {
   testing::expect_error([&] { model::Region::parse("sphere", path); }, "expected box:");
 }
 
-TEST_CASE("region masks and compositional transfer on a generated scene") {
-  const model::StyleModel m = small_style_model();
+TEST_CASE("region masks and compositional transfer on a generated scene, with and without the content skip") {
+ for (const bool content_skip : {false, true}) {
+  CAPTURE(content_skip);
+  const model::StyleModel m = small_style_model(content_skip);
   const scene::Scene& sc = testing::small_scene();
   const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
   const model::RegionSpace space = model::RegionSpace::of(m.features.geo, sc);
@@ -187,8 +190,8 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
   MESSAGE("rays partly inside the half-space: " << partial);
   const style::StyleCode a = random_code(21), b = random_code(31);
   const auto composed = m.stylize_camera_regions(half, a, b, cam.width, cam.height);
-  Tensor ya = m.dst.apply(half.content.c, half.content.kept_acc, a, nullptr);
-  const Tensor yb = m.dst.apply(half.content.c, half.content.kept_acc, b, nullptr);
+  Tensor ya = m.transform(half.content.c, half.content.kept_acc, a, nullptr);
+  const Tensor yb = m.transform(half.content.c, half.content.kept_acc, b, nullptr);
   auto va = ya.to_host();
   const auto vb = yb.to_host();
   for (size_t r = 0; r < half.region_mask.size(); ++r)
@@ -215,10 +218,11 @@ TEST_CASE("region masks and compositional transfer on a generated scene") {
   CHECK(worst_single < 1e-4);
   const auto plain = m.render_camera_content(sc, cam);
   testing::expect_error([&] { m.stylize_camera_regions(plain, a, b, cam.width, cam.height); }, "without a region");
+ }
 }
 
-TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
-  const model::StyleModel m = small_style_model();
+TEST_CASE("supersampled camera content is the mean of its sub-ray renders (the content skip's components too)") {
+  const model::StyleModel m = small_style_model(true);
   const scene::Scene& sc = testing::small_scene();
   const scene::Camera cam = sc.test.empty() ? sc.train[0].camera : sc.test[0].camera;
   // The reference: render_content on the rays of each sub-position, summed in double.
@@ -226,7 +230,7 @@ TEST_CASE("supersampled camera content is the mean of its sub-ray renders") {
     int w = 0, h = 0;
     model::block_rays(sc, cam, m.stride(), w, h);
     const size_t R = size_t(w) * h;
-    std::vector<double> c(R * 32, 0.0), k(R, 0.0), a(R, 0.0), d(R, 0.0);
+    std::vector<double> c(R * size_t(m.content_channels()), 0.0), k(R, 0.0), a(R, 0.0), d(R, 0.0);
     for (int sy = 0; sy < n; ++sy)
       for (int sx = 0; sx < n; ++sx) {
         const auto rays = model::block_rays(sc, cam, m.stride(), w, h, (sx + 0.5f) / n, (sy + 0.5f) / n);

@@ -35,7 +35,7 @@ namespace model = stylerf::model;
 
 // All of train-style's options, as parsed (`given`: the options set on the command line).
 struct StyleArgs {
-  std::string features_path, styles_dir, out, device, sict_name = "volume-adaptive", dst_name = "bias",
+  std::string features_path, styles_dir, out, device, sict_name = "volume-adaptive", dst_name = "bias", content_skip_name,
               warm_maps_name, style_decoder_name, recipe_name;
   int holdout = 12, iters = 0, log_every = 10, eval_every = 100, eval_styles = 0, ckpt_every = 200, warm = 0,
       decoder_warm = 0, styles_per_step = 1;
@@ -91,6 +91,9 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
   more.add_options()("sict", po::value(&a.sict_name)->default_value("volume-adaptive"),
                      "volume-adaptive | vanilla-in | none (the paper's Fig. 7 ablations)")(
       "dst", po::value(&a.dst_name)->default_value("bias"), "bias | no-bias (ablation: DST without the adaptive bias)")(
+      "content-skip", po::value(&a.content_skip_name),
+      "on | off: beside DST, the composited features channel by channel, moved to the style's relu3_1 "
+      "statistics (default: the recipe's)")(
       "decoder-warm", po::value(&a.decoder_warm)->default_value(0),
       "first N steps train the decoder alone to invert VGG relu3_1 of style crops (before --warm-start's; fast "
       "profile)")(
@@ -118,7 +121,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
   }
   if (vm.count("help") || a.out.empty() || (!a.resume && (a.features_path.empty() || a.styles_dir.empty()))) {
     stylerf::cli::print_help(std::cout, "train-style", desc,
-                             "(also --sict, --dst, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, "
+                             "(also --sict, --dst, --content-skip, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, "
                              "--eval-every, --eval-styles, --ckpt-every, --timing: --help-all)");
     return vm.count("help") ? 0 : 2;
   }
@@ -129,6 +132,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
 void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
   cfg.sict = stylerf::style::parse_sict_mode(a.sict_name);
   cfg.dst_bias = a.dst_name == "bias";
+  if (a.has("content-skip")) cfg.content_skip = a.content_skip_name == "on";
   if (a.has("iters")) cfg.iters = a.iters;
   cfg.patch = a.patch;
   if (a.has("style-size")) cfg.style_size = a.style_size;
@@ -157,6 +161,8 @@ void check_style_args(const StyleArgs& a) {
     throw Error("--log-every, --eval-every, --eval-styles and --ckpt-every must be >= 0");
   if (a.dst_name != "bias" && a.dst_name != "no-bias")
     throw Error("--dst must be bias or no-bias, got '" + a.dst_name + "'");
+  if (a.has("content-skip") && a.content_skip_name != "on" && a.content_skip_name != "off")
+    throw Error("--content-skip must be on or off, got '" + a.content_skip_name + "'");
   if (!a.recipe_name.empty()) train::parse_recipe(a.recipe_name);
   if (!a.resume) {
     train::StyleTrainConfig probe = train::style_recipe(train::Recipe::Fast);
@@ -184,7 +190,8 @@ void print_style_setup(train::StyleTrainer& trainer) {
   auto& m = trainer.model();
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
-            << (cfg.dst_bias ? "with" : "without") << " bias; style decoder "
+            << (cfg.dst_bias ? "with" : "without") << " bias" << (cfg.content_skip ? ", content skip" : "")
+            << "; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << (cfg.decoder_phases ? ", VGG's pool at its 4 grid phases" : "")
             << "\n"
             << "  " << cfg.styles_per_step << (cfg.styles_per_step == 1 ? " style" : " styles") << " a step"

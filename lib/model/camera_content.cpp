@@ -11,6 +11,7 @@
 #include "lib/model/map_decoder.hpp"
 #include "lib/model/opacity_head.hpp"
 #include "lib/model/style_model.hpp"
+#include "lib/nn/layout.hpp"
 #include "lib/nn/ops.hpp"
 #include "lib/scene/rays.hpp"
 
@@ -37,7 +38,7 @@ int parse_supersample(const std::string& text) {
 }
 
 namespace {
-constexpr int kEmbed = style::Sict::kEmbed;
+constexpr int kEmbed = style::Sict::kEmbed;  // SICT's columns of a ray's content, the first ones
 
 // A per-block map [h][w] at the image's pixels [cam_h][cam_w], bilinear between the block centres (block
 // j's ray passes through pixel coordinate s (j + 0.5)), clamped at the edges.
@@ -76,18 +77,19 @@ struct HostContent {
 
 // Per block, sums over the rays that make it up (each weighted), divided by their weight at the end.
 struct BlockSums {
+  int width;  // columns of a ray's content (StyleModel::content_channels)
   std::vector<double> c, kept_acc, acc, depth;
   std::vector<float> acc_lo, acc_hi;  // over each block's sub-rays
   std::vector<double> inside;         // with a region: its composited indicator
   std::vector<double> rays_in;        // the weight of the rays summed per block
 
-  BlockSums(int64_t n, bool region)
-      : c(size_t(n) * kEmbed, 0.0), kept_acc(size_t(n), 0.0), acc(size_t(n), 0.0), depth(size_t(n), 0.0),
+  BlockSums(int64_t n, int width, bool region)
+      : width(width), c(size_t(n) * width, 0.0), kept_acc(size_t(n), 0.0), acc(size_t(n), 0.0), depth(size_t(n), 0.0),
         acc_lo(size_t(n), 1.0f), acc_hi(size_t(n), 0.0f), inside(region ? size_t(n) : 0, 0.0),
         rays_in(size_t(n), 1.0) {}
-  // Content c_row [kEmbed] and kept opacity that stand for `weight` rays of block i.
+  // Content c_row [width] and kept opacity that stand for `weight` rays of block i.
   void add_content(size_t i, const float* c_row, double weight, float kept) {
-    for (int e = 0; e < kEmbed; ++e) c[i * kEmbed + size_t(e)] += weight * c_row[e];
+    for (int e = 0; e < width; ++e) c[i * width + size_t(e)] += weight * c_row[e];
     kept_acc[i] += weight * kept;
   }
   // One ray's opacity, depth and (with a region) region indicator.
@@ -100,7 +102,7 @@ struct BlockSums {
   }
   // Block i's sums so far weighted by f (the quincunx's centre ray counts 4).
   void scale(size_t i, double f) {
-    for (int e = 0; e < kEmbed; ++e) c[i * kEmbed + size_t(e)] *= f;
+    for (int e = 0; e < width; ++e) c[i * width + size_t(e)] *= f;
     kept_acc[i] *= f;
     acc[i] *= f;
     depth[i] *= f;
@@ -108,7 +110,7 @@ struct BlockSums {
   }
   // Forgets block i's centre ray (even n: the centre is not one of the sub-rays).
   void clear(size_t i) {
-    std::fill(c.begin() + int64_t(i) * kEmbed, c.begin() + int64_t(i + 1) * kEmbed, 0.0);
+    std::fill(c.begin() + int64_t(i) * width, c.begin() + int64_t(i + 1) * width, 0.0);
     kept_acc[i] = acc[i] = depth[i] = 0.0;
     acc_lo[i] = 1.0f;
     acc_hi[i] = 0.0f;
@@ -129,9 +131,9 @@ class CameraContentRender {
                       const std::atomic<bool>* cancel)
       : model_(model), scene_(scene), cam_(cam), chunk_(chunk), region_(region), supersample_(supersample),
         merge_kept_per_ray_(merge_kept_per_ray), cancel_(cancel), geo_(model.inference_geometry()),
-        centre_head_(model.features.field, const_cast<style::Sict&>(model.sict), false),
-        w_(strided_camera(cam, model.stride()).width), h_(strided_camera(cam, model.stride()).height),
-        n_(int64_t(w_) * h_), sums_(n_, region != nullptr) {
+        centre_head_(model.features.field, const_cast<style::Sict&>(model.sict), false, model.content_skip),
+        width_(model.content_channels()), w_(strided_camera(cam, model.stride()).width),
+        h_(strided_camera(cam, model.stride()).height), n_(int64_t(w_) * h_), sums_(n_, width_, region != nullptr) {
     out_.width = w_;
     out_.height = h_;
   }
@@ -158,7 +160,8 @@ class CameraContentRender {
   }
 
   Tensor shade(const Tensor& comps) const {
-    return model_.sict.forward_factored(comps, model_.features.field.basis.value, false, nullptr);
+    const Tensor c = model_.sict.forward_factored(comps, model_.features.field.basis.value, false, nullptr);
+    return model_.content_skip ? nn::concat_columns(c, comps) : c;
   }
 
   // One renderer call on the R rays o, d ([R, 3] on the host), each ray its own: their content and, with a
@@ -172,7 +175,7 @@ class CameraContentRender {
     const Tensor dirs = Tensor::from_host(d, {R, 3}, "render directions");
     const ShadeFn shade_fn = [this](const Tensor& comps) { return shade(comps); };
     Shaded s;
-    s.part = slab_rays_ ? content_of(render_ray_groups(geo_, model_.features.field.head, shade_fn, kEmbed, origins,
+    s.part = slab_rays_ ? content_of(render_ray_groups(geo_, model_.features.field.head, shade_fn, width_, origins,
                                                        dirs, 1, kMergeSteps))
                         : content_of(render_rays(geo_, centre_head_, origins, dirs, RayOptions{}, nullptr));
     if (first_call_) {
@@ -200,7 +203,7 @@ class CameraContentRender {
       const HostContent p(s.part);
       for (int64_t r = 0; r < R; ++r) {
         const size_t i = size_t(block(r));
-        sums_.add_content(i, &p.c[size_t(r * kEmbed)], 1.0, p.kept_acc[size_t(r)]);
+        sums_.add_content(i, &p.c[size_t(r * width_)], 1.0, p.kept_acc[size_t(r)]);
         sums_.add_ray(i, p.acc[size_t(r)], p.depth[size_t(r)], s.inside, size_t(r));
       }
     }
@@ -209,7 +212,11 @@ class CameraContentRender {
   // The blocks to refine (blocks_to_refine on the centre rays' content), whether their sub-rays are shaded
   // merged, and the sub-rays themselves: n x n a block, one group a block, or the quincunx.
   void refine(float refine_contrast) {
-    const std::vector<float> c0(sums_.c.begin(), sums_.c.end()), a0(sums_.acc.begin(), sums_.acc.end());
+    // Judged on SICT's columns alone (the components, where carried, would change which blocks pass).
+    std::vector<float> c0(size_t(n_) * kEmbed);
+    for (int64_t b = 0; b < n_; ++b)
+      for (int e = 0; e < kEmbed; ++e) c0[size_t(b * kEmbed + e)] = float(sums_.c[size_t(b * width_ + e)]);
+    const std::vector<float> a0(sums_.acc.begin(), sums_.acc.end());
     const std::vector<uint8_t> refine = blocks_to_refine(c0, kEmbed, a0, w_, h_, refine_contrast);
     std::vector<int64_t> which;
     for (int64_t b = 0; b < n_; ++b)
@@ -275,14 +282,14 @@ class CameraContentRender {
     const Tensor dirs = Tensor::from_host(d, {B * G, 3}, "render directions");
     const ShadeFn shade_fn = [this](const Tensor& comps) { return shade(comps); };
     const GroupResult part =
-        render_ray_groups(geo_, model_.features.field.head, shade_fn, kEmbed, origins, dirs, G, kMergeSteps);
+        render_ray_groups(geo_, model_.features.field.head, shade_fn, width_, origins, dirs, G, kMergeSteps);
     const HostContent p(content_of(part));
     std::vector<float> in;
     if (region_) in = render_rays(geo_, *region_, origins, dirs, RayOptions{}, nullptr).value.to_host();
     for (int64_t r = 0; r < B; ++r) {
       const size_t i = size_t(which[size_t(b + r)]);
       // The group's value is already its G sub-rays' mean; the sums here are divided by n^2 at the end.
-      sums_.add_content(i, &p.c[size_t(r * kEmbed)], double(G), p.kept_acc[size_t(r)]);
+      sums_.add_content(i, &p.c[size_t(r * width_)], double(G), p.kept_acc[size_t(r)]);
       for (int q = 0; q < G; ++q) {
         const size_t ray = size_t(r * G + q);
         sums_.add_ray(i, p.acc[ray], p.depth[ray], in, ray);
@@ -313,7 +320,7 @@ class CameraContentRender {
       for (int dy = 0; dy <= 1; ++dy)
         for (int dx = 0; dx <= 1; ++dx) {
           const size_t q = size_t(corner_id[size_t(b / w_ + dy) * cw + size_t(b % w_ + dx)]);
-          sums_.add_content(i, &cr.c[q * kEmbed], 1.0, cr.kept_acc[q]);
+          sums_.add_content(i, &cr.c[q * size_t(width_)], 1.0, cr.kept_acc[q]);
           sums_.add_ray(i, cr.acc[q], cr.depth[q], cr.inside, q);
         }
       sums_.rays_in[i] = 8.0;
@@ -357,7 +364,7 @@ class CameraContentRender {
             k > 1e-6 ? float(std::clamp(sums_.inside[size_t(r)] / sums_.kept_acc[size_t(r)], 0.0, 1.0)) : 0.0f;
       }
     }
-    out_.content.c = Tensor::from_host(sums_.mean(sums_.c, kEmbed), {n_, kEmbed}, "camera content");
+    out_.content.c = Tensor::from_host(sums_.mean(sums_.c, width_), {n_, width_}, "camera content");
     out_.content.kept_acc = Tensor::from_host(sums_.mean(sums_.kept_acc, 1), {n_}, "camera kept opacity");
     out_.content.acc = Tensor::from_host(sums_.mean(sums_.acc, 1), {n_}, "camera opacity");
     out_.content.depth = Tensor::from_host(sums_.mean(sums_.depth, 1), {n_}, "camera depth");
@@ -376,6 +383,7 @@ class CameraContentRender {
   const std::atomic<bool>* cancel_;
   const Geometry geo_;
   const SictHead centre_head_;
+  const int width_;  // columns of a ray's content
   const int w_, h_;  // the map's size
   const int64_t n_;
   BlockSums sums_;
@@ -480,7 +488,7 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
     return rgb;
   }
   const auto c = cc.content.c.to_host(), k = cc.content.kept_acc.to_host();
-  const int E = style::Sict::kEmbed;
+  const int E = content_channels();
   std::vector<float> c_in(c.size()), c_out(c.size()), k_in(k.size()), k_out(k.size());
   for (int64_t r = 0; r < n; ++r) {
     const float m = cc.region_mask[size_t(r)];
@@ -491,9 +499,9 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
     k_in[size_t(r)] = m * k[size_t(r)];
     k_out[size_t(r)] = (1.0f - m) * k[size_t(r)];
   }
-  Tensor y = dst.apply(Tensor::from_host(c_in, {n, E}, "content inside"), Tensor::from_host(k_in, {n}, "opacity inside"),
+  Tensor y = transform(Tensor::from_host(c_in, {n, E}, "content inside"), Tensor::from_host(k_in, {n}, "opacity inside"),
                        inside, nullptr);
-  const Tensor y_out = dst.apply(Tensor::from_host(c_out, {n, E}, "content outside"),
+  const Tensor y_out = transform(Tensor::from_host(c_out, {n, E}, "content outside"),
                                  Tensor::from_host(k_out, {n}, "opacity outside"), outside, nullptr);
   nn::axpby(1.0f, y_out, 1.0f, y);
   return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr, nullptr), cam_w, cam_h);

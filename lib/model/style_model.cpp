@@ -18,20 +18,25 @@ using host::Error;
 using nlohmann::json;
 
 // ---- SICT head ---------------------------------------------------------------------------------------------
+int SictHead::channels() const {
+  return style::Sict::kEmbed + (with_components_ ? int(field_.basis.value.dim(0)) : 0);
+}
+
 Tensor SictHead::forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const {
   // Per kept sample: F grid components; SICT of their 256 features (the basis, no bias) without forming
   // them (Sict::forward_factored).
   const Tensor comps = field_.head.forward(pos, dirs, nullptr);
-  if (!ctx) return sict_.forward_factored(comps, field_.basis.value, training_, nullptr);
-  auto c = std::make_unique<SictContext>();
-  Tensor y = sict_.forward_factored(comps, field_.basis.value, training_, &c->sict);
-  *ctx = std::move(c);
-  return y;
+  std::unique_ptr<SictContext> c;
+  if (ctx) c = std::make_unique<SictContext>();
+  Tensor y = sict_.forward_factored(comps, field_.basis.value, training_, c ? &c->sict : nullptr);
+  if (ctx) *ctx = std::move(c);
+  return with_components_ ? nn::concat_columns(y, comps) : y;
 }
 
 void SictHead::backward(const Context& ctx, const Tensor& dvalues) {
   const auto& c = dynamic_cast<const SictContext&>(ctx);
-  sict_.backward(c.sict, dvalues, false);
+  // The components come from the frozen field: only SICT's columns carry a gradient.
+  sict_.backward(c.sict, with_components_ ? nn::take_columns(dvalues, 0, style::Sict::kEmbed) : dvalues, false);
 }
 
 // ---- model -------------------------------------------------------------------------------------------------
@@ -52,7 +57,10 @@ const char* style_decoder_name(StyleDecoderKind k) {
 }
 
 StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
-                              StyleDecoderKind decoder) {
+                              StyleDecoderKind decoder, bool content_skip) {
+  if (content_skip && sict_mode != style::SictMode::VolumeAdaptive)
+    throw Error("style model: the content skip normalises with SICT's running statistics, which only the "
+                "volume-adaptive SICT keeps (this one is " + std::string(style::sict_mode_name(sict_mode)) + ")");
   const MapDecoder& d = map_decoder_for(decoder);
   if (d.needs_fast_profile() && features.profile != DecoderProfile::Fast)
     throw Error("style model: the " + std::string(style_decoder_name(decoder)) + " style decoder needs the fast profile (maps at relu3_1's 1/4 resolution); "
@@ -68,14 +76,49 @@ StyleModel StyleModel::create(FeatureModel features, style::SictMode sict_mode, 
   for (nn::Param* p : m.features.decoder.params()) p->group = kGroupStyleDecoder;
   m.sict = style::Sict::create(sict_mode, kGroupStylizer, seed * 2 + 1, "style.sict.");
   m.dst = style::Dst::create(dst_bias, kGroupStylizer, seed * 2 + 2, "style.dst.");
+  m.content_skip = content_skip;
+  if (content_skip) m.skip = style::ContentSkip::create(kGroupStylizer, "style.skip.");
   return m;
+}
+
+int StyleModel::content_channels() const {
+  return style::Sict::kEmbed + (content_skip ? int(features.field.basis.value.dim(0)) : 0);
+}
+
+Tensor StyleModel::transform(const Tensor& c, const Tensor& kept_acc, const style::StyleCode& code,
+                             Context* ctx) const {
+  if (!content_skip) return dst.apply(c, kept_acc, code, ctx ? &ctx->dst : nullptr);
+  if (!c.defined() || c.ndim() != 2 || c.dim(1) != content_channels())
+    throw Error("style model: content rows must be [R, " + std::to_string(content_channels()) + "] (SICT's " +
+                std::to_string(style::Sict::kEmbed) + " and the field's components), got " +
+                (c.defined() ? host::shape_str(c.shape()) : std::string("undefined")));
+  Tensor y = dst.apply(nn::take_columns(c, 0, style::Sict::kEmbed), kept_acc, code, ctx ? &ctx->dst : nullptr);
+  const style::ContentSkip::Input in{c, style::Sict::kEmbed, kept_acc, features.field.basis.value,
+                                     sict.running_mean.value, sict.running_var.value};
+  skip.forward_add(in, code.std, y, ctx ? &ctx->skip : nullptr);
+  return y;
+}
+
+Tensor StyleModel::transform_features(const Tensor& c, const Tensor& z, const Tensor& acc, const Tensor& mean,
+                                      const Tensor& var, const style::StyleCode& code, Context* ctx) const {
+  Tensor y = dst.apply(c, acc, code, ctx ? &ctx->dst : nullptr);
+  if (!content_skip) return y;
+  const style::ContentSkip::Input in{z, 0, acc, Tensor(), mean, var};  // the identity basis
+  skip.forward_add(in, code.std, y, ctx ? &ctx->skip : nullptr);
+  return y;
+}
+
+style::Dst::ApplyGrads StyleModel::transform_backward(Context& ctx, const Tensor& dy) {
+  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, dy, true);
+  if (content_skip) nn::axpby(1.0f, skip.backward(ctx.skip, dy), 1.0f, g.dstd);
+  return g;
 }
 
 StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tensor& dirs, bool training,
                                                uint32_t jitter_seed, Context* ctx) const {
   if (training && !ctx) throw Error("style model: a training render needs a context");
   // The head holds a mutable reference for backward; forward itself changes nothing.
-  auto head = std::make_unique<SictHead>(features.field, const_cast<style::Sict&>(sict), training);
+  auto head = std::make_unique<SictHead>(features.field, const_cast<style::Sict&>(sict), training, content_skip);
   RayOptions opt;
   opt.jitter = training;
   opt.seed = jitter_seed;
@@ -89,8 +132,7 @@ Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode&
   if (int64_t(h) * w != content.c.dim(0))
     throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
                 std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
-  return decode_rows(dst.apply(content.c, content.kept_acc, code, ctx ? &ctx->dst : nullptr), content.acc, h, w, &code,
-                     ctx);
+  return decode_rows(transform(content.c, content.kept_acc, code, ctx), content.acc, h, w, &code, ctx);
 }
 
 Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code,
@@ -118,7 +160,7 @@ Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb
 }
 
 Tensor StyleModel::relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const {
-  Tensor y = dst.apply(content.c, content.kept_acc, code, nullptr);
+  Tensor y = transform(content.c, content.kept_acc, code, nullptr);
   if (features.field.background.value.defined()) render::background_forward(y, content.acc, features.field.background.value);
   return map_decoder->relu4(*this, nn::rows_to_image(y, h, w));
 }
@@ -127,8 +169,9 @@ std::vector<nn::Param*> StyleModel::decoder_params() { return map_decoder->param
 
 style::Dst::ApplyGrads StyleModel::backward(Context& ctx, const Tensor& drgb) {
   const Tensor dmap = decode_map_backward(ctx.decoder, drgb, true);
-  style::Dst::ApplyGrads g = dst.apply_backward(ctx.dst, nn::rows_to_image_backward(dmap), true);
-  render_rays_backward(features.geo, *ctx.head, ctx.rays, g.dc, Tensor(), nullptr);
+  style::Dst::ApplyGrads g = transform_backward(ctx, nn::rows_to_image_backward(dmap));
+  const Tensor dvalues = content_skip ? nn::take_columns_backward(g.dc, 0, content_channels()) : g.dc;
+  render_rays_backward(features.geo, *ctx.head, ctx.rays, dvalues, Tensor(), nullptr);
   return g;
 }
 
@@ -155,6 +198,7 @@ class PerPointStyledHead : public SampleHead {
 
 RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tensor& dirs,
                                               const style::StyleCode& code) const {
+  if (content_skip) throw Error("style model: the per-point order is DST's alone (this model has the content skip)");
   const PerPointStyledHead head(features.field, sict, dst, code);
   return render_rays(features.geo, head, origins, dirs, RayOptions{}, nullptr);
 }
@@ -162,6 +206,7 @@ RayResult StyleModel::render_styled_per_point(const Tensor& origins, const Tenso
 void StyleModel::collect_params(std::vector<nn::Param*>& out) {
   sict.collect_params(out);
   dst.collect_params(out);
+  if (content_skip) skip.collect_params(out);
   map_decoder->params_of(*this).collect_params(out);
 }
 
@@ -171,6 +216,7 @@ void StyleModel::save(io::Checkpoint& ck) {
   features.save(ck);  // geometry, field, decoder ("model.*")
   sict.save(ck, "");
   dst.save(ck, "");
+  if (content_skip) skip.save(ck, "");
   map_decoder->save(*this, ck);
   ck.meta["style_model"] = {
       {"sict", style::sict_mode_name(sict.mode)},
@@ -178,7 +224,8 @@ void StyleModel::save(io::Checkpoint& ck) {
       {"decoder", style_decoder_name(decoder_kind())},
       {"inference_supersample", inference_supersample == kQuincunx ? json(supersample_name(kQuincunx))
                                                                    : json(inference_supersample)},
-      {"decoder_phases", decoder_phases}};
+      {"decoder_phases", decoder_phases},
+      {"content_skip", content_skip}};
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
@@ -189,7 +236,7 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   bool bias = true;
   StyleDecoderKind decoder = StyleDecoderKind::Stage2;
   int supersample = 1;
-  bool phases = false;
+  bool phases = false, content_skip = false;
   try {
     const json& sm = ck.meta.at("style_model");
     mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
@@ -200,14 +247,16 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
       supersample = v.is_string() ? parse_supersample(v.get<std::string>()) : v.get<int>();
     }
     phases = sm.value("decoder_phases", false);           // absent before the option existed
+    content_skip = sm.value("content_skip", false);       // absent before the content skip existed
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
   } catch (const Error& e) {
     throw Error("checkpoint " + ck.path + ": " + e.what());
   }
-  StyleModel m = create(FeatureModel::load(ck), mode, bias, 0, decoder);
+  StyleModel m = create(FeatureModel::load(ck), mode, bias, 0, decoder, content_skip);
   m.sict.load(ck, "");
   m.dst.load(ck, "");
+  if (content_skip) m.skip.load(ck, "");
   m.map_decoder->load(m, ck);
   if (!valid_supersample(supersample))
     throw Error("checkpoint " + ck.path + ": style_model.inference_supersample " + std::to_string(supersample) +

@@ -22,6 +22,7 @@
 #include "lib/model/region.hpp"
 #include "lib/nn/vgg.hpp"
 #include "lib/nn/vgg_tail.hpp"
+#include "lib/style/content_skip.hpp"
 #include "lib/style/dst.hpp"
 #include "lib/style/sict.hpp"
 
@@ -86,12 +87,13 @@ struct RenderCancelled : std::runtime_error {
 };
 const MapDecoder& map_decoder_for(StyleDecoderKind kind);
 
-// The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT.
+// The ray pipeline's value head of stage 3: the feature field's 256 channels per kept sample, then SICT. With
+// the content skip its value is [SICT's 32 | the F grid components], so that one composite gives both.
 class SictHead : public SampleHead {
  public:
-  SictHead(const FeatureField& field, style::Sict& sict, bool training)
-      : field_(field), sict_(sict), training_(training) {}
-  int channels() const override { return style::Sict::kEmbed; }
+  SictHead(const FeatureField& field, style::Sict& sict, bool training, bool with_components = false)
+      : field_(field), sict_(sict), training_(training), with_components_(with_components) {}
+  int channels() const override;
   Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const override;
   // Accumulates into SICT's parameters (the field is frozen: no gradient flows further).
   void backward(const Context& ctx, const Tensor& dvalues) override;
@@ -105,6 +107,7 @@ class SictHead : public SampleHead {
   const FeatureField& field_;
   style::Sict& sict_;
   bool training_;
+  bool with_components_;
 };
 
 class StyleModel : public nn::Module {
@@ -112,6 +115,10 @@ class StyleModel : public nn::Module {
   FeatureModel features;  // geometry and field frozen; with the Stage2 decoder, its decoder is fine-tuned
   style::Sict sict;
   style::Dst dst;
+  // The content skip (lib/style/content_skip.hpp): the composited features, channel by channel, beside DST's
+  // path through the 32-channel embedding. Saved in the checkpoint; off in the paper's model.
+  bool content_skip = false;
+  style::ContentSkip skip;
   const MapDecoder* map_decoder = &map_decoder_for(StyleDecoderKind::Stage2);  // chosen by create()
   // Content rays per feature-map block that inference uses unless told otherwise (a recipe's choice, saved
   // in the checkpoint): n x n a block, or kQuincunx; 1: one ray per block centre, what training renders.
@@ -139,7 +146,9 @@ class StyleModel : public nn::Module {
   // A fresh stylizer over a trained feature model (seeded); the decoder's parameters go to group
   // kGroupStyleDecoder. VggAdain* load VGG and AdaIN's decoder from the weights folder.
   static StyleModel create(FeatureModel features, style::SictMode sict_mode, bool dst_bias, uint64_t seed,
-                           StyleDecoderKind decoder = StyleDecoderKind::Stage2);
+                           StyleDecoderKind decoder = StyleDecoderKind::Stage2, bool content_skip = false);
+  // The columns of a ray's content c: SICT's 32, and with the content skip the field's F components after them.
+  int content_channels() const;
 
   // The stylised-map decoder, whichever kind: map [1, 256, h, w] -> RGB [1, 3, h s, w s]. Inference
   // (ctx null) takes odd sides too (VggAdain* pad the map's last row / column, and the image comes out
@@ -161,7 +170,8 @@ class StyleModel : public nn::Module {
   int stride() const { return features.stride(); }
   StyleDecoderKind decoder_kind() const;
 
-  // The style-independent part of a render: c [R, 32], the kept opacity w_r and the full opacity [R].
+  // The style-independent part of a render: c [R, content_channels()], the kept opacity w_r and the full
+  // opacity [R].
   struct Content {
     Tensor c, kept_acc, acc;
     Tensor depth;  // [R] sum w t over all samples (not divided by acc)
@@ -171,6 +181,7 @@ class StyleModel : public nn::Module {
     RayContext rays;
     std::unique_ptr<SictHead> head;  // bound to this model's sict; backward needs the same head
     style::Dst::ApplyContext dst;
+    style::ContentSkip::Context skip;
     DecoderCtx decoder;
     int h = 0, w = 0;
   };
@@ -178,6 +189,17 @@ class StyleModel : public nn::Module {
   // SICT uses batch statistics and ctx must be given.
   Content render_content(const Tensor& origins, const Tensor& dirs, bool training, uint32_t jitter_seed,
                          Context* ctx) const;
+  // The style transformation of content rows c [R, content_channels()] with their kept opacity [R]: DST of the
+  // SICT columns, plus the content skip of the component columns (SICT's running statistics). [R, 256].
+  Tensor transform(const Tensor& c, const Tensor& kept_acc, const style::StyleCode& code, Context* ctx) const;
+  // The same for 2D feature rows (VGG maps, rendered mean-feature maps): c [R, 32] SICT's output, z [R, 256]
+  // the features times their opacity and mean / var the statistics SICT normalised them with (the content
+  // skip's input with the identity basis; ignored without the skip).
+  Tensor transform_features(const Tensor& c, const Tensor& z, const Tensor& acc, const Tensor& mean,
+                            const Tensor& var, const style::StyleCode& code, Context* ctx) const;
+  // dy [R, 256] -> the gradients of DST's apply (dc: SICT's 32 columns) with the skip's d std added;
+  // accumulates into unzip and the skip's gain.
+  style::Dst::ApplyGrads transform_backward(Context& ctx, const Tensor& dy);
   // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
   Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
   // VGG's relu4_1 of the styled map, what the vgg-adain decoders' tail gives before any re-normalisation

@@ -77,4 +77,53 @@ Tensor image_to_rows_backward(const Tensor& drows, int H, int W) {
   return transpose(drows, H * W, C, {1, C, H, W}, "image_to_rows_backward");
 }
 
+// ---- column blocks -----------------------------------------------------------------------------------------
+namespace {
+// Rows of a [R, C] matrix, with errors naming the op.
+int64_t matrix_rows(const Tensor& t, const char* op, const char* name) {
+  check_defined(t, op, name);
+  if (t.ndim() != 2) throw Error(std::string(op) + ": " + name + " must be [R, C], got " + host::shape_str(t.shape()));
+  return t.dim(0);
+}
+
+void copy_columns(const Tensor& src, int src_col, Tensor& dst, int dst_col, int n) {
+  const int64_t rows = src.dim(0);
+  if (rows == 0 || n == 0) return;
+  host::launch("layout", "copy_columns", {size_t((n + 7) / 8), size_t(rows)}, src, int(src.dim(1)), src_col, dst,
+               int(dst.dim(1)), dst_col, n, int(rows));
+}
+}  // namespace
+
+Tensor concat_columns(const Tensor& a, const Tensor& b) {
+  const int64_t R = matrix_rows(a, "concat_columns", "a");
+  if (matrix_rows(b, "concat_columns", "b") != R)
+    throw Error("concat_columns: a " + host::shape_str(a.shape()) + " and b " + host::shape_str(b.shape()) +
+                " differ in rows");
+  const int A = int(a.dim(1)), B = int(b.dim(1));
+  Tensor out({R, int64_t(A) + B}, "concatenated columns");
+  copy_columns(a, 0, out, 0, A);
+  copy_columns(b, 0, out, A, B);
+  return out;
+}
+
+Tensor take_columns(const Tensor& x, int from, int count) {
+  const int64_t R = matrix_rows(x, "take_columns", "x");
+  if (from < 0 || count < 0 || int64_t(from) + count > x.dim(1))
+    throw Error("take_columns: columns [" + std::to_string(from) + ", " + std::to_string(from + count) + ") of " +
+                host::shape_str(x.shape()));
+  Tensor out({R, count}, "taken columns");
+  copy_columns(x, from, out, 0, count);
+  return out;
+}
+
+Tensor take_columns_backward(const Tensor& dy, int from, int width) {
+  const int64_t R = matrix_rows(dy, "take_columns_backward", "dy");
+  if (from < 0 || int64_t(from) + dy.dim(1) > width)
+    throw Error("take_columns_backward: " + host::shape_str(dy.shape()) + " at column " + std::to_string(from) +
+                " does not fit " + std::to_string(width) + " columns");
+  Tensor dx = Tensor::zeros({R, width}, "take_columns gradient");
+  copy_columns(dy, 0, dx, from, int(dy.dim(1)));
+  return dx;
+}
+
 }  // namespace stylerf::nn

@@ -83,9 +83,11 @@ void save_sheet(const std::string& path, const std::vector<Tensor>& parts) {
 Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const style::StyleCode& code) {
   const int h = int(relu31.shape()[2]), w = int(relu31.shape()[3]);
   style::Sict::Context sc;
-  const Tensor c = m.sict.forward(nn::image_to_rows(relu31), true, &sc);
+  const Tensor x = nn::image_to_rows(relu31);
+  const Tensor c = m.sict.forward(x, true, &sc);
   const Tensor acc = Tensor::full({int64_t(h) * w}, 1.0f, "full opacity");
-  return clamped(m.decode_map(nn::rows_to_image(m.dst.apply(c, acc, code, nullptr), h, w), &code, nullptr));
+  const Tensor y = m.transform_features(c, x, acc, sc.mean, sc.var, code, nullptr);
+  return clamped(m.decode_map(nn::rows_to_image(y, h, w), &code, nullptr));
 }
 
 }  // namespace

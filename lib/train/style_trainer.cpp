@@ -32,7 +32,8 @@ using nlohmann::json;
 // ---- config and style sets --------------------------------------------------------------------------------
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
-      warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed, styles_per_step
+      warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed, styles_per_step, \
+      content_skip
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -48,7 +49,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
   json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0},
-                  {"styles_per_step", 1}};
+                  {"styles_per_step", 1}, {"content_skip", false}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -152,7 +153,8 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
     throw host::SettingError(cfg_.warm_start > 0 ? "warm_start" : "decoder_warm",
                              "needs the fast profile (the cached relu3_1 targets are at its map resolution); this "
                              "feature checkpoint is " + std::string(model::decoder_profile_name(features.profile)));
-  model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder);
+  model_ = model::StyleModel::create(std::move(features), cfg_.sict, cfg_.dst_bias, cfg_.seed, cfg_.style_decoder,
+                                     cfg_.content_skip);
   model_.inference_supersample = cfg_.inference_supersample;
   if (model_.inference_supersample == model::kSupersampleByScene) {  // the recipe's: by this scene
     const int s = model_.stride();
@@ -292,8 +294,10 @@ StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets
   style::Sict::Context sc;
   Tensor c = model_.sict.forward(x, !rendered, &sc);
   if (rendered) c = scale_rows(c, acc);  // c = acc * SICT(mean feature), as the kept samples' sum
-  style::Dst::ApplyContext actx;
-  const Tensor y = model_.dst.apply(c, acc_t, code, &actx);
+  // The content skip's features likewise: acc * mean feature on rendered maps, normalised as SICT's input.
+  const Tensor z = model_.content_skip && rendered ? scale_rows(x, acc) : x;
+  model::StyleModel::Context mctx;  // its DST, skip and decoder parts
+  const Tensor y = model_.transform_features(c, z, acc_t, sc.mean, sc.var, code, &mctx);
   OpacityMask mask;
   const bool masked = rendered && model_.features.geo.has_background;
   if (masked) {
@@ -304,7 +308,6 @@ StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets
     }
   }
   const Tensor content41 = content_target(p);
-  model::StyleModel::Context mctx;  // only its decoder part is used
   const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
                               : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
@@ -313,7 +316,7 @@ StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets
   const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
   const Tensor dy = nn::rows_to_image_backward(model_.decode_map_backward(mctx.decoder, drgb, true));
-  const style::Dst::ApplyGrads g = model_.dst.apply_backward(actx, dy, true);
+  const style::Dst::ApplyGrads g = model_.transform_backward(mctx, dy);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.backward(sc, rendered ? scale_rows(g.dc, acc) : g.dc, false);
   // The running statistics are left alone: they describe 3D samples, which these 2D maps only resemble.

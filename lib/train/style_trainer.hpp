@@ -54,6 +54,8 @@ namespace stylerf::train {
 struct StyleTrainConfig {
   style::SictMode sict = style::SictMode::VolumeAdaptive;
   bool dst_bias = true;
+  // The content skip beside DST (lib/style/content_skip.hpp); off: the paper's module.
+  bool content_skip = false;
   int iters = 25000;
   int patch = 256;
   int style_size = 512, style_crop = 256;
