@@ -359,10 +359,14 @@ Stage& stage(size_t i) {
   s->vgg = nn::VggEncoder::load_default();
   s->in = first_step_inputs(s->recipe->cfg, m, s->vgg, styles.train[0]);
   s->at = std::make_unique<testing::ParamPoint>(m.params());
+  // SICT's running statistics, which the step moves after its backward (the content skip normalises with them).
+  std::vector<std::vector<float>> buffers;
+  for (nn::StateBuffer* b : m.buffers()) buffers.push_back(b->value.to_host());
   // The trainer's step leaves its gradient in the parameters; Adam has moved them since: put them back.
   s->first = s->trainer->step();
   s->trainer_grad = s->at->grads();
   s->at->restore();
+  for (size_t k = 0; k < buffers.size(); ++k) m.buffers()[k]->value.upload(buffers[k]);
   m.zero_grad();
   s->base = style_step(m, s->vgg, s->in, s->in.style_taps, s->recipe->cfg.weights, true);
   s->grad = s->at->grads();
@@ -371,7 +375,7 @@ Stage& stage(size_t i) {
 }
 
 bool is_stylizer(const std::string& block) {
-  return block.rfind("style.sict.", 0) == 0 || block.rfind("style.dst.", 0) == 0 || block.rfind("style.skip.", 0) == 0;
+  return block.rfind("style.sict.", 0) == 0 || block.rfind("style.dst.", 0) == 0 || block.rfind("style.skip", 0) == 0;
 }
 
 // SICT's weight and bias each alone, every other layer's weight and bias together.
