@@ -9,7 +9,7 @@
 //  - hard cases: a channel of zero variance (features exactly at their mean: exactly 0 added, however large
 //    1/sqrt(eps) is), a style channel of std 0 (exactly 0 added), rays that kept nothing (Z = 0, acc = 0:
 //    exactly 0), and huge features (finite, to the reference);
-//  - bad shapes give errors naming the content skip.
+//  - bad shapes and a NaN among the features give errors naming the content skip.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -204,7 +204,7 @@ TEST_CASE("content skip hard cases: zero variance, zero style std and empty rays
   check_close(yh, reference(huge, to_double(huge.gain), to_double(huge.std)), 1e-4, 1e-4, "huge features");
 }
 
-TEST_CASE("content skip: bad shapes give errors naming it") {
+TEST_CASE("content skip: bad shapes and non-finite features give errors naming it") {
   const Case c = random_case(4, 8, 32, 80);
   style::ContentSkip s = skip_with_gain(c.gain);
   Tensor y = Tensor::zeros({c.R, C});
@@ -216,6 +216,11 @@ TEST_CASE("content skip: bad shapes give errors naming it") {
   in.basis = Tensor::zeros({8, 100});
   testing::expect_error([&] { s.forward_add(in, Tensor::from_host(c.std, {C}), y, nullptr); },
                         "content skip: the basis must be [F, 256]");
+  // A NaN among the composited features: an error naming the skip, not a NaN map.
+  Case bad = c;
+  bad.z[size_t(bad.ld + bad.col + 2)] = std::nanf("");  // row 1, inside Z
+  testing::expect_error([&] { s.forward_add(input(bad), Tensor::from_host(c.std, {C}), y, nullptr); },
+                        "content skip: the styled features are not finite");
   in = input(c);
   in.acc = Tensor::zeros({3});
   testing::expect_error([&] { s.forward_add(in, Tensor::from_host(c.std, {C}), y, nullptr); }, "content skip");

@@ -5,6 +5,7 @@
 #include "host/error.hpp"
 #include "host/gemm.hpp"
 #include "host/launch.hpp"
+#include "lib/nn/checks.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/nn/ops.hpp"
 
@@ -75,6 +76,10 @@ void ContentSkip::forward_add(const Input& in, const Tensor& style_std, Tensor& 
   }
   const Tensor shift_t = Tensor::from_host(shift, {C}, "content skip shift");
   host::gemm(Trans::No, Trans::No, R, C, 1, 1.0f, in.acc.mem(), 0, 1, shift_t.mem(), 0, C, 1.0f, y.mem(), 0, C);
+  // As DST's apply: a NaN or an infinity in, or an overflow, is an error here rather than a NaN map downstream.
+  if (nn::has_nonfinite(y))
+    throw Error("content skip: the styled features are not finite (the composited features, their opacity, "
+                "the statistics or the style's std hold a NaN or an infinity, or the product overflows float)");
   if (ctx) *ctx = {in, scale_t, Tensor::from_host(inv, {C}, "content skip 1/sqrt(var + eps)"), style_std};
 }
 
