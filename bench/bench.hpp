@@ -19,6 +19,7 @@ struct BenchOptions {
   // grid phases (the fast recipe's StyleModel::decoder_phases).
   std::string ckpt, profile = "fast", style_decoder = "stage2";
   bool decoder_phases = false;
+  bool content_skip = false;  // stage 3: the content skip beside DST (the fast recipe's)
   int stage = 2, size = 256;
   // bench render only: the scene (default: the checkpoint's), held-out views to render, training steps to
   // time, and the early-termination thresholds to compare (empty: the default only).

@@ -42,8 +42,11 @@ double now_ms() {
 // SictHead's work with the queue drained between the field lookup and SICT, to time them apart.
 class TimedSictHead : public model::SampleHead {
  public:
-  TimedSictHead(const model::FeatureField& f, style::Sict& s) : field_(f), sict_(s) {}
-  int channels() const override { return style::Sict::kEmbed; }
+  TimedSictHead(const model::FeatureField& f, style::Sict& s, bool with_components)
+      : field_(f), sict_(s), with_components_(with_components) {}
+  int channels() const override {
+    return style::Sict::kEmbed + (with_components_ ? int(field_.basis.value.dim(0)) : 0);
+  }
   Tensor forward(const Tensor& pos, const Tensor& dirs, std::unique_ptr<Context>* ctx) const override {
     auto& rt = host::Runtime::instance();
     rt.finish();
@@ -58,13 +61,14 @@ class TimedSictHead : public model::SampleHead {
     sict_ms = now_ms() - t1;
     points = comps.dim(0);
     *ctx = std::move(c);
-    return y;
+    return with_components_ ? nn::concat_columns(y, comps) : y;
   }
   void backward(const Context& ctx, const Tensor& dvalues) override {
     auto& rt = host::Runtime::instance();
     rt.finish();
     const double t0 = now_ms();
-    sict_.backward(dynamic_cast<const model::SictHead::SictContext&>(ctx).sict, dvalues, false);
+    const Tensor dc = with_components_ ? nn::take_columns(dvalues, 0, style::Sict::kEmbed) : dvalues;
+    sict_.backward(dynamic_cast<const model::SictHead::SictContext&>(ctx).sict, dc, false);
     rt.finish();
     sict_bwd_ms = now_ms() - t0;
   }
@@ -75,6 +79,7 @@ class TimedSictHead : public model::SampleHead {
  private:
   const model::FeatureField& field_;
   style::Sict& sict_;
+  bool with_components_;
 };
 
 }  // namespace
@@ -91,7 +96,8 @@ int bench_patch_style(const BenchOptions& opt) {
   model::FeatureFieldConfig fc;
   fc.rank = st.rank;
   model::StyleModel m = model::StyleModel::create(model::FeatureModel::create(st.geo, fc, profile, 1),
-                                                  style::SictMode::VolumeAdaptive, true, 1, decoder_kind);
+                                                  style::SictMode::VolumeAdaptive, true, 1, decoder_kind,
+                                                  opt.content_skip);
   const bool vgg_adain = decoder_kind != model::StyleDecoderKind::Stage2;
   if (opt.decoder_phases && !model::map_decoder_for(decoder_kind).has_vgg_pool())
     throw Error("bench patch: --decoder-phases needs --style-decoder vgg-adain or vgg-adain-relu4");
@@ -112,7 +118,8 @@ int bench_patch_style(const BenchOptions& opt) {
   const Tensor style_img = Tensor::from_host(sv, {1, 3, 256, 256}, "bench style image");
   std::cout << "device: " << rt.device().describe() << "\n"
             << "stage-3 style step, " << model::decoder_profile_name(profile) << " profile, " << S << "x" << S
-            << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256, decoder "
+            << " pixels: " << R << " rays (" << w << "x" << h << " map), style image 256x256"
+            << (m.content_skip ? ", content skip" : "") << ", decoder "
             << (vgg_adain ? std::string(model::style_decoder_name(decoder_kind)) + (m.decoder_phases ? ", pool at 4 phases: " : ": ") +
                                 "VGG conv3_2..conv4_1 (frozen), then " + m.style_decoder.spec().describe()
                           : m.features.decoder.spec().describe()) << "\n  geometry: " << st.source << "\n  best of " << repeats
@@ -137,7 +144,7 @@ int bench_patch_style(const BenchOptions& opt) {
     rt.reset_timings();  // under STYLERF_PROFILE=1: print_top_kernels shows the last step
     const double start = now_ms();
     double t = start;
-    TimedSictHead head(m.features.field, m.sict);
+    TimedSictHead head(m.features.field, m.sict, m.content_skip);
     model::RayContext rctx;
     model::RayOptions ro;
     ro.jitter = true;
@@ -150,8 +157,8 @@ int bench_patch_style(const BenchOptions& opt) {
     const double vgg_style_ms = lap(t);
     style::Dst::StyleContext sctx;
     const style::StyleCode code = m.style_code(st_taps, &sctx);
-    style::Dst::ApplyContext actx;
-    Tensor y = m.dst.apply(r.value, r.kept_acc, code, &actx);
+    model::StyleModel::Context mctx;  // its DST and content-skip parts
+    Tensor y = m.transform(r.value, r.kept_acc, code, &mctx);
     p[3] = lap(t);
     model::StyleModel::DecoderCtx dctx;
     const Tensor rgb = m.decode_map(nn::rows_to_image(y, h, w), &code, &dctx);
@@ -166,10 +173,11 @@ int bench_patch_style(const BenchOptions& opt) {
     p[6] = lap(t);
     const Tensor dmap = m.decode_map_backward(dctx, drgb, true);
     p[7] = lap(t);
-    const auto ag = m.dst.apply_backward(actx, nn::rows_to_image_backward(dmap), true);
+    const auto ag = m.transform_backward(mctx, nn::rows_to_image_backward(dmap));
     m.dst.style_code_backward(sctx, ag.dT, ag.dmean, ag.dstd, false);
     p[8] = lap(t);
-    model::render_rays_backward(m.features.geo, head, rctx, ag.dc, Tensor(), nullptr);
+    const Tensor dvalues = m.content_skip ? nn::take_columns_backward(ag.dc, 0, m.content_channels()) : ag.dc;
+    model::render_rays_backward(m.features.geo, head, rctx, dvalues, Tensor(), nullptr);
     p[9] = lap(t) - head.sict_bwd_ms;
     p[10] = head.sict_bwd_ms;
     adam.step(m.params(), 1.0f);

@@ -63,6 +63,8 @@ int run_bench(int argc, char** argv) {
       "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain | vgg-adain-relu4 (train-style --style-decoder)")(
       "decoder-phases", po::bool_switch(&opt.decoder_phases),
       "patch --stage 3 --style-decoder vgg-adain: VGG's pool at all four grid phases (the fast recipe's)")(
+      "content-skip", po::bool_switch(&opt.content_skip),
+      "patch --stage 3: the content skip beside DST (the fast recipe's; train-style --content-skip)")(
       "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
       "max-views", po::value(&opt.views)->default_value(3), "render: held-out views to render, evenly spaced")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(
