@@ -94,6 +94,7 @@ std::string style_model_label(const io::Checkpoint& ck) {
   label += std::string(", ") + sm.value("decoder", "stage2") + " decoder";
   if (sict != "volume-adaptive") label += ", sict " + sict;
   if (!sm.value("dst_bias", true)) label += ", dst no-bias";
+  if (sm.value("content_skip", false)) label += ", content skip";
   return label + ")";
 }
 
