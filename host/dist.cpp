@@ -124,10 +124,19 @@ void Dist::meet(const char* collective) {
   send_signs_of_life(true);  // this rank has reached the collective
   MPI_Request all_here;
   MPI_Ibarrier(MPI_COMM_WORLD, &all_here);
+  wait(&all_here, collective);
+#else
+  (void)collective;
+#endif
+}
+
+void Dist::wait(void* request, const char* collective) {
+#ifdef STYLERF_HAVE_MPI
+  MPI_Request* q = static_cast<MPI_Request*>(request);
   const double start = now_s();
   for (long polls = 0;; ++polls) {
     int done = 0;
-    MPI_Test(&all_here, &done, MPI_STATUS_IGNORE);
+    MPI_Test(q, &done, MPI_STATUS_IGNORE);
     if (done) return;
     read_signs_of_life();
     send_signs_of_life(false);  // the waiting ranks hear from each other, so only the silent one is named
@@ -148,6 +157,7 @@ void Dist::meet(const char* collective) {
     if (polls > 2000) std::this_thread::sleep_for(std::chrono::microseconds(200));
   }
 #else
+  (void)request;
   (void)collective;
 #endif
 }
@@ -159,7 +169,9 @@ std::vector<std::string> Dist::gather(const std::string& bytes, int root) {
   meet("gather");
   long long mine = static_cast<long long>(bytes.size());
   std::vector<long long> sizes(size_t(size_), 0);
-  MPI_Gather(&mine, 1, MPI_LONG_LONG, sizes.data(), 1, MPI_LONG_LONG, root, MPI_COMM_WORLD);
+  MPI_Request q;
+  MPI_Igather(&mine, 1, MPI_LONG_LONG, sizes.data(), 1, MPI_LONG_LONG, root, MPI_COMM_WORLD, &q);
+  wait(&q, "gather");
   std::vector<std::string> out;
   constexpr long long kPiece = 1 << 30;
   if (rank_ == root) {
@@ -170,13 +182,17 @@ std::vector<std::string> Dist::gather(const std::string& bytes, int root) {
         continue;
       }
       out[size_t(r)].resize(size_t(sizes[size_t(r)]));
-      for (long long at = 0; at < sizes[size_t(r)]; at += kPiece)
-        MPI_Recv(&out[size_t(r)][size_t(at)], int(std::min(kPiece, sizes[size_t(r)] - at)), MPI_BYTE, r, kGatherTag,
-                 MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+      for (long long at = 0; at < sizes[size_t(r)]; at += kPiece) {
+        MPI_Irecv(&out[size_t(r)][size_t(at)], int(std::min(kPiece, sizes[size_t(r)] - at)), MPI_BYTE, r,
+                  kGatherTag, MPI_COMM_WORLD, &q);
+        wait(&q, "gather");
+      }
     }
   } else {
-    for (long long at = 0; at < mine; at += kPiece)
-      MPI_Send(bytes.data() + at, int(std::min(kPiece, mine - at)), MPI_BYTE, root, kGatherTag, MPI_COMM_WORLD);
+    for (long long at = 0; at < mine; at += kPiece) {
+      MPI_Isend(bytes.data() + at, int(std::min(kPiece, mine - at)), MPI_BYTE, root, kGatherTag, MPI_COMM_WORLD, &q);
+      wait(&q, "gather");
+    }
   }
   return out;
 #else
@@ -188,7 +204,9 @@ void Dist::allreduce_sum(std::vector<double>& values) {
 #ifdef STYLERF_HAVE_MPI
   if (mpi_ && !values.empty()) {
     meet("allreduce");
-    MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    MPI_Request q;
+    MPI_Iallreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD, &q);
+    wait(&q, "allreduce");
   }
 #endif
 }
@@ -197,7 +215,9 @@ void Dist::broadcast(std::vector<double>& values, int root) {
 #ifdef STYLERF_HAVE_MPI
   if (mpi_ && !values.empty()) {
     meet("broadcast");
-    MPI_Bcast(values.data(), int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD);
+    MPI_Request q;
+    MPI_Ibcast(values.data(), int(values.size()), MPI_DOUBLE, root, MPI_COMM_WORLD, &q);
+    wait(&q, "broadcast");
   }
 #else
   (void)values;

@@ -4,7 +4,8 @@
 // Every rank must make the same calls in the same order (MPI's collectives).
 //
 // A rank that hangs (stopped, deadlocked, stuck in a driver) would leave the others waiting in a collective
-// forever: every collective here first meets the others with a time limit. The ranks send each other a small
+// forever: every collective here first meets the others with a time limit, and its data moves by nonblocking
+// calls waited for under the same limit. The ranks send each other a small
 // sign of life (alive(), and every meeting); when one has not been heard from for STYLERF_RANK_TIMEOUT_S seconds (300) while
 // the others wait, the job ends with an error naming it. A rank that dies is ended by the launcher itself.
 #pragma once
@@ -45,6 +46,10 @@ class Dist {
   Dist();
   // Every rank reaches this point before a collective starts, or the job ends naming the silent rank.
   void meet(const char* collective);
+  // Polls an MPI request (an MPI_Request*) to completion under the same time limit: the collective's data
+  // moves with nonblocking calls too, so a rank stopped between the meeting and the data (or during it) is
+  // named as well, not waited for forever.
+  void wait(void* request, const char* collective);
   void send_signs_of_life(bool now);
   void read_signs_of_life();
   int rank_ = 0, size_ = 1, local_rank_ = 0, local_size_ = 1;

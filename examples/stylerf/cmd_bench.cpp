@@ -44,7 +44,7 @@ std::string bench_list() {
 }
 
 int run_bench(int argc, char** argv) {
-  std::string which, device, parts, erts, decoder, conv_algo;
+  std::string which, device, parts, erts, decoder, conv_algo, content_skip = "off";
   stylerf::bench::BenchOptions opt;
   double minutes = 0, knob_minutes = 0;  // bench density's budgets; 0: the defaults for --quick or not
   po::options_description desc("stylerf bench <gemm|conv|ops|field|density|targets|patch|dst|render|decoder-step> [options]");
@@ -63,8 +63,8 @@ int run_bench(int argc, char** argv) {
       "patch --stage 3: the decoder of stylised maps, stage2 | vgg-adain | vgg-adain-relu4 (train-style --style-decoder)")(
       "decoder-phases", po::bool_switch(&opt.decoder_phases),
       "patch --stage 3 --style-decoder vgg-adain: VGG's pool at all four grid phases (the fast recipe's)")(
-      "content-skip", po::bool_switch(&opt.content_skip),
-      "patch --stage 3: the content skip beside DST (the fast recipe's; train-style --content-skip)")(
+      "content-skip", po::value(&content_skip)->default_value("off"),
+      "patch --stage 3: on | off, the content skip beside DST (the fast recipe's: on; train-style --content-skip)")(
       "scene", po::value(&opt.scene), "render: scene directory (default: the checkpoint's)")(
       "max-views", po::value(&opt.views)->default_value(3), "render: held-out views to render, evenly spaced")(
       "steps", po::value(&opt.steps)->default_value(10), "render: training steps to time (0: none)")(
@@ -91,6 +91,9 @@ int run_bench(int argc, char** argv) {
     return which.empty() && !vm.count("help") ? 2 : 0;
   }
   if (opt.views < 1 || opt.steps < 0) throw std::runtime_error("--max-views must be >= 1 and --steps >= 0");
+  if (content_skip != "on" && content_skip != "off")
+    throw std::runtime_error("--content-skip must be on or off, got '" + content_skip + "'");
+  opt.content_skip = content_skip == "on";
   for (const std::string& e : comma_list(erts)) {
     size_t used = 0;
     float v = -1;
