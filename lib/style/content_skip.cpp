@@ -4,10 +4,10 @@
 
 #include "host/error.hpp"
 #include "host/gemm.hpp"
-#include "host/launch.hpp"
 #include "lib/nn/checks.hpp"
 #include "lib/nn/columns.hpp"
 #include "lib/nn/ops.hpp"
+#include "lib/style/dst.hpp"
 
 namespace stylerf::style {
 
@@ -16,13 +16,6 @@ using host::Trans;
 
 namespace {
 constexpr int C = ContentSkip::kChannels;
-
-Tensor scale_columns(const Tensor& x, const Tensor& v) {
-  const int rows = int(x.dim(0)), cols = int(x.dim(1));
-  Tensor y(x.shape(), "content skip weights");
-  host::launch("dst", "scale_columns", {size_t((cols + 7) / 8), size_t(rows)}, x, v, y, rows, cols);
-  return y;
-}
 
 // Z's columns: the basis's rows, or 256 for the identity (no basis).
 int64_t components(const ContentSkip::Input& in) { return in.basis.defined() ? in.basis.dim(0) : C; }
@@ -69,10 +62,10 @@ void ContentSkip::forward_add(const Input& in, const Tensor& style_std, Tensor& 
   }
   const Tensor scale_t = Tensor::from_host(scale, {C}, "content skip scale");
   if (in.basis.defined()) {
-    const Tensor W = scale_columns(in.basis, scale_t);
+    const Tensor W = scale_columns(in.basis, scale_t, "content skip weights");
     host::gemm(Trans::No, Trans::No, R, C, F, 1.0f, in.z.mem(), size_t(in.col), ld, W.mem(), 0, C, 1.0f, y.mem(), 0, C);
   } else {  // the identity: Z's 256 columns scaled, no product
-    nn::axpby(1.0f, scale_columns(identity_input(in), scale_t), 1.0f, y);
+    nn::axpby(1.0f, scale_columns(identity_input(in), scale_t, "content skip of the features"), 1.0f, y);
   }
   const Tensor shift_t = Tensor::from_host(shift, {C}, "content skip shift");
   host::gemm(Trans::No, Trans::No, R, C, 1, 1.0f, in.acc.mem(), 0, 1, shift_t.mem(), 0, C, 1.0f, y.mem(), 0, C);

@@ -35,14 +35,14 @@ Tensor subtract_row_vector(const Tensor& x, const Tensor& v) {
   return y;
 }
 
+}  // namespace
+
 Tensor scale_columns(const Tensor& x, const Tensor& v, const char* what) {
   const int rows = int(x.dim(0)), cols = int(x.dim(1));
   Tensor y(x.shape(), what);
   host::launch("dst", "scale_columns", {size_t((cols + 7) / 8), size_t(rows)}, x, v, y, rows, cols);
   return y;
 }
-
-}  // namespace
 
 Dst Dst::create(bool bias, int group, uint64_t seed, const std::string& prefix) {
   Dst d;

@@ -42,6 +42,9 @@ struct StyleCode {
   Tensor scene_lo, scene_hi;
 };
 
+// x [rows, cols] times v [cols] column by column (kernels/dst.cl): DST's M diag(std), the content skip's weights.
+Tensor scale_columns(const Tensor& x, const Tensor& v, const char* what);
+
 class Dst : public nn::Module {
  public:
   static constexpr int kChannels = 256, kEmbed = 32;
