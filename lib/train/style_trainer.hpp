@@ -78,6 +78,10 @@ struct StyleTrainConfig {
   // Saved with the model: the rays per block inference uses by default (kSupersampleByScene: settled here by
   // the scene, model::default_inference_supersample).
   int inference_supersample = 1;
+  // The multi-view term (lib/train/multiview_term.hpp) in rendered steps: its weight (0: off) and how far
+  // the second camera may turn from the first about the patch's surface (degrees).
+  float multiview_weight = 0.0f;
+  float multiview_max_angle = 45.0f;
   bool decoder_phases = false;    // VggAdain: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
   uint64_t seed = 0;
   int finite_check_every = 50;
@@ -105,6 +109,7 @@ struct StyleStepStats {
   bool decoder_warm = false;  // a decoder warm-up step (content = its inversion loss, style 0)
   bool skipped = false;   // the patch had no opaque position (nothing to learn from)
   double content = 0, style = 0, seconds = 0;
+  double multiview = 0;  // the multi-view term (weighted; 0 where the step had none)
   int64_t rays = 0, kept = 0;
   std::string style_name;
 };
@@ -187,6 +192,15 @@ class StyleTrainer {
   StyleStepStats sub_step(int64_t g, StepKind kind);
   StyleStepStats rendered_step(int64_t sub, std::mt19937_64& draw, const StyleTargets& style_targets,
                                const style::StyleCode& code, style::Dst::StyleContext& sctx);
+  // The multi-view term of a rendered step whose first patch p (its content and picture rgb, from ctx) is
+  // done: a second patch rendered and decoded under the same code; its gradient goes back through the
+  // second patch here (into the params and the code's gradients g) and is added to drgb for the first.
+  // With the vgg-adain-relu4 decoder the second patch is re-normalised from the first's relu4_1 statistics
+  // (ctx's), as inference re-normalises every frame from the scene's: a pair apart only where a video differs.
+  // Those statistics are constants to the term (no gradient through them), as the scene's are to a frame.
+  double multiview_term(const features::Patch& p, const model::StyleModel::Content& content,
+                        const model::StyleModel::Context& first_ctx, const Tensor& rgb, const style::StyleCode& code, int64_t sub, std::mt19937_64& draw, Tensor& drgb,
+                        style::Dst::ApplyGrads& g, GradientSum& second);
   StyleStepStats warm_step(std::mt19937_64& draw, const StyleTargets& style_targets, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
