@@ -9,9 +9,8 @@
 #include <limits>
 #include <random>
 
-#include "lib/scene/analytic_scene.hpp"
-#include "lib/scene/poses.hpp"
 #include "lib/train/multiview_term.hpp"
+#include "tests/orbit_frames.hpp"
 #include "tests/testing.hpp"
 
 using namespace stylerf;
@@ -19,45 +18,9 @@ using train::multiview_loss;
 
 namespace {
 
-constexpr int kSize = 64;
-
-// Camera i of an orbit around the origin, 3 degrees apart, slightly above the horizon.
-scene::Camera orbit_camera(int i, int size = kSize) {
-  const double az = 0.3 + i * (2.0 * M_PI / 120.0);
-  const scene::Vec3 eye{4.0 * std::cos(az) * 0.94, 4.0 * std::sin(az) * 0.94, 4.0 * 0.34};
-  const scene::Pose pose = scene::look_at(eye, {0, 0, 0}, {0, 0, 1});
-  scene::Camera cam;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) cam.c2w[r][c] = float(pose.m[r][c]);
-  cam.fx = cam.fy = 0.5f * size / std::tan(0.45f);
-  cam.cx = cam.cy = 0.5f * size;
-  cam.width = cam.height = size;
-  return cam;
-}
-
-struct Frame {
-  eval::FrameGeometry geo;
-  io::Image image;
-};
-
-Frame analytic_frame(const scene::Camera& cam) {
-  const auto v = scene::render_analytic(scene::AnalyticScene::objects(), cam, 1);
-  Frame f;
-  f.geo.camera = cam;
-  f.geo.depth = v.depth;
-  f.geo.opacity = v.alpha;
-  f.image = {cam.width, cam.height, std::vector<float>(size_t(3) * cam.width * cam.height)};
-  const size_t plane = size_t(cam.width) * cam.height;
-  for (size_t i = 0; i < plane; ++i)
-    for (int c = 0; c < 3; ++c) f.image.data[c * plane + i] = v.rgb[i * 3 + c] * v.alpha[i] + (1.0f - v.alpha[i]);
-  return f;
-}
-
-eval::WarpOptions object_options() {
-  eval::WarpOptions o;
-  o.mask_background = true;
-  return o;
-}
+using testing::analytic_frame;
+using testing::object_options;
+using testing::orbit_camera;
 
 io::Image random_image(int w, int h, std::mt19937& rng) {
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -162,9 +125,9 @@ TEST_CASE("multi-view loss: no valid pixel scores 0 with zero gradients; weight 
 TEST_CASE("multi-view loss: two true views warped by their true depth agree; a known flicker scores its square") {
   const eval::RaySpace space{false, 1.0f};
   for (int k : {2, 8}) {
-    const Frame t = analytic_frame(orbit_camera(k)), s = analytic_frame(orbit_camera(0));
+    const testing::AnalyticFrame t = analytic_frame(orbit_camera(k)), s = analytic_frame(orbit_camera(0));
     const eval::Correspondence c = eval::correspond(t.geo, s.geo, space, object_options());
-    REQUIRE(c.stats.valid > kSize * kSize / 10);
+    REQUIRE(c.stats.valid > testing::kOrbitSize * testing::kOrbitSize / 10);
     const double agree = multiview_loss(t.image, s.image, c, 1.0f).value;
     INFO("k = " << k << ": mean squared difference " << agree);
     CHECK(agree < 1e-2);  // the bilinear resampling of the checker textures (their edges) alone
@@ -225,7 +188,7 @@ TEST_CASE("patch geometry: depth and opacity bilinear between the block centres,
 TEST_CASE("the second camera: a training view within the angle that sees the patch's surface, centred on it") {
   scene::Scene sc;
   for (int i = 0; i < 120; i += 10) sc.train.push_back({orbit_camera(i), "", {}, {}});  // 30 degrees apart
-  const Frame first = analytic_frame(sc.train[0].camera);
+  const testing::AnalyticFrame first = analytic_frame(sc.train[0].camera);
   const eval::RaySpace space{false, 1.0f};
   std::mt19937_64 draw(3);
   int seen[12] = {};
@@ -236,9 +199,9 @@ TEST_CASE("the second camera: a training view within the angle that sees the pat
     CHECK(sp.x0 % 4 == 0);
     CHECK(sp.y0 % 4 == 0);
     CHECK(sp.x0 >= 0);
-    CHECK(sp.x0 <= kSize - 32);
+    CHECK(sp.x0 <= testing::kOrbitSize - 32);
     CHECK(sp.y0 >= 0);
-    CHECK(sp.y0 <= kSize - 32);
+    CHECK(sp.y0 <= testing::kOrbitSize - 32);
   }
   // Only the neighbours 30 degrees either side qualify, and the choice between them is random.
   CHECK(seen[1] > 0);

@@ -159,6 +159,16 @@ Correspondence correspond(const FrameGeometry& t, const FrameGeometry& s, const 
   return c;
 }
 
+BilinearTaps bilinear_taps(double qx, double qy, int width, int height) {
+  // Between pixel centres: position q - 0.5 in index units.
+  const double fx = std::clamp(qx - 0.5, 0.0, double(width - 1));
+  const double fy = std::clamp(qy - 0.5, 0.0, double(height - 1));
+  const int x0 = std::min(int(fx), width - 1), y0 = std::min(int(fy), height - 1);
+  const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+  const double ax = fx - x0, ay = fy - y0;
+  return {{x0, x1, x0, x1}, {y0, y0, y1, y1}, {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay}};
+}
+
 io::Image warp_image(const io::Image& s, const Correspondence& c, const io::Image& fill) {
   if (fill.width != c.width || fill.height != c.height)
     throw Error("warp_image: the fill image is " + std::to_string(fill.width) + "x" + std::to_string(fill.height) +
@@ -170,16 +180,11 @@ io::Image warp_image(const io::Image& s, const Correspondence& c, const io::Imag
     for (int x = 0; x < c.width; ++x) {
       const size_t i = size_t(y) * c.width + x;
       if (!c.valid[i]) continue;
-      // Bilinear between pixel centres: position q - 0.5 in index units.
-      const double fx = std::clamp(double(c.x[i]) - 0.5, 0.0, double(s.width - 1));
-      const double fy = std::clamp(double(c.y[i]) - 0.5, 0.0, double(s.height - 1));
-      const int x0 = std::min(int(fx), s.width - 1), y0 = std::min(int(fy), s.height - 1);
-      const int x1 = std::min(x0 + 1, s.width - 1), y1 = std::min(y0 + 1, s.height - 1);
-      const double ax = fx - x0, ay = fy - y0;
+      const BilinearTaps t = bilinear_taps(c.x[i], c.y[i], s.width, s.height);
       for (int ch = 0; ch < 3; ++ch) {
-        const double top = (1 - ax) * s.at(ch, y0, x0) + ax * s.at(ch, y0, x1);
-        const double bottom = (1 - ax) * s.at(ch, y1, x0) + ax * s.at(ch, y1, x1);
-        out.at(ch, y, x) = float((1 - ay) * top + ay * bottom);
+        double v = 0;
+        for (int k = 0; k < 4; ++k) v += t.w[k] * s.at(ch, t.y[k], t.x[k]);
+        out.at(ch, y, x) = float(v);
       }
     }
   return out;

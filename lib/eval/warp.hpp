@@ -74,6 +74,14 @@ std::array<double, 3> world_point(const scene::Camera& cam, double px, double py
 Correspondence correspond(const FrameGeometry& t, const FrameGeometry& s, const RaySpace& space,
                           const WarpOptions& opt = {});
 
+// The bilinear sample of a width x height frame at a landing position (continuous pixel coordinates, centres
+// at +0.5), clamped to the pixel centres: its 2x2 pixels and their weights (summing to 1).
+struct BilinearTaps {
+  int x[4], y[4];
+  double w[4];
+};
+BilinearTaps bilinear_taps(double qx, double qy, int width, int height);
+
 // Frame s sampled (bilinearly) at the correspondence: an image on frame t's pixel grid. Pixels that are
 // not valid take `fill`'s value (frame t itself, for masked comparisons: no difference where nothing
 // is compared).

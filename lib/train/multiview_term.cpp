@@ -145,22 +145,16 @@ MultiviewLoss multiview_loss(const io::Image& a, const io::Image& b, const eval:
     for (int x = 0; x < c.width; ++x) {
       const size_t i = size_t(y) * c.width + x;
       if (!c.valid[i]) continue;
-      // The bilinear sample of eval::warp_image: between pixel centres, position q - 0.5 in index units.
-      const double fx = std::clamp(double(c.x[i]) - 0.5, 0.0, double(b.width - 1));
-      const double fy = std::clamp(double(c.y[i]) - 0.5, 0.0, double(b.height - 1));
-      const int x0 = std::min(int(fx), b.width - 1), y0 = std::min(int(fy), b.height - 1);
-      const int x1 = std::min(x0 + 1, b.width - 1), y1 = std::min(y0 + 1, b.height - 1);
-      const double ax = fx - x0, ay = fy - y0;
-      const double w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
-      const int xs[4] = {x0, x1, x0, x1}, ys[4] = {y0, y0, y1, y1};
+      // eval::warp_image's sample, and its transpose for the gradient.
+      const eval::BilinearTaps t = eval::bilinear_taps(c.x[i], c.y[i], b.width, b.height);
       for (int ch = 0; ch < 3; ++ch) {
         double s = 0;
-        for (int k = 0; k < 4; ++k) s += w[k] * b.at(ch, ys[k], xs[k]);
+        for (int k = 0; k < 4; ++k) s += t.w[k] * b.at(ch, t.y[k], t.x[k]);
         const double r = double(a.at(ch, y, x)) - s;
         sum += r * r;
         const double g = 2.0 * scale * r;
         out.d_first.at(ch, y, x) = float(g);
-        for (int k = 0; k < 4; ++k) out.d_second.at(ch, ys[k], xs[k]) -= float(g * w[k]);
+        for (int k = 0; k < 4; ++k) out.d_second.at(ch, t.y[k], t.x[k]) -= float(g * t.w[k]);
       }
     }
   out.value = scale * sum;
