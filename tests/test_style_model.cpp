@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -1037,6 +1038,49 @@ TEST_CASE("style losses: weighted per-tap terms and the content term against a d
     CHECK(v.content == doctest::Approx(content).epsilon(1e-5));
     CHECK(v.total() == doctest::Approx(v.content + v.style).epsilon(1e-12));
   }
+}
+
+TEST_CASE("pooled relu4_1 statistics: every pixel of every map, against a double reference; a flat channel of one map is not") {
+  // Two maps of unequal batch and size: map a [2, 3, 4, 5], map b [1, 3, 6, 2]. Channel 1 is flat in a (all
+  // 7.25) and varies in b; channel 2 is constant over both (std -> sqrt(eps), never 0).
+  std::mt19937 rng(3);
+  std::normal_distribution<float> n01(0.0f, 1.0f);
+  auto make = [&](int64_t n, int64_t h, int64_t w, bool flat1) {
+    std::vector<float> v(size_t(n * 3 * h * w));
+    for (int64_t i = 0; i < n; ++i)
+      for (int64_t c = 0; c < 3; ++c)
+        for (int64_t k = 0; k < h * w; ++k)
+          v[size_t((i * 3 + c) * h * w + k)] = c == 2 ? 0.5f : c == 1 && flat1 ? 7.25f : 3.0f * n01(rng) + 1.0f;
+    return v;
+  };
+  const auto a = make(2, 4, 5, true), b = make(1, 6, 2, false);
+  const model::PooledRelu4Stats s =
+      model::pool_relu4_stats({Tensor::from_host(a, {2, 3, 4, 5}), Tensor::from_host(b, {1, 3, 6, 2})});
+  const auto mean = s.mean.to_host(), sd = s.std.to_host(), lo = s.lo.to_host(), hi = s.hi.to_host();
+  REQUIRE(s.mean.shape() == host::Shape{1, 3});
+  for (int c = 0; c < 3; ++c) {
+    std::vector<double> all;
+    for (int64_t i = 0; i < 2; ++i)
+      for (int64_t k = 0; k < 20; ++k) all.push_back(a[size_t((i * 3 + c) * 20 + k)]);
+    for (int64_t k = 0; k < 12; ++k) all.push_back(b[size_t(c * 12 + k)]);
+    double mu = 0, var = 0;
+    for (double x : all) mu += x / double(all.size());
+    for (double x : all) var += (x - mu) * (x - mu) / double(all.size());
+    CAPTURE(c);
+    CHECK(mean[size_t(c)] == doctest::Approx(mu).epsilon(1e-5));
+    CHECK(sd[size_t(c)] == doctest::Approx(std::sqrt(var + double(nn::kStatsEps))).epsilon(1e-5));
+    CHECK(lo[size_t(c)] == doctest::Approx(*std::min_element(all.begin(), all.end())));
+    CHECK(hi[size_t(c)] == doctest::Approx(*std::max_element(all.begin(), all.end())));
+  }
+  // The flat channel of a: its own std is sqrt(eps); pooled with b it is b's spread and the gap of the means,
+  // so re-normalising b from the pooled statistics divides by a spread b has.
+  const nn::ChannelStats own_a = nn::channel_stats_forward(Tensor::from_host(a, {2, 3, 4, 5}));
+  CHECK(own_a.std.to_host()[1] < 1e-2f);
+  CHECK(sd[1] > 1.0f);
+  CHECK(sd[2] == doctest::Approx(std::sqrt(nn::kStatsEps)).epsilon(1e-3));
+  CHECK_THROWS_WITH_AS(model::pool_relu4_stats({}), doctest::Contains("no maps"), host::Error);
+  CHECK_THROWS_WITH_AS(model::pool_relu4_stats({Tensor::from_host(a, {2, 3, 4, 5}), Tensor::from_host(b, {1, 1, 6, 6})}),
+                       doctest::Contains("channels"), host::Error);
 }
 
 TEST_CASE("bad inputs name the file or folder and what is wrong") {

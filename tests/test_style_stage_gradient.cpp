@@ -37,6 +37,7 @@
 #include "lib/features/feature_sampler.hpp"
 #include "lib/io/image.hpp"
 #include "lib/model/ray_pipeline.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/model/style_model.hpp"
 #include "lib/nn/layout.hpp"
 #include "lib/render/composite_values.hpp"
@@ -622,7 +623,7 @@ constexpr float kMultiviewWeight = 2000.0f;
 
 // The test's copy of StyleTrainer::multiview_term's forward for the first step: the second patch is chosen
 // once (from the frozen geometry, with the draws the trainer makes after its patch), rendered with its own
-// jitter, decoded with the first patch's relu4_1 statistics (the fast recipe's decoder), warped into the
+// jitter, decoded with the pair's pooled relu4_1 statistics (the fast recipe's decoder), warped into the
 // first by the rendered depth and compared (train::multiview_loss, tested against a double reference in
 // test_multiview_term).
 struct MultiviewInputs {
@@ -665,37 +666,31 @@ MultiviewInputs multiview_inputs(const train::StyleTrainConfig& cfg, model::Styl
   return mv;
 }
 
-// The style loss of the first patch plus the multi-view term (forward only). The pair's shared relu4_1
-// statistics (the mean over the grid phases of the first picture's) are constants to the term, as the
-// scene's are to a frame at inference: measured at the base point (`shared` empty) and then kept.
+// The style loss of the first patch plus the multi-view term (forward only). Both pictures are decoded
+// with the relu4_1 statistics pooled over both patches' maps (model::pool_relu4_stats, as the scene's are
+// pooled over its views), constants to the step as the scene's are to a frame at inference: measured at the
+// base point (`shared` empty) and then kept.
 struct MultiviewLossValues {
   double style_loss = 0, multiview = 0;
 };
 MultiviewLossValues multiview_step_loss(model::StyleModel& m, nn::VggEncoder& vgg, const StepInputs& in,
-                                        const MultiviewInputs& mv, const train::StyleLossWeights& w,
+                                        const MultiviewInputs& mv, const train::StyleTrainConfig& cfg,
                                         nn::ChannelStats& shared_stats) {
   MultiviewLossValues v;
-  model::StyleModel::Context ctx;
+  model::StyleModel::Context ctx, ctx2;
   const model::StyleModel::Content content = m.render_content(in.origins, in.dirs, true, in.jitter, &ctx);
-  const style::StyleCode code = m.style_code(in.style_taps, nullptr);
-  const Tensor rgb = m.decode_styled(content, code, in.h, in.w, &ctx);
-  v.style_loss = train::style_losses(vgg.forward(rgb, 4, false), in.content41, in.targets, &in.mask, w, nullptr).total();
-  if (!shared_stats.mean.defined()) {
-    const nn::ChannelStats own = nn::channel_stats_forward(ctx.decoder.relu4);
-    const int64_t n = own.mean.dim(0), C = own.mean.dim(1);
-    const auto mean = own.mean.to_host(), sd = own.std.to_host();
-    std::vector<float> sm(size_t(C), 0.0f), ss(size_t(C), 0.0f);
-    for (int64_t i = 0; i < n; ++i)
-      for (int64_t c = 0; c < C; ++c)
-        sm[size_t(c)] += mean[size_t(i * C + c)] / float(n), ss[size_t(c)] += sd[size_t(i * C + c)] / float(n);
-    shared_stats = {Tensor::from_host(sm, {1, C}), Tensor::from_host(ss, {1, C})};
-  }
-  style::StyleCode shared = code;
-  shared.scene_mean = shared_stats.mean;
-  shared.scene_std = shared_stats.std;
-  model::StyleModel::Context ctx2;
   const model::StyleModel::Content content2 = m.render_content(mv.origins, mv.dirs, true, mv.jitter, &ctx2);
-  const Tensor rgb2 = m.decode_styled(content2, shared, in.h, in.w, &ctx2);
+  style::StyleCode code = m.style_code(in.style_taps, nullptr);
+  if (!shared_stats.mean.defined()) {
+    const model::PooledRelu4Stats pooled =
+        model::pool_relu4_stats({m.relu4_of(content, code, in.h, in.w), m.relu4_of(content2, code, in.h, in.w)});
+    shared_stats = {pooled.mean, pooled.std};
+  }
+  code.scene_mean = shared_stats.mean;
+  code.scene_std = shared_stats.std;
+  const Tensor rgb = m.decode_styled(content, code, in.h, in.w, &ctx);
+  v.style_loss = train::style_losses(vgg.forward(rgb, 4, false), in.content41, in.targets, &in.mask, cfg.weights, nullptr).total();
+  const Tensor rgb2 = m.decode_styled(content2, code, in.h, in.w, &ctx2);
   const io::Image a{in.patch.width, in.patch.height, rgb.to_host()}, b{mv.second.width, mv.second.height, rgb2.to_host()};
   v.multiview = train::multiview_loss(a, b, mv.corr, kMultiviewWeight).value;
   return v;
@@ -704,7 +699,7 @@ MultiviewLossValues multiview_step_loss(model::StyleModel& m, nn::VggEncoder& vg
 }  // namespace
 
 TEST_CASE("style stage: with the multi-view term the step's gradient is that of the style loss plus the term") {
-  // The fast recipe (its decoder re-normalises relu4_1: the pair shares the first patch's statistics).
+  // The fast recipe (its decoder re-normalises relu4_1: the pair shares statistics pooled over both).
   train::StyleTrainConfig cfg = recipes()[0].cfg;
   cfg.multiview_weight = kMultiviewWeight;
   cfg.multiview_max_angle = 60.0f;
@@ -727,14 +722,14 @@ TEST_CASE("style stage: with the multi-view term the step's gradient is that of 
   m.zero_grad();
   // Wiring: the trainer's report of the step is the test's copy's values.
   nn::ChannelStats shared;
-  const MultiviewLossValues base = multiview_step_loss(m, vgg, in, mv, cfg.weights, shared);
+  const MultiviewLossValues base = multiview_step_loss(m, vgg, in, mv, cfg, shared);
   CHECK(st.multiview > 0);
   CHECK(st.multiview == doctest::Approx(base.multiview).epsilon(1e-5));
   CHECK(st.content + st.style == doctest::Approx(base.style_loss).epsilon(1e-5));
   // The gradient against central differences of the sum, over every parameter and over the stylizer and the
   // decoder apart (the term's share of the gradient flows through the second patch's render and decoder).
   auto loss = [&] {
-    const MultiviewLossValues v = multiview_step_loss(m, vgg, in, mv, cfg.weights, shared);
+    const MultiviewLossValues v = multiview_step_loss(m, vgg, in, mv, cfg, shared);
     return v.style_loss + v.multiview;
   };
   const testing::ParamFilter all = [](const nn::Param&) { return true; };

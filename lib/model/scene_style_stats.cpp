@@ -21,41 +21,49 @@ SceneStyleStats::SceneStyleStats(const StyleModel& m, const scene::Scene& scene,
                                              refine_contrast));
 }
 
-void SceneStyleStats::attach(style::StyleCode& code) const {
-  if (!m_->map_decoder->renormalises_relu4()) return;
-  std::vector<double> sum, sq;
-  std::vector<float> lo, hi;
+PooledRelu4Stats pool_relu4_stats(const std::vector<Tensor>& maps) {
+  if (maps.empty()) throw host::Error("relu4_1 statistics: no maps to pool");
+  const int64_t C = maps[0].dim(1);
+  std::vector<double> sum(size_t(C), 0.0), sq(size_t(C), 0.0);
+  std::vector<float> lo(size_t(C), std::numeric_limits<float>::infinity()),
+      hi(size_t(C), -std::numeric_limits<float>::infinity());
   double count = 0;
-  for (const auto& v : views_) {
-    const Tensor r41 = m_->relu4_of(v.content, code, v.height, v.width);  // [1, C, h, w]
-    const int64_t C = r41.dim(1), hw = r41.dim(2) * r41.dim(3);
+  for (const Tensor& r41 : maps) {
+    if (r41.dim(1) != C)
+      throw host::Error("relu4_1 statistics: maps of " + std::to_string(C) + " and " + std::to_string(r41.dim(1)) +
+                        " channels cannot be pooled");
+    const int64_t n = r41.dim(0), hw = r41.dim(2) * r41.dim(3);
     const auto x = r41.to_host();
-    sum.resize(size_t(C), 0.0);
-    sq.resize(size_t(C), 0.0);
-    lo.resize(size_t(C), std::numeric_limits<float>::infinity());
-    hi.resize(size_t(C), -std::numeric_limits<float>::infinity());
-    for (int64_t c = 0; c < C; ++c)
-      for (int64_t i = 0; i < hw; ++i) {
-        const float v = x[size_t(c * hw + i)];
-        const double val = v;
-        sum[size_t(c)] += val;
-        sq[size_t(c)] += val * val;
-        lo[size_t(c)] = std::min(lo[size_t(c)], v);
-        hi[size_t(c)] = std::max(hi[size_t(c)], v);
-      }
-    count += double(hw);
+    for (int64_t i = 0; i < n; ++i)
+      for (int64_t c = 0; c < C; ++c)
+        for (int64_t k = 0; k < hw; ++k) {
+          const float v = x[size_t((i * C + c) * hw + k)];
+          sum[size_t(c)] += double(v);
+          sq[size_t(c)] += double(v) * double(v);
+          lo[size_t(c)] = std::min(lo[size_t(c)], v);
+          hi[size_t(c)] = std::max(hi[size_t(c)], v);
+        }
+    count += double(n * hw);
   }
-  std::vector<float> mean(sum.size()), stdev(sum.size());
-  for (size_t c = 0; c < sum.size(); ++c) {
+  std::vector<float> mean(static_cast<size_t>(C)), stdev(static_cast<size_t>(C));
+  for (size_t c = 0; c < size_t(C); ++c) {
     const double mu = sum[c] / count, var = std::max(0.0, sq[c] / count - mu * mu);
     mean[c] = float(mu);
     stdev[c] = float(std::sqrt(var + double(nn::kStatsEps)));
   }
-  const int64_t C = int64_t(sum.size());
-  code.scene_mean = Tensor::from_host(mean, {1, C}, "scene relu4_1 mean");
-  code.scene_std = Tensor::from_host(stdev, {1, C}, "scene relu4_1 std");
-  code.scene_lo = Tensor::from_host(lo, {1, C}, "scene relu4_1 min");
-  code.scene_hi = Tensor::from_host(hi, {1, C}, "scene relu4_1 max");
+  return {Tensor::from_host(mean, {1, C}, "pooled relu4_1 mean"), Tensor::from_host(stdev, {1, C}, "pooled relu4_1 std"),
+          Tensor::from_host(lo, {1, C}, "pooled relu4_1 min"), Tensor::from_host(hi, {1, C}, "pooled relu4_1 max")};
+}
+
+void SceneStyleStats::attach(style::StyleCode& code) const {
+  if (!m_->map_decoder->renormalises_relu4()) return;
+  std::vector<Tensor> maps;
+  for (const auto& v : views_) maps.push_back(m_->relu4_of(v.content, code, v.height, v.width));  // [1, C, h, w]
+  const PooledRelu4Stats s = pool_relu4_stats(maps);
+  code.scene_mean = s.mean;
+  code.scene_std = s.std;
+  code.scene_lo = s.lo;
+  code.scene_hi = s.hi;
 }
 
 }  // namespace stylerf::model

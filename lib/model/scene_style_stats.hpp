@@ -13,6 +13,13 @@
 
 namespace stylerf::model {
 
+// relu4_1 statistics pooled over every pixel of every map (each [1, C, h, w] or [n, C, h, w]): per channel
+// the mean, sqrt(biased variance + 1e-5) as nn::channel_stats_forward, and the range, each [1, C].
+struct PooledRelu4Stats {
+  Tensor mean, std, lo, hi;
+};
+PooledRelu4Stats pool_relu4_stats(const std::vector<Tensor>& maps);
+
 class SceneStyleStats {
  public:
   static constexpr int kDefaultViews = 6;

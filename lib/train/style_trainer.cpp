@@ -11,6 +11,7 @@
 #include "host/error.hpp"
 #include "lib/io/json_fields.hpp"
 #include "lib/model/map_decoder.hpp"
+#include "lib/model/scene_style_stats.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/io/image.hpp"
@@ -133,16 +134,6 @@ Tensor scale_rows(const Tensor& rows, const std::vector<float>& factor) {
   for (int64_t r = 0; r < R; ++r)
     for (int64_t c = 0; c < C; ++c) v[size_t(r * C + c)] *= factor[size_t(r)];
   return Tensor::from_host(v, {R, C}, "scaled rows");
-}
-
-// [n, C] statistics of n maps (the decoder's grid phases) -> [1, C], their mean.
-Tensor mean_over_maps(const Tensor& stats) {
-  const int64_t n = stats.dim(0), C = stats.dim(1);
-  const auto v = stats.to_host();
-  std::vector<float> m(size_t(C), 0.0f);
-  for (int64_t i = 0; i < n; ++i)
-    for (int64_t c = 0; c < C; ++c) m[size_t(c)] += v[size_t(i * C + c)] / float(n);
-  return Tensor::from_host(m, {1, C}, "relu4_1 statistics shared by a multi-view pair");
 }
 
 // Options retired as neutral or worse (docs/experiments.md) may still be in a checkpoint's config: those
@@ -269,7 +260,10 @@ StyleStepStats StyleTrainer::rendered_step(int64_t sub, std::mt19937_64& draw, c
     return st;
   }
   const Tensor content41 = content_target(p);
-  const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
+  std::optional<SecondRender> pair;
+  if (cfg_.multiview_weight > 0) pair = render_second(p, content, sub, draw);
+  const style::StyleCode used = pair ? pair_code(content, *pair, code, h, w) : code;
+  const Tensor rgb = model_.decode_styled(content, used, h, w, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, content41, style_targets, masked ? &mask : nullptr, cfg_.weights, &grads);
@@ -277,7 +271,7 @@ StyleStepStats StyleTrainer::rendered_step(int64_t sub, std::mt19937_64& draw, c
   vgg_.release();
   style::Dst::ApplyGrads g2;
   GradientSum second;
-  if (cfg_.multiview_weight > 0) st.multiview = multiview_term(p, content, ctx, rgb, code, sub, draw, drgb, g2, second);
+  if (pair) st.multiview = multiview_term(p, *pair, rgb, used, drgb, g2, second);
   style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
   if (g2.dT.defined()) {
     second.add_into(model_.params());
@@ -292,10 +286,9 @@ StyleStepStats StyleTrainer::rendered_step(int64_t sub, std::mt19937_64& draw, c
   return st;
 }
 
-double StyleTrainer::multiview_term(const features::Patch& p, const model::StyleModel::Content& content,
-                                    const model::StyleModel::Context& first_ctx, const Tensor& rgb,
-                                    const style::StyleCode& code, int64_t sub, std::mt19937_64& draw,
-                                    Tensor& drgb, style::Dst::ApplyGrads& g, GradientSum& second) {
+std::optional<StyleTrainer::SecondRender> StyleTrainer::render_second(const features::Patch& p,
+                                                                      const model::StyleModel::Content& content,
+                                                                      int64_t sub, std::mt19937_64& draw) {
   const int s = model_.stride();
   const int h = p.height / s, w = p.width / s;
   const eval::RaySpace space = eval::RaySpace::of(*scene_);
@@ -304,33 +297,46 @@ double StyleTrainer::multiview_term(const features::Patch& p, const model::Style
       patch_geometry(patch_camera(views[size_t(p.view)].camera, p.x0, p.y0, p.width, p.height), w, h, s,
                      content.depth.to_host(), content.acc.to_host());
   const SecondPatch sp = pick_second_patch(*scene_, first, p.view, p.width, p.height, cfg_.multiview_max_angle, space, draw);
-  if (sp.view < 0) return 0;
-  const features::Patch q = patches_->at(sp.view, sp.x0, sp.y0, s);
+  if (sp.view < 0) return std::nullopt;
+  SecondRender r;
+  r.patch = patches_->at(sp.view, sp.x0, sp.y0, s);
   const int64_t R = int64_t(h) * w;
-  model::StyleModel::Context ctx;
-  const model::StyleModel::Content content2 =
-      model_.render_content(Tensor::from_host(q.rays.origins, {R, 3}, "second patch origins"),
-                            Tensor::from_host(q.rays.directions, {R, 3}, "second patch directions"), true,
-                            uint32_t(cfg_.seed * 7919 + uint64_t(sub) + 0x5bd1e995u), &ctx);
-  if (!ctx.rays.head) return 0;
-  style::StyleCode shared = code;
-  if (model_.map_decoder->renormalises_relu4()) {
-    const nn::ChannelStats own = nn::channel_stats_forward(first_ctx.decoder.relu4);
-    shared.scene_mean = mean_over_maps(own.mean);
-    shared.scene_std = mean_over_maps(own.std);
-  }
-  const Tensor rgb2 = model_.decode_styled(content2, shared, h, w, &ctx);
-  const eval::FrameGeometry second_geo =
-      patch_geometry(patch_camera(views[size_t(sp.view)].camera, sp.x0, sp.y0, q.width, q.height), w, h, s,
-                     content2.depth.to_host(), content2.acc.to_host());
+  r.content = model_.render_content(Tensor::from_host(r.patch.rays.origins, {R, 3}, "second patch origins"),
+                                    Tensor::from_host(r.patch.rays.directions, {R, 3}, "second patch directions"),
+                                    true, uint32_t(cfg_.seed * 7919 + uint64_t(sub) + 0x5bd1e995u), &r.ctx);
+  if (!r.ctx.rays.head) return std::nullopt;
+  const eval::FrameGeometry second =
+      patch_geometry(patch_camera(views[size_t(sp.view)].camera, sp.x0, sp.y0, r.patch.width, r.patch.height), w, h,
+                     s, r.content.depth.to_host(), r.content.acc.to_host());
   eval::WarpOptions wo;
   wo.mask_background = model_.features.geo.has_background;
-  const eval::Correspondence c = eval::correspond(first, second_geo, space, wo);
-  const io::Image a{p.width, p.height, rgb.to_host()}, b{q.width, q.height, rgb2.to_host()};
-  const MultiviewLoss loss = multiview_loss(a, b, c, cfg_.multiview_weight);
+  r.corr = eval::correspond(first, second, space, wo);
+  if (r.corr.stats.valid == 0) return std::nullopt;
+  return r;
+}
+
+style::StyleCode StyleTrainer::pair_code(const model::StyleModel::Content& first, const SecondRender& second,
+                                         const style::StyleCode& code, int h, int w) const {
+  style::StyleCode shared = code;
+  if (!model_.map_decoder->renormalises_relu4()) return shared;
+  const model::PooledRelu4Stats pooled =
+      model::pool_relu4_stats({model_.relu4_of(first, code, h, w), model_.relu4_of(second.content, code, h, w)});
+  shared.scene_mean = pooled.mean;
+  shared.scene_std = pooled.std;
+  return shared;
+}
+
+double StyleTrainer::multiview_term(const features::Patch& p, SecondRender& second, const Tensor& rgb,
+                                    const style::StyleCode& code, Tensor& drgb, style::Dst::ApplyGrads& g,
+                                    GradientSum& sum) {
+  const int s = model_.stride();
+  const int h = p.height / s, w = p.width / s;
+  const Tensor rgb2 = model_.decode_styled(second.content, code, h, w, &second.ctx);
+  const io::Image a{p.width, p.height, rgb.to_host()}, b{second.patch.width, second.patch.height, rgb2.to_host()};
+  const MultiviewLoss loss = multiview_loss(a, b, second.corr, cfg_.multiview_weight);
   if (loss.pixels == 0) return 0;
-  g = model_.backward(ctx, Tensor::from_host(loss.d_second.data, rgb2.shape(), "multi-view gradient"));
-  second.add(model_.params());  // off the device: the first patch's backward starts from zero
+  g = model_.backward(second.ctx, Tensor::from_host(loss.d_second.data, rgb2.shape(), "multi-view gradient"));
+  sum.add(model_.params());  // off the device: the first patch's backward starts from zero
   std::vector<float> d = drgb.to_host();
   for (size_t i = 0; i < d.size(); ++i) d[i] += loss.d_first.data[i];
   drgb = Tensor::from_host(d, drgb.shape(), "style + multi-view gradient");

@@ -31,6 +31,7 @@
 #include <iosfwd>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <string>
 #include <unordered_map>
@@ -45,6 +46,7 @@
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
 #include "lib/train/data_parallel.hpp"
+#include "lib/eval/warp.hpp"
 #include "lib/train/training_loop.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
@@ -192,15 +194,31 @@ class StyleTrainer {
   StyleStepStats sub_step(int64_t g, StepKind kind);
   StyleStepStats rendered_step(int64_t sub, std::mt19937_64& draw, const StyleTargets& style_targets,
                                const style::StyleCode& code, style::Dst::StyleContext& sctx);
-  // The multi-view term of a rendered step whose first patch p (its content and picture rgb, from ctx) is
-  // done: a second patch rendered and decoded under the same code; its gradient goes back through the
-  // second patch here (into the params and the code's gradients g) and is added to drgb for the first.
-  // With the vgg-adain-relu4 decoder the second patch is re-normalised from the first's relu4_1 statistics
-  // (ctx's), as inference re-normalises every frame from the scene's: a pair apart only where a video differs.
-  // Those statistics are constants to the term (no gradient through them), as the scene's are to a frame.
-  double multiview_term(const features::Patch& p, const model::StyleModel::Content& content,
-                        const model::StyleModel::Context& first_ctx, const Tensor& rgb, const style::StyleCode& code, int64_t sub, std::mt19937_64& draw, Tensor& drgb,
-                        style::Dst::ApplyGrads& g, GradientSum& second);
+  // The multi-view term's second patch (lib/train/multiview_term.hpp), rendered before either picture is
+  // decoded: with the vgg-adain-relu4 decoder the pair shares relu4_1 statistics pooled over both.
+  struct SecondRender {
+    features::Patch patch;
+    eval::Correspondence corr;  // the first patch's pixels into the second's
+    model::StyleModel::Content content;
+    model::StyleModel::Context ctx;
+  };
+  // The second camera for rendered patch p (its content) and its render; empty where no training view sees
+  // the patch's surface within the angle or the two patches share no surface pixel.
+  std::optional<SecondRender> render_second(const features::Patch& p, const model::StyleModel::Content& content,
+                                            int64_t sub, std::mt19937_64& draw);
+  // The code a multi-view pair is decoded with: with the vgg-adain-relu4 decoder, the relu4_1 statistics
+  // pooled over both patches' maps as the source of the re-normalisation, as inference re-normalises every
+  // frame from statistics pooled over the scene's views: a pair then differs only where a video would.
+  // Constants to the step (no gradient through them), as the scene's are to a frame. Pooled, no channel of
+  // one patch is divided by a near-zero spread it has not got (the first patch's own statistics did that).
+  style::StyleCode pair_code(const model::StyleModel::Content& first, const SecondRender& second,
+                             const style::StyleCode& code, int h, int w) const;
+  // The multi-view term of a rendered step whose first picture rgb (decoded under pair code `code`) is done:
+  // the second decoded under the same code, warped and compared; its gradient goes back through the second
+  // patch here (into the params and the code's gradients g, the params' part parked in `sum`) and is added
+  // to drgb for the first.
+  double multiview_term(const features::Patch& p, SecondRender& second, const Tensor& rgb,
+                        const style::StyleCode& code, Tensor& drgb, style::Dst::ApplyGrads& g, GradientSum& sum);
   StyleStepStats warm_step(std::mt19937_64& draw, const StyleTargets& style_targets, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
