@@ -1,5 +1,5 @@
 // Frames of the generated analytic scene from an orbit, with their exact geometry: what the warp tests
-// (test_consistency, test_multiview_term) compare views of.
+// (test_consistency) compares views of.
 #pragma once
 #include <cmath>
 #include <vector>

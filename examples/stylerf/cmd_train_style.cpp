@@ -10,6 +10,7 @@
 #include <iostream>
 #include <memory>
 #include <set>
+#include <sstream>
 
 #include "examples/stylerf/cli_checks.hpp"
 #include "examples/stylerf/commands.hpp"
@@ -41,8 +42,7 @@ struct StyleArgs {
       decoder_warm = 0, styles_per_step = 1;
   int patch = 256, style_size = 512;
   double minutes = 0;
-  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, warm_share = 1.0f, content_weight = 1.0f,
-        multiview_weight = 0.0f, multiview_max_angle = 45.0f;
+  float lr_stylizer = 1e-4f, lr_decoder = 1e-5f, lr_decay = 1.0f, warm_share = 1.0f, content_weight = 1.0f;
   uint64_t seed = 0;
   bool resume = false, force = false, timing = false;
   std::set<std::string> given;
@@ -100,11 +100,6 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
       "profile)")(
       "warm-share", po::value(&a.warm_share),
       "with --minutes, the warm start also ends once this fraction of the minutes is spent (1: its steps only)")(
-      "multiview-weight", po::value(&a.multiview_weight),
-      "rendered steps: a second training camera's decoded patch, warped into the first by the rendered depth, "
-      "and this weight on their squared difference where both see the surface (0: off; default: the recipe's)")(
-      "multiview-max-angle", po::value(&a.multiview_max_angle),
-      "the most degrees the second camera turns from the first about the patch's surface (default 45)")(
       "content-weight", po::value(&a.content_weight),
       "the content loss's weight against the style loss's 20 (default: the recipe's; fast 3, paper 1, the "
       "paper's)")(
@@ -127,7 +122,7 @@ int parse_style_args(int argc, char** argv, StyleArgs& a) {
   }
   if (vm.count("help") || a.out.empty() || (!a.resume && (a.features_path.empty() || a.styles_dir.empty()))) {
     stylerf::cli::print_help(std::cout, "train-style", desc,
-                             "(also --sict, --dst, --content-skip, --multiview-weight, --multiview-max-angle, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, "
+                             "(also --sict, --dst, --content-skip, --decoder-warm, --warm-share, --content-weight, --patch, --log-every, "
                              "--eval-every, --eval-styles, --ckpt-every, --timing: --help-all)");
     return vm.count("help") ? 0 : 2;
   }
@@ -148,8 +143,6 @@ void apply_style_flags(const StyleArgs& a, train::StyleTrainConfig& cfg) {
   if (a.has("warm-start")) cfg.warm_start = a.warm;
   if (a.has("warm-share")) cfg.warm_share = a.warm_share;
   if (a.has("content-weight")) cfg.weights.content = a.content_weight;
-  if (a.has("multiview-weight")) cfg.multiview_weight = a.multiview_weight;
-  if (a.has("multiview-max-angle")) cfg.multiview_max_angle = a.multiview_max_angle;
   if (a.has("warm-maps")) cfg.warm_maps = train::parse_warm_maps(a.warm_maps_name);
   if (a.has("style-decoder")) cfg.style_decoder = model::parse_style_decoder(a.style_decoder_name);
   // The recipe's grid phases belong to the vgg-adain decoders' VGG pool (the stage2 decoder has none).
@@ -193,15 +186,19 @@ std::unique_ptr<train::StyleTrainer> new_style_trainer(const StyleArgs& a, const
   return std::make_unique<train::StyleTrainer>(scene, std::move(fm), std::move(styles), cfg, &std::cout);
 }
 
+// A setting as a person types it: 0.1 (std::to_string prints 0.100000).
+std::string short_number(float v) {
+  std::ostringstream o;
+  o << v;
+  return o.str();
+}
+
 void print_style_setup(train::StyleTrainer& trainer) {
   const auto& cfg = trainer.config();
   auto& m = trainer.model();
   std::cout << "style stage, " << model::decoder_profile_name(m.features.profile) << " profile (features at 1/"
             << m.stride() << " resolution); SICT " << stylerf::style::sict_mode_name(cfg.sict) << ", DST "
             << (cfg.dst_bias ? "with" : "without") << " bias" << (cfg.content_skip ? ", content skip" : "")
-            << (cfg.multiview_weight > 0 ? ", multi-view term x" + std::to_string(cfg.multiview_weight) + " (within " +
-                                               std::to_string(int(cfg.multiview_max_angle)) + " degrees)"
-                                         : std::string())
             << "; style decoder "
             << model::style_decoder_name(cfg.style_decoder) << (cfg.decoder_phases ? ", VGG's pool at its 4 grid phases" : "")
             << "\n"
@@ -214,7 +211,7 @@ void print_style_setup(train::StyleTrainer& trainer) {
             << "  losses: content (relu4_1) x" << cfg.weights.content << " + style (relu1_1..relu4_1 mean/std) x"
             << cfg.weights.style << (m.features.geo.has_background ? ", masked by opacity" : "") << "\n"
             << "  Adam lr stylizer " << cfg.lr_stylizer << ", decoder " << cfg.lr_decoder
-            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + std::to_string(cfg.lr_decay_ratio) + "x)" : std::string())
+            << (cfg.lr_decay_ratio < 1 ? " (decaying to " + short_number(cfg.lr_decay_ratio) + "x)" : std::string())
             << "; grids frozen; " << m.param_count() / 1e6 << "M trained parameters"
             << (cfg.warm_start > 0 ? "; " + std::to_string(cfg.warm_start) + " 2D warm-start steps first (" +
                                          train::warm_maps_name(cfg.warm_maps) + " maps" +

@@ -133,27 +133,21 @@ class VggAdainRelu4MapDecoder : public VggAdainMapDecoder {
                   "deep_mean / deep_std; style::set_relu4_stats)");
     const int64_t n = r41.dim(0);
     const nn::ChannelStats target = repeat_stats({code->deep_mean, code->deep_std}, n);
-    // Scene statistics: at inference (model::SceneStyleStats); in training, the statistics a multi-view pair
-    // shares (lib/train/multiview_term.hpp), as every frame of a video shares the scene's.
-    const bool scene_stats = code->scene_mean.defined() && code->scene_std.defined();
+    const bool scene_stats = !ctx && code->scene_mean.defined() && code->scene_std.defined();
     // With scene statistics a frame is first clamped to the values the scene's pooled views reached.
-    const bool guard = !ctx && scene_stats && code->scene_lo.defined() && code->scene_hi.defined();
-    const nn::ChannelStats source = scene_stats ? repeat_stats({code->scene_mean, code->scene_std}, n) : nn::ChannelStats{};
+    const bool guard = scene_stats && code->scene_lo.defined() && code->scene_hi.defined();
     Tensor renormed = scene_stats ? nn::adain_between_stats_forward(
-                                        guard ? clamp_channels(r41, code->scene_lo, code->scene_hi) : r41, source, target)
+                                        guard ? clamp_channels(r41, code->scene_lo, code->scene_hi) : r41,
+                                        repeat_stats({code->scene_mean, code->scene_std}, n), target)
                                   : nn::adain_to_stats_forward(r41, target);
     if (ctx) {
       ctx->relu4 = r41;
       ctx->relu4_target = target;
-      ctx->relu4_source = source;
     }
     return renormed;
   }
   Tensor renormalise_backward(const StyleModel::DecoderCtx& ctx, const Tensor& d41) const override {
-    if (!ctx.relu4_source.std.defined()) return nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
-    // Fixed source statistics: a per-channel affine map, whose slope is target std / source std.
-    const Tensor zero = Tensor::full(ctx.relu4_source.mean.shape(), 0.0f);
-    return nn::adain_between_stats_forward(d41, {zero, ctx.relu4_source.std}, {zero, ctx.relu4_target.std});
+    return nn::adain_to_stats_backward(ctx.relu4, ctx.relu4_target, d41);
   }
 };
 

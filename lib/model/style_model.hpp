@@ -158,9 +158,6 @@ class StyleModel : public nn::Module {
     nn::ConvStack::Ctx stack;
     Tensor relu4;  // VggAdainRelu4: the tail's output before the re-normalisation
     nn::ChannelStats relu4_target;
-    // VggAdainRelu4 trained with a code that has scene statistics: the fixed statistics re-normalised from
-    // (undefined: the map's own, the usual training step).
-    nn::ChannelStats relu4_source;
   };
   // code: the style's, for VggAdainRelu4 (its relu4_1 statistics); the others ignore it (may be null).
   Tensor decode_map(const Tensor& map, const style::StyleCode* code, DecoderCtx* ctx) const;

@@ -133,7 +133,7 @@ Tensor adain_to_stats_backward(const Tensor& content, const ChannelStats& target
 // Between given statistics: y = (c - source.mean) / source.std * target.std + target.mean per (n, c), both
 // [N, C] constants: a fixed per-channel affine map. The vgg-adain-relu4 decoder at inference, with the
 // source statistics measured once over the scene's views (a frame's own would make frames flicker as a
-// whole). Its gradient is the affine's slope: the same call with zero means, std_source -> std_target.
+// whole). Inference only: its gradient is the affine's slope, which no training step asks for.
 Tensor adain_between_stats_forward(const Tensor& content, const ChannelStats& source, const ChannelStats& target);
 
 // ---- losses (return a [1] tensor; backward takes the upstream scalar gradient) ---------------

@@ -61,23 +61,6 @@ SyncCost GradientSum::average(const std::vector<nn::Param*>& params, double coun
   return {n * int64_t(sizeof(float)), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()};
 }
 
-void GradientSum::add_into(const std::vector<nn::Param*>& params) {
-  if (sum_.empty()) return;
-  std::vector<const host::Tensor*> grads;
-  for (nn::Param* p : params) grads.push_back(&p->grad_buffer());
-  const std::vector<double> flat = flatten(grads);
-  if (flat.size() != sum_.size())
-    throw host::Error("GradientSum: " + std::to_string(sum_.size()) + " gradient values for " +
-                      std::to_string(flat.size()) + " parameters");
-  size_t at = 0;
-  for (nn::Param* p : params) {
-    std::vector<float> g(size_t(p->value.numel()));
-    for (float& x : g) x = float(sum_[at] + flat[at]), ++at;
-    p->grad_buffer().upload(g);
-  }
-  sum_.clear();
-}
-
 BufferMoves::BufferMoves(std::vector<nn::StateBuffer*> buffers) : buffers_(std::move(buffers)) {
   for (nn::StateBuffer* b : buffers_) {
     start_.push_back(b->value.to_host());

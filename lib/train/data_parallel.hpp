@@ -48,9 +48,6 @@ class GradientSum {
  public:
   void add(const std::vector<nn::Param*>& params);
   SyncCost average(const std::vector<nn::Param*>& params, double count, host::Dist& dist);
-  // This process's sum added back into the params' gradients on the device, and forgotten (no ranks, no
-  // division): two backward passes of one sub-batch sum exactly, whatever a pass does to a non-zero gradient.
-  void add_into(const std::vector<nn::Param*>& params);
 
  private:
   std::vector<double> sum_;

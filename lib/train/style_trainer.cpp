@@ -11,7 +11,6 @@
 #include "host/error.hpp"
 #include "lib/io/json_fields.hpp"
 #include "lib/model/map_decoder.hpp"
-#include "lib/model/scene_style_stats.hpp"
 #include "lib/features/target_cache.hpp"
 #include "lib/features/target_gather.hpp"
 #include "lib/io/image.hpp"
@@ -22,7 +21,6 @@
 #include "lib/train/stage_programs.hpp"
 #include "lib/train/trainer_state.hpp"
 #include "lib/train/reconstruction_loss.hpp"
-#include "lib/train/multiview_term.hpp"
 #include "lib/style/style_encoder.hpp"
 
 namespace stylerf::train {
@@ -35,7 +33,7 @@ using nlohmann::json;
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
       warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed, styles_per_step, \
-      content_skip, multiview_weight, multiview_max_angle
+      content_skip
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -51,8 +49,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
   json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0},
-                  {"styles_per_step", 1}, {"content_skip", false},
-                  {"multiview_weight", 0.0}, {"multiview_max_angle", 45.0}};
+                  {"styles_per_step", 1}, {"content_skip", false}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -86,10 +83,6 @@ void StyleTrainConfig::validate() const {
     throw SettingError("warm_share", "must be in (0, 1], got " + std::to_string(warm_share));
   if (styles_per_step < 1 || styles_per_step > 1024)
     throw SettingError("styles_per_step", "must be in [1, 1024], got " + std::to_string(styles_per_step));
-  if (!(multiview_weight >= 0) || !std::isfinite(multiview_weight))
-    throw SettingError("multiview_weight", "must be >= 0, got " + std::to_string(multiview_weight));
-  if (!(multiview_max_angle > 0 && multiview_max_angle <= 180))
-    throw SettingError("multiview_max_angle", "must be in (0, 180] degrees, got " + std::to_string(multiview_max_angle));
   if (decoder_warm < 0) throw SettingError("decoder_warm", "must be >= 0, got " + std::to_string(decoder_warm));
   if (running_init_patches < 0)
     throw SettingError("running_init_patches", "must be >= 0, got " + std::to_string(running_init_patches));
@@ -260,87 +253,18 @@ StyleStepStats StyleTrainer::rendered_step(int64_t sub, std::mt19937_64& draw, c
     return st;
   }
   const Tensor content41 = content_target(p);
-  std::optional<SecondRender> pair;
-  if (cfg_.multiview_weight > 0) pair = render_second(p, content, sub, draw);
-  const style::StyleCode used = pair ? pair_code(content, *pair, code, h, w) : code;
-  const Tensor rgb = model_.decode_styled(content, used, h, w, &ctx);
+  const Tensor rgb = model_.decode_styled(content, code, h, w, &ctx);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;
   const StyleLossValues lv = style_losses(out, content41, style_targets, masked ? &mask : nullptr, cfg_.weights, &grads);
-  Tensor drgb = vgg_.backward(grads);
+  const Tensor drgb = vgg_.backward(grads);
   vgg_.release();
-  style::Dst::ApplyGrads g2;
-  GradientSum second;
-  if (pair) st.multiview = multiview_term(p, *pair, rgb, used, drgb, g2, second);
-  style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
-  if (g2.dT.defined()) {
-    second.add_into(model_.params());
-    nn::axpby(1.0f, g2.dT, 1.0f, g.dT);
-    nn::axpby(1.0f, g2.dstd, 1.0f, g.dstd);
-    if (g.dmean.defined()) nn::axpby(1.0f, g2.dmean, 1.0f, g.dmean);
-  }
+  const style::Dst::ApplyGrads g = model_.backward(ctx, drgb);
   model_.dst.style_code_backward(sctx, g.dT, g.dmean, g.dstd, false);
   model_.sict.update_running(dynamic_cast<const model::SictHead::SictContext&>(*ctx.rays.head).sict);
   st.content = lv.content;
   st.style = lv.style;
   return st;
-}
-
-std::optional<StyleTrainer::SecondRender> StyleTrainer::render_second(const features::Patch& p,
-                                                                      const model::StyleModel::Content& content,
-                                                                      int64_t sub, std::mt19937_64& draw) {
-  const int s = model_.stride();
-  const int h = p.height / s, w = p.width / s;
-  const eval::RaySpace space = eval::RaySpace::of(*scene_);
-  const auto& views = scene_->train;
-  const eval::FrameGeometry first =
-      patch_geometry(patch_camera(views[size_t(p.view)].camera, p.x0, p.y0, p.width, p.height), w, h, s,
-                     content.depth.to_host(), content.acc.to_host());
-  const SecondPatch sp = pick_second_patch(*scene_, first, p.view, p.width, p.height, cfg_.multiview_max_angle, space, draw);
-  if (sp.view < 0) return std::nullopt;
-  SecondRender r;
-  r.patch = patches_->at(sp.view, sp.x0, sp.y0, s);
-  const int64_t R = int64_t(h) * w;
-  r.content = model_.render_content(Tensor::from_host(r.patch.rays.origins, {R, 3}, "second patch origins"),
-                                    Tensor::from_host(r.patch.rays.directions, {R, 3}, "second patch directions"),
-                                    true, uint32_t(cfg_.seed * 7919 + uint64_t(sub) + 0x5bd1e995u), &r.ctx);
-  if (!r.ctx.rays.head) return std::nullopt;
-  const eval::FrameGeometry second =
-      patch_geometry(patch_camera(views[size_t(sp.view)].camera, sp.x0, sp.y0, r.patch.width, r.patch.height), w, h,
-                     s, r.content.depth.to_host(), r.content.acc.to_host());
-  eval::WarpOptions wo;
-  wo.mask_background = model_.features.geo.has_background;
-  r.corr = eval::correspond(first, second, space, wo);
-  if (r.corr.stats.valid == 0) return std::nullopt;
-  return r;
-}
-
-style::StyleCode StyleTrainer::pair_code(const model::StyleModel::Content& first, const SecondRender& second,
-                                         const style::StyleCode& code, int h, int w) const {
-  style::StyleCode shared = code;
-  if (!model_.map_decoder->renormalises_relu4()) return shared;
-  const model::PooledRelu4Stats pooled =
-      model::pool_relu4_stats({model_.relu4_of(first, code, h, w), model_.relu4_of(second.content, code, h, w)});
-  shared.scene_mean = pooled.mean;
-  shared.scene_std = pooled.std;
-  return shared;
-}
-
-double StyleTrainer::multiview_term(const features::Patch& p, SecondRender& second, const Tensor& rgb,
-                                    const style::StyleCode& code, Tensor& drgb, style::Dst::ApplyGrads& g,
-                                    GradientSum& sum) {
-  const int s = model_.stride();
-  const int h = p.height / s, w = p.width / s;
-  const Tensor rgb2 = model_.decode_styled(second.content, code, h, w, &second.ctx);
-  const io::Image a{p.width, p.height, rgb.to_host()}, b{second.patch.width, second.patch.height, rgb2.to_host()};
-  const MultiviewLoss loss = multiview_loss(a, b, second.corr, cfg_.multiview_weight);
-  if (loss.pixels == 0) return 0;
-  g = model_.backward(second.ctx, Tensor::from_host(loss.d_second.data, rgb2.shape(), "multi-view gradient"));
-  sum.add(model_.params());  // off the device: the first patch's backward starts from zero
-  std::vector<float> d = drgb.to_host();
-  for (size_t i = 0; i < d.size(); ++i) d[i] += loss.d_first.data[i];
-  drgb = Tensor::from_host(d, drgb.shape(), "style + multi-view gradient");
-  return loss.value;
 }
 
 StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets& style_targets,
@@ -649,16 +573,15 @@ class StyleLoopStage : public TrainerLoopStage<StyleTrainer, StyleRunOptions, St
     if (last_.skipped)
       ++skipped_;
     else
-      content_ += last_.content, style_ += last_.style, multiview_ += last_.multiview, ++losses_;
+      content_ += last_.content, style_ += last_.style, ++losses_;
   }
   std::string window_line(double) override {
     std::ostringstream l;
     l << std::fixed << std::setprecision(4) << (last_.warm ? " (2D warm start)" : "")
       << (last_.decoder_warm ? " (decoder warm-up: inversion loss in 'content')" : "");
     if (losses_) l << "  content " << content_ / losses_ << "  style " << style_ / losses_;
-    if (multiview_ > 0) l << "  multi-view " << multiview_ / losses_;
     if (skipped_) l << "  (" << skipped_ << " empty patches skipped)";
-    content_ = style_ = multiview_ = 0;
+    content_ = style_ = 0;
     losses_ = skipped_ = 0;
     return l.str();
   }
@@ -683,7 +606,7 @@ class StyleLoopStage : public TrainerLoopStage<StyleTrainer, StyleRunOptions, St
 
  private:
   HoldoutLoss& holdout_;
-  double content_ = 0, style_ = 0, multiview_ = 0;
+  double content_ = 0, style_ = 0;
   int losses_ = 0, skipped_ = 0;
 };
 

@@ -31,7 +31,6 @@
 #include <iosfwd>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <optional>
 #include <random>
 #include <string>
 #include <unordered_map>
@@ -46,7 +45,6 @@
 #include "lib/scene/scene.hpp"
 #include "lib/train/budget.hpp"
 #include "lib/train/data_parallel.hpp"
-#include "lib/eval/warp.hpp"
 #include "lib/train/training_loop.hpp"
 #include "lib/train/style_losses.hpp"
 #include "lib/train/warm_maps.hpp"
@@ -80,10 +78,6 @@ struct StyleTrainConfig {
   // Saved with the model: the rays per block inference uses by default (kSupersampleByScene: settled here by
   // the scene, model::default_inference_supersample).
   int inference_supersample = 1;
-  // The multi-view term (lib/train/multiview_term.hpp) in rendered steps: its weight (0: off) and how far
-  // the second camera may turn from the first about the patch's surface (degrees).
-  float multiview_weight = 0.0f;
-  float multiview_max_angle = 45.0f;
   bool decoder_phases = false;    // VggAdain: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
   uint64_t seed = 0;
   int finite_check_every = 50;
@@ -111,7 +105,6 @@ struct StyleStepStats {
   bool decoder_warm = false;  // a decoder warm-up step (content = its inversion loss, style 0)
   bool skipped = false;   // the patch had no opaque position (nothing to learn from)
   double content = 0, style = 0, seconds = 0;
-  double multiview = 0;  // the multi-view term (weighted; 0 where the step had none)
   int64_t rays = 0, kept = 0;
   std::string style_name;
 };
@@ -194,31 +187,6 @@ class StyleTrainer {
   StyleStepStats sub_step(int64_t g, StepKind kind);
   StyleStepStats rendered_step(int64_t sub, std::mt19937_64& draw, const StyleTargets& style_targets,
                                const style::StyleCode& code, style::Dst::StyleContext& sctx);
-  // The multi-view term's second patch (lib/train/multiview_term.hpp), rendered before either picture is
-  // decoded: with the vgg-adain-relu4 decoder the pair shares relu4_1 statistics pooled over both.
-  struct SecondRender {
-    features::Patch patch;
-    eval::Correspondence corr;  // the first patch's pixels into the second's
-    model::StyleModel::Content content;
-    model::StyleModel::Context ctx;
-  };
-  // The second camera for rendered patch p (its content) and its render; empty where no training view sees
-  // the patch's surface within the angle or the two patches share no surface pixel.
-  std::optional<SecondRender> render_second(const features::Patch& p, const model::StyleModel::Content& content,
-                                            int64_t sub, std::mt19937_64& draw);
-  // The code a multi-view pair is decoded with: with the vgg-adain-relu4 decoder, the relu4_1 statistics
-  // pooled over both patches' maps as the source of the re-normalisation, as inference re-normalises every
-  // frame from statistics pooled over the scene's views: a pair then differs only where a video would.
-  // Constants to the step (no gradient through them), as the scene's are to a frame. Pooled, no channel of
-  // one patch is divided by a near-zero spread it has not got (the first patch's own statistics did that).
-  style::StyleCode pair_code(const model::StyleModel::Content& first, const SecondRender& second,
-                             const style::StyleCode& code, int h, int w) const;
-  // The multi-view term of a rendered step whose first picture rgb (decoded under pair code `code`) is done:
-  // the second decoded under the same code, warped and compared; its gradient goes back through the second
-  // patch here (into the params and the code's gradients g, the params' part parked in `sum`) and is added
-  // to drgb for the first.
-  double multiview_term(const features::Patch& p, SecondRender& second, const Tensor& rgb,
-                        const style::StyleCode& code, Tensor& drgb, style::Dst::ApplyGrads& g, GradientSum& sum);
   StyleStepStats warm_step(std::mt19937_64& draw, const StyleTargets& style_targets, const style::StyleCode& code,
                            style::Dst::StyleContext& sctx);
   StyleStepStats decoder_warm_step(const Tensor& style_image, const nn::VggFeatures& style_taps);
