@@ -11,6 +11,8 @@
 //    odd maps at inference, that it trains and stage 2's decoder does not, its checkpoint round trip;
 //  - the content skip: the field's components carried beside SICT's columns, training in 2D and rendered steps
 //    (its gain moves), its checkpoint round trip, the ablations without running statistics refused;
+//  - the strength: inference's blend of the stylised features with the composited ones against a double
+//    reference (and 2D features), training at full strength, the checkpoint and config round trips, errors;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -809,6 +811,102 @@ TEST_CASE("the content skip: the components ride beside SICT's columns; it train
                                     model::StyleDecoderKind::Stage2, true);
         },
         "the content skip normalises with SICT's running statistics");
+}
+
+TEST_CASE("the strength blends each ray's stylised features with its composited features at inference only") {
+  model::StyleModel sm = model::StyleModel::create(small_features(model::DecoderProfile::Fast),
+                                                   style::SictMode::VolumeAdaptive, true, 5,
+                                                   model::StyleDecoderKind::Stage2, true);
+  sm.sict.running_mean.value = Tensor::from_host(testing::random_normal(256, 6, 0.05f), {256});
+  sm.sict.running_var.value = Tensor::from_host(testing::random_uniform(256, 7, 0.01f, 0.05f), {256});
+  const style::StyleCode code =
+      sm.dst.style_code(Tensor::from_host(testing::random_uniform(64 * 256, 8, 0.0f, 3.0f), {64, 256}), nullptr);
+  const int R = 37, E = sm.content_channels(), F = E - style::Sict::kEmbed;
+  auto k = testing::random_uniform(R, 10, 0.0f, 1.0f);
+  k[3] = 0.0f;  // a ray that kept nothing
+  auto cv = testing::random_normal(size_t(R) * E, 9, 1.0f);
+  for (int e = 0; e < E; ++e) cv[size_t(3 * E + e)] = 0.0f;
+  const Tensor c = Tensor::from_host(cv, {R, E}), kept = Tensor::from_host(k, {R});
+  const auto full = sm.transform(c, kept, code, nullptr).to_host();
+  // Z B in double: the components after SICT's columns through the field's basis.
+  const auto B = sm.features.field.basis.value.to_host();
+  std::vector<double> zb(size_t(R) * 256, 0.0);
+  for (int r = 0; r < R; ++r)
+    for (int f = 0; f < F; ++f)
+      for (int j = 0; j < 256; ++j)
+        zb[size_t(r) * 256 + j] += double(cv[size_t(r * E + style::Sict::kEmbed + f)]) * B[size_t(f) * 256 + j];
+  for (const float s : {0.0f, 0.3f, 1.0f}) {
+    CAPTURE(s);
+    sm.set_strength(s);
+    std::vector<double> want(zb.size());
+    for (size_t i = 0; i < zb.size(); ++i) want[i] = s * double(full[i]) + (1.0 - s) * zb[i];
+    testing::check_close(sm.stylised_rows(c, kept, code).to_host(), want, 1e-4, 1e-5, "strength blend");
+    // The trained transform, with or without a training context, is always at full strength.
+    model::StyleModel::Context ctx;
+    testing::check_close(sm.transform(c, kept, code, &ctx).to_host(), testing::to_double(full), 1e-6, 1e-6,
+                         "training ignores the strength");
+    testing::check_close(sm.transform(c, kept, code, nullptr).to_host(), testing::to_double(full), 1e-6, 1e-6,
+                         "the transform ignores the strength");
+  }
+  // 2D maps: the features themselves are blended in.
+  sm.set_strength(1.0f);
+  const Tensor c32 = nn::take_columns(c, 0, style::Sict::kEmbed);
+  const auto zv = testing::random_normal(size_t(R) * 256, 11, 1.0f);
+  const Tensor z = Tensor::from_host(zv, {R, 256});
+  const auto full2d =
+      sm.transform_features(c32, z, kept, sm.sict.running_mean.value, sm.sict.running_var.value, code, nullptr).to_host();
+  sm.set_strength(0.25f);
+  std::vector<double> want2d(zv.size());
+  for (size_t i = 0; i < zv.size(); ++i) want2d[i] = 0.25 * full2d[i] + 0.75 * double(zv[i]);
+  Tensor y2d = sm.transform_features(c32, z, kept, sm.sict.running_mean.value, sm.sict.running_var.value, code, nullptr);
+  sm.blend_at_strength(y2d, z);
+  testing::check_close(y2d.to_host(), want2d, 1e-5, 1e-5, "strength blend of 2D features");
+  // Saved and loaded with the checkpoint; out of range or without the skip: errors naming what is wrong.
+  io::Checkpoint ck;
+  ck.kind = "style";
+  ck.path = "strength.ckpt";
+  sm.save(ck);
+  CHECK(model::StyleModel::load(ck).strength == 0.25f);
+  ck.meta["style_model"]["strength"] = 1.5;
+  testing::expect_error([&] { model::StyleModel::load(ck); }, "strength.ckpt: style model: the strength must be in [0, 1]");
+  ck.meta["style_model"].erase("strength");  // written before the strength existed: full strength
+  CHECK(model::StyleModel::load(ck).strength == 1.0f);
+  testing::expect_error([&] { sm.set_strength(std::nanf("")); }, "the strength must be in [0, 1]");
+  testing::expect_error([&] { sm.set_strength(-0.1f); }, "the strength must be in [0, 1]");
+  model::StyleModel paper = model::StyleModel::create(small_features(model::DecoderProfile::Fast),
+                                                      style::SictMode::VolumeAdaptive, true, 5);
+  paper.set_strength(1.0f);
+  testing::expect_error([&] { paper.set_strength(0.5f); }, "only a model with the content skip");
+  // The recipe's strength: in the config, checked, and absent from configs written before it (full).
+  auto cfg = small_config(1);
+  cfg.content_skip = true;
+  cfg.strength = 0.5f;
+  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).strength == 0.5f);
+  auto old = cfg.to_json();
+  old.erase("strength");
+  CHECK(train::StyleTrainConfig::from_json(old).strength == 1.0f);
+  cfg.content_skip = false;
+  testing::expect_error([&] { cfg.validate(); }, "strength");
+  cfg.content_skip = true;
+  cfg.strength = -2.0f;
+  testing::expect_error([&] { cfg.validate(); }, "strength");
+}
+
+TEST_CASE("the fast recipe settles its strength by the scene: 0.2 on object scenes, 1 on forward-facing ones") {
+  CHECK(model::default_strength(false) == 0.2f);
+  CHECK(model::default_strength(true) == 1.0f);
+  CHECK(train::style_recipe(train::Recipe::Fast).strength == model::kStrengthByScene);
+  CHECK(train::style_recipe(train::Recipe::Paper).strength == 1.0f);
+  const auto styles = train::StyleSet::from_dir(style_dir(), 1, nullptr);
+  auto cfg = small_config(1);
+  cfg.content_skip = true;
+  cfg.strength = model::kStrengthByScene;
+  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
+  REQUIRE_FALSE(t.model().features.geo.ndc);
+  CHECK(t.model().strength == 0.2f);  // settled, never saved as "by the scene"
+  const std::string path = (testing::small_work_dir() / "style_strength_by_scene.ckpt").string();
+  t.save(path, {{"name", testing::small_scene().name}});
+  CHECK(model::StyleModel::load(io::load_checkpoint(path, "style")).strength == 0.2f);
 }
 
 TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr_decay_ratio") {

@@ -16,6 +16,7 @@
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/eval_setup.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "examples/stylerf/strength_option.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "lib/eval/path_frames.hpp"
@@ -87,6 +88,7 @@ int run_consistency(int argc, char** argv) {
       "chunk", po::value(&p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", stylerf::cli::supersample_value(&p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
+      "strength", stylerf::cli::strength_value(&p.strength), stylerf::cli::kStrengthHelp)(
       "device", po::value(&device), stylerf::cli::kDeviceHelp);
   cli::apply_renamed_flags("eval consistency", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
@@ -119,8 +121,10 @@ int run_consistency(int argc, char** argv) {
   std::unique_ptr<model::StyleModel> styled;
   if (want == "density")
     density = std::make_unique<model::DensityModel>(model::load_model(ck));
-  else
+  else {
     styled = std::make_unique<model::StyleModel>(model::StyleModel::load(ck));
+    cli::apply_strength(*styled, p.strength);
+  }
   const model::Geometry& geo = density ? density->geo : styled->features.geo;
   std::unique_ptr<eval::Lpips> lpips;
   if (!no_lpips) lpips = std::make_unique<eval::Lpips>(eval::Lpips::load_default(net));

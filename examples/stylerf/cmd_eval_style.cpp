@@ -13,6 +13,7 @@
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "examples/stylerf/strength_option.hpp"
 #include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
@@ -166,7 +167,7 @@ int run_eval_style(int argc, char** argv) {
   int views = 5, max_styles = 0;
   bool vgg_map_row = false;
   std::string supersample_text = "0";
-  float refine_contrast = stylerf::model::kRefineContrast;
+  float refine_contrast = stylerf::model::kRefineContrast, strength = stylerf::cli::kCheckpointStrength;
   po::options_description desc("stylerf eval style --ckpt STYLE_CKPT [options]");
   desc.add_options()("help,h", "show this help")("ckpt", po::value(&ckpt), "style checkpoint (train-style)")(
       "styles", po::value(&styles_dir), "evaluate every image of this folder (default: the checkpoint's held-out styles)")(
@@ -180,6 +181,7 @@ int run_eval_style(int argc, char** argv) {
       "with perfect content, to tell what the radiance field's map loses from what the style loses")(
       "supersample", stylerf::cli::supersample_value(&supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&refine_contrast), stylerf::cli::kRefineContrastHelp)(
+      "strength", stylerf::cli::strength_value(&strength), stylerf::cli::kStrengthHelp)(
       "device", po::value(&device), stylerf::cli::kDeviceHelp);
   apply_renamed_flags("eval style", argc, argv, {{"--views", "--max-views"}, {"--images", "--output"}});
   po::variables_map vm;
@@ -196,7 +198,8 @@ int run_eval_style(int argc, char** argv) {
   if (!images.empty()) std::filesystem::create_directories(images);
   stylerf::cli::init_runtime(device, false);
   const auto ck = stylerf::io::load_checkpoint(ckpt, "style");
-  const auto model = stylerf::model::StyleModel::load(ck);
+  auto model = stylerf::model::StyleModel::load(ck);
+  stylerf::cli::apply_strength(model, strength);
   const auto scene = stylerf::scene::open_scene_for(ck.meta.value("scene", nlohmann::json::object()), ckpt).scene;
   std::vector<std::string> styles;
   if (!styles_dir.empty()) {
@@ -238,6 +241,7 @@ int run_eval_style(int argc, char** argv) {
     nlohmann::json doc = {{"checkpoint", ckpt},
                                 {"views", views},
                                 {"supersample", stylerf::model::supersample_name(opt.supersample)},
+                                {"strength", model.strength},
                                 {"refine_contrast", opt.supersample != 1 ? refine_contrast : 0.0f},
                                 {"styles", per_style_json(rows)},
                                 {"style_loss_ratio", mean.ours_style / mean.adain_style},

@@ -25,6 +25,7 @@
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "examples/stylerf/strength_option.hpp"
 #include "host/dist.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
@@ -182,6 +183,7 @@ int parse_table_args(int argc, char** argv, TableArgs& a) {
       "chunk", po::value(&a.p.chunk)->default_value(8192), "rays per renderer call")(
       "supersample", stylerf::cli::supersample_value(&a.p.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.p.refine_contrast), stylerf::cli::kRefineContrastHelp)(
+      "strength", stylerf::cli::strength_value(&a.p.strength), stylerf::cli::kStrengthHelp)(
       "device", po::value(&a.device), stylerf::cli::kDeviceHelp);
   stylerf::cli::apply_renamed_flags("eval table", argc, argv, {{"--frames", "--scored-frames"}});
   po::variables_map vm;
@@ -268,6 +270,7 @@ std::vector<MethodRows> score_styles(const SceneWork& w, const std::vector<io::C
   std::vector<MethodRows> rows;
   for (const auto& ck : cks) {
     models.push_back(std::make_unique<model::StyleModel>(model::StyleModel::load(ck)));
+    apply_strength(*models.back(), w.p.strength);
     scene_stats.emplace_back(*models.back(), w.scene, model::SceneStyleStats::kDefaultViews, w.p.supersample,
                              w.p.refine_contrast);  // 0: the model's own rays a block, as its frames
     encoders.push_back(std::make_unique<style::StyleEncoder>(models.back()->dst, adain.encoder,
@@ -495,6 +498,7 @@ int run_eval_table(int argc, char** argv) {
                         {"depth_tolerance", a.p.depth_tolerance},
                         {"supersample", a.p.supersample == 0 ? std::string("each checkpoint's") : model::supersample_name(a.p.supersample)},
                         {"refine_contrast", a.p.refine_contrast},
+                        {"strength", a.p.strength < 0 ? nlohmann::json("each checkpoint's") : nlohmann::json(a.p.strength)},
                         {"lpips", lpips ? a.lpips_net : std::string("none")},
                         {"seconds", total},
                         {"scenes", nlohmann::json::array()}};

@@ -27,6 +27,7 @@
 #include "examples/stylerf/frame_outputs.hpp"
 #include "examples/stylerf/rank_outputs.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "examples/stylerf/strength_option.hpp"
 #include "examples/stylerf/stylize_losses.hpp"
 #include "host/dist.hpp"
 #include "host/error.hpp"
@@ -163,6 +164,7 @@ struct StylizeArgs {
   int frames = 120, max_views = 0, size = 0, chunk = 8192, fps = 30, supersample = 0;
   std::string supersample_text = "0";  // --supersample, parsed into supersample (0: the checkpoint's)
   float refine_contrast = model::kRefineContrast;
+  float strength = stylerf::cli::kCheckpointStrength;  // --strength (the checkpoint's unless given)
   bool no_losses = false, decoded_background = false;
   std::string camera_path;                   // --camera-path FILE (empty: the built-in path)
   stylerf::scene::CameraPathFile path_file;  // its cameras, read before any loading
@@ -198,6 +200,7 @@ int parse_stylize_args(int argc, char** argv, StylizeArgs& a) {
       "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
       "supersample", stylerf::cli::supersample_value(&a.supersample_text), stylerf::cli::kSupersampleHelp)(
       "refine-contrast", stylerf::cli::refine_contrast_value(&a.refine_contrast), stylerf::cli::kRefineContrastHelp)(
+      "strength", stylerf::cli::strength_value(&a.strength), stylerf::cli::kStrengthHelp)(
       "device", po::value(&a.device), stylerf::cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -414,6 +417,7 @@ void finish_stylize(const StylizeArgs& a, const StyleChoice& c, const ViewWork& 
         {"content_render_s_per_view", t.content_s / double(cams.size())},
         {"supersample", model::supersample_name(a.supersample)},
         {"refine_contrast", a.refine_contrast},
+        {"strength", w.m.strength},
         {"refined_block_share", t.blocks > 0 ? double(t.refined) / double(t.blocks) : 0.0},
         {"merged_views", t.merged_views},
         {"slab_shaded_views", t.slab_views},
@@ -479,7 +483,8 @@ int run_stylize(int argc, char** argv) {
   // ---- loading (not counted in the timings) ----
   cli::init_runtime(a.device, false);
   const auto ck = load_style_checkpoint(a.ckpt);
-  const auto m = model::StyleModel::load(ck);
+  auto m = model::StyleModel::load(ck);
+  stylerf::cli::apply_strength(m, a.strength);
   a.supersample = stylerf::cli::supersample_from(a.supersample_text);
   if (a.supersample == 0) a.supersample = m.inference_supersample;
   const auto scene = open_stylize_scene(a, ck);

@@ -21,6 +21,7 @@
 #include "examples/stylerf/commands.hpp"
 #include "examples/stylerf/help.hpp"
 #include "examples/stylerf/refine_option.hpp"
+#include "examples/stylerf/strength_option.hpp"
 #include "examples/stylerf/view_request.hpp"
 #include "examples/stylerf/view_server.hpp"
 #include "host/error.hpp"
@@ -43,7 +44,7 @@ namespace viewer = stylerf::viewer;
 struct ViewArgs {
   std::string ckpt, styles_dir, host = "127.0.0.1", scene_dir, device, supersample_text = "0";
   int port = 8765, chunk = 8192, max_upload_mb = 16;
-  float refine_contrast = model::kRefineContrast;
+  float refine_contrast = model::kRefineContrast, strength = cli::kCheckpointStrength;
   bool open = false, decoded_background = false;
 };
 
@@ -62,6 +63,7 @@ int parse_view_args(int argc, char** argv, ViewArgs& a) {
       "chunk", po::value(&a.chunk)->default_value(8192), "rays per renderer call (bounds memory)")(
       "supersample", cli::supersample_value(&a.supersample_text), cli::kSupersampleHelp)(
       "refine-contrast", cli::refine_contrast_value(&a.refine_contrast), cli::kRefineContrastHelp)(
+      "strength", cli::strength_value(&a.strength), cli::kStrengthHelp)(
       "device", po::value(&a.device), cli::kDeviceHelp);
   po::variables_map vm;
   po::store(po::parse_command_line(argc, argv, desc), vm);
@@ -190,7 +192,8 @@ int run_view(int argc, char** argv) {
   if (ck.kind != "style")
     throw Error("checkpoint " + a.ckpt + " holds a '" + ck.kind + "' stage, not a trained stylizer; train one with "
                 "`stylerf train-style --features " + a.ckpt + "`");
-  const auto m = model::StyleModel::load(ck);
+  auto m = model::StyleModel::load(ck);
+  cli::apply_strength(m, a.strength);
   stylerf::scene::SceneOverrides o;
   o.dir = a.scene_dir;
   o.load_images = false;  // cameras only

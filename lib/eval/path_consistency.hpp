@@ -19,6 +19,7 @@ struct PathOptions {
   std::string supersample_text = "0";  // the command line's --supersample, parsed into supersample
   // Blocks refined to those rays only where the map has edges (render_camera_content); 0: every block.
   float refine_contrast = model::kRefineContrast;
+  float strength = -1.0f;  // StyleRF's stylisation strength (StyleModel::strength); negative: each checkpoint's
   float depth_tolerance = 0.03f;
 };
 

@@ -24,6 +24,8 @@ std::string supersample_name(int n) {
   return n == 1 ? "1" : std::to_string(n) + "x" + std::to_string(n);
 }
 
+float default_strength(bool ndc) { return ndc ? 1.0f : 0.2f; }
+
 int default_inference_supersample(int map_w, int map_h, bool ndc) {
   return ndc && std::max(map_w, map_h) >= kQuincunxMapSide ? kQuincunx : 3;
 }
@@ -499,10 +501,10 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
     k_in[size_t(r)] = m * k[size_t(r)];
     k_out[size_t(r)] = (1.0f - m) * k[size_t(r)];
   }
-  Tensor y = transform(Tensor::from_host(c_in, {n, E}, "content inside"), Tensor::from_host(k_in, {n}, "opacity inside"),
-                       inside, nullptr);
-  const Tensor y_out = transform(Tensor::from_host(c_out, {n, E}, "content outside"),
-                                 Tensor::from_host(k_out, {n}, "opacity outside"), outside, nullptr);
+  Tensor y = stylised_rows(Tensor::from_host(c_in, {n, E}, "content inside"),
+                           Tensor::from_host(k_in, {n}, "opacity inside"), inside);
+  const Tensor y_out = stylised_rows(Tensor::from_host(c_out, {n, E}, "content outside"),
+                                     Tensor::from_host(k_out, {n}, "opacity outside"), outside);
   nn::axpby(1.0f, y_out, 1.0f, y);
   return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr, nullptr), cam_w, cam_h);
 }

@@ -99,6 +99,29 @@ Tensor StyleModel::transform(const Tensor& c, const Tensor& kept_acc, const styl
   return y;
 }
 
+Tensor StyleModel::stylised_rows(const Tensor& c, const Tensor& kept_acc, const style::StyleCode& code) const {
+  Tensor y = transform(c, kept_acc, code, nullptr);
+  if (strength < 1.0f) {  // y = s y + (1 - s) Z B: the components after SICT's columns through the basis
+    const Tensor& B = features.field.basis.value;
+    const int R = int(c.dim(0)), F = int(B.dim(0)), C = style::ContentSkip::kChannels;
+    host::gemm(host::Trans::No, host::Trans::No, R, C, F, 1.0f - strength, c.mem(), size_t(style::Sict::kEmbed),
+               int(c.dim(1)), B.mem(), 0, C, strength, y.mem(), 0, C);
+  }
+  return y;
+}
+
+void StyleModel::blend_at_strength(Tensor& y, const Tensor& z) const {
+  if (strength < 1.0f) nn::axpby(1.0f - strength, z, strength, y);
+}
+
+void StyleModel::set_strength(float s) {
+  if (!(s >= 0.0f && s <= 1.0f)) throw Error("style model: the strength must be in [0, 1], got " + std::to_string(s));
+  if (s < 1.0f && !content_skip)
+    throw Error("style model: a strength below 1 blends in the composited features, which only a model with the "
+                "content skip renders (this one is the paper's module)");
+  strength = s;
+}
+
 Tensor StyleModel::transform_features(const Tensor& c, const Tensor& z, const Tensor& acc, const Tensor& mean,
                                       const Tensor& var, const style::StyleCode& code, Context* ctx) const {
   Tensor y = dst.apply(c, acc, code, ctx ? &ctx->dst : nullptr);
@@ -132,7 +155,8 @@ Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode&
   if (int64_t(h) * w != content.c.dim(0))
     throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
                 std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
-  return decode_rows(transform(content.c, content.kept_acc, code, ctx), content.acc, h, w, &code, ctx);
+  return decode_rows(ctx ? transform(content.c, content.kept_acc, code, ctx) : stylised_rows(content.c, content.kept_acc, code),
+                     content.acc, h, w, &code, ctx);
 }
 
 Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code,
@@ -160,7 +184,7 @@ Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb
 }
 
 Tensor StyleModel::relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const {
-  Tensor y = transform(content.c, content.kept_acc, code, nullptr);
+  Tensor y = stylised_rows(content.c, content.kept_acc, code);
   if (features.field.background.value.defined()) render::background_forward(y, content.acc, features.field.background.value);
   return map_decoder->relu4(*this, nn::rows_to_image(y, h, w));
 }
@@ -225,7 +249,8 @@ void StyleModel::save(io::Checkpoint& ck) {
       {"inference_supersample", inference_supersample == kQuincunx ? json(supersample_name(kQuincunx))
                                                                    : json(inference_supersample)},
       {"decoder_phases", decoder_phases},
-      {"content_skip", content_skip}};
+      {"content_skip", content_skip},
+      {"strength", strength}};
 }
 
 StyleModel StyleModel::load(const io::Checkpoint& ck) {
@@ -237,6 +262,7 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
   StyleDecoderKind decoder = StyleDecoderKind::Stage2;
   int supersample = 1;
   bool phases = false, content_skip = false;
+  float strength = 1.0f;
   try {
     const json& sm = ck.meta.at("style_model");
     mode = style::parse_sict_mode(sm.at("sict").get<std::string>());
@@ -248,6 +274,7 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     }
     phases = sm.value("decoder_phases", false);           // absent before the option existed
     content_skip = sm.value("content_skip", false);       // absent before the content skip existed
+    strength = sm.value("strength", 1.0f);                // absent before the strength existed
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad style-model metadata (" + e.what() + ")");
   } catch (const Error& e) {
@@ -266,6 +293,11 @@ StyleModel StyleModel::load(const io::Checkpoint& ck) {
     throw Error("checkpoint " + ck.path + ": style_model.decoder_phases is set for the " +
                 style_decoder_name(decoder) + " decoder (only the vgg-adain decoders have them)");
   m.decoder_phases = phases;
+  try {
+    m.set_strength(strength);
+  } catch (const Error& e) {
+    throw Error("checkpoint " + ck.path + ": " + e.what());
+  }
   m.features.decoder.freeze();
   if (!m.style_decoder.empty()) m.style_decoder.freeze();
   return m;

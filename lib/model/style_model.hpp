@@ -44,6 +44,15 @@ std::string supersample_name(int n);
 int parse_supersample(const std::string& text);
 // A recipe's inference_supersample that the style trainer settles by the scene (default_inference_supersample).
 constexpr int kSupersampleByScene = 0;
+// A recipe's strength (StyleModel::strength) that the style trainer settles by the scene (default_strength).
+constexpr float kStrengthByScene = -1.0f;
+// 0.2 on object scenes, 1 on forward-facing (NDC) ones. Measured on one of each, one style checkpoint, 6
+// held-out styles x 2 views and the consistency table's 3 styles (docs/experiments.md, "The strength"):
+// lego 800x800 at 0.2 against 1: style / content / LPIPS-to-the-truth ratios to 2D AdaIN 0.434x / 1.079x /
+// 1.069x against 0.379x / 1.213x / 1.148x, all four consistency ratios 12-17% lower (long LPIPS 0.942x
+// against 1.078x); horns 1/8 at 0.2 worse on all seven (style 1.194x against 1.025x, long LPIPS 0.963x
+// against 0.840x).
+float default_strength(bool ndc);
 // The map side (blocks) from which forward-facing (NDC) scenes take the quincunx.
 constexpr int kQuincunxMapSide = 200;
 // The quincunx for forward-facing (NDC) scenes whose feature map has at least kQuincunxMapSide blocks on its
@@ -135,6 +144,14 @@ class StyleModel : public nn::Module {
   }
   // The geometry inference marches: the trained one at inference_step_ratio (grids and mask shared).
   Geometry inference_geometry() const { return features.geo.with_step_ratio(inference_step_ratio); }
+  // Inference only (stylised_rows): how much of the stylised features a frame draws, AdaIN's alpha at
+  // relu3_1. Each ray's y = s (DST + skip) + (1 - s) Z B, Z B its composited features themselves (the content
+  // skip's components through the field's basis), before the background and the decoder, whose relu4_1 is
+  // still moved to the style's statistics: at 0 a frame is 2D AdaIN at relu4_1 of the scene's own features.
+  // Training is always at 1. Below 1 it needs the content skip (the components). A recipe's choice, saved in
+  // the checkpoint.
+  float strength = 1.0f;
+  void set_strength(float s);  // an Error unless s is in [0, 1], and below 1 without the content skip
   // VggAdain only: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it
   // would repeat one (nn::maxpool2x2_phases_forward). Its picture moves with the map by one map pixel; a
   // single offset paints from relu4_1 on a grid of two map pixels fixed to the image, which shows as a
@@ -192,6 +209,11 @@ class StyleModel : public nn::Module {
   // The style transformation of content rows c [R, content_channels()] with their kept opacity [R]: DST of the
   // SICT columns, plus the content skip of the component columns (SICT's running statistics). [R, 256].
   Tensor transform(const Tensor& c, const Tensor& kept_acc, const style::StyleCode& code, Context* ctx) const;
+  // Inference's rows: transform() blended at the model's strength with each ray's own composited features,
+  // s y + (1 - s) Z B (the component columns through the field's basis). What every stylised frame decodes.
+  Tensor stylised_rows(const Tensor& c, const Tensor& kept_acc, const style::StyleCode& code) const;
+  // The same blend for 2D feature rows: y = s y + (1 - s) z, z [R, 256] the features themselves.
+  void blend_at_strength(Tensor& y, const Tensor& z) const;
   // The same for 2D feature rows (VGG maps, rendered mean-feature maps): c [R, 32] SICT's output, z [R, 256]
   // the features times their opacity and mean / var the statistics SICT normalised them with (the content
   // skip's input with the identity basis; ignored without the skip).
@@ -200,7 +222,8 @@ class StyleModel : public nn::Module {
   // dy [R, 256] -> the gradients of DST's apply (dc: SICT's 32 columns) with the skip's d std added;
   // accumulates into unzip and the skip's gain.
   style::Dst::ApplyGrads transform_backward(Context& ctx, const Tensor& dy);
-  // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s].
+  // DST with a style's code, the background feature, the decoder: RGB [1, 3, h s, w s]. Without a context
+  // (inference, held-out scores) at the model's strength (stylised_rows); with one, the trained transform.
   Tensor decode_styled(const Content& content, const style::StyleCode& code, int h, int w, Context* ctx) const;
   // VGG's relu4_1 of the styled map, what the vgg-adain decoders' tail gives before any re-normalisation
   // [1, 512, h', w'] (inference; VggAdain kinds only): what SceneStyleStats pools.

@@ -86,7 +86,8 @@ Tensor stylise_vgg_map(const model::StyleModel& m, const Tensor& relu31, const s
   const Tensor x = nn::image_to_rows(relu31);
   const Tensor c = m.sict.forward(x, true, &sc);
   const Tensor acc = Tensor::full({int64_t(h) * w}, 1.0f, "full opacity");
-  const Tensor y = m.transform_features(c, x, acc, sc.mean, sc.var, code, nullptr);
+  Tensor y = m.transform_features(c, x, acc, sc.mean, sc.var, code, nullptr);
+  m.blend_at_strength(y, x);  // as stylize shows a frame
   return clamped(m.decode_map(nn::rows_to_image(y, h, w), &code, nullptr));
 }
 

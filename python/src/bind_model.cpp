@@ -175,6 +175,17 @@ void bind_model(pyb::module_& m) {
                                return s.model.inference_supersample;
                              },
                              "Rays per feature block that stylize uses by default: n (n x n) or 'quincunx'.")
+      .def_property("strength", [](const ModelState& s) { return s.model.strength; },
+                    [](ModelState& s, float v) {
+                      try {
+                        s.model.set_strength(v);
+                      } catch (const host::Error& e) {
+                        throw pyb::value_error(std::string("strength: ") + e.what());
+                      }
+                    },
+                    "Stylisation strength in [0, 1]: each ray's stylised features blended with its own (the "
+                    "checkpoint's recipe's by default). Encode styles after setting it: a code carries the scene's "
+                    "statistics at the strength it was encoded at.")
       .def_property_readonly("stride", [](const ModelState& s) { return s.model.stride(); },
                              "Pixels per feature-map cell along each side: the depth and opacity of render are at "
                              "1/stride of the image's resolution.")

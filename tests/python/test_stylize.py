@@ -2,6 +2,7 @@
 import os
 
 import numpy as np
+import pytest
 
 import stylerf
 from conftest import run_cli
@@ -30,6 +31,26 @@ def test_stylize_equals_the_cli(stages, model, tmp_path):
     assert (ours < 0.99).any(axis=-1).mean() > 0.1
     assert np.array_equal(quantise(ours), np.round(cli * 255).astype(np.uint8))
     assert np.array_equal(ours, model.stylize(0, model.encode_style(style)))
+
+
+def test_strength_blends_as_the_cli(stages, tmp_path):
+    # A model of its own: the shared fixture keeps the recipe's strength for the other tests.
+    m = stylerf.StyleModel.open(stages.style)
+    assert 0.0 <= m.strength <= 1.0
+    style = stages.style_images[0]
+    m.strength = 1.0
+    full = m.stylize(0, m.encode_style(style))
+    m.strength = 0.0
+    plain = m.stylize(0, m.encode_style(style))
+    assert not np.array_equal(full, plain)
+    out = tmp_path / "cli"
+    code, log = run_cli("stylize", "--ckpt", stages.style, "--style", style, "--views", "test", "--max-views", "1",
+                        "--no-losses", "--cache", "none", "--strength", "0", "-o", str(out))
+    assert code == 0, log
+    assert np.array_equal(quantise(plain), np.round(stylerf.load_image(str(out / "test_000.png")) * 255).astype(np.uint8))
+    with pytest.raises(ValueError, match="strength"):
+        m.strength = 1.5
+    assert m.strength == 0.0
 
 
 def test_custom_camera_equals_the_scene_view(stages, model):
