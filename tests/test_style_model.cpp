@@ -12,7 +12,7 @@
 //  - the content skip: the field's components carried beside SICT's columns, training in 2D and rendered steps
 //    (its gain moves), its checkpoint round trip, the ablations without running statistics refused;
 //  - the strength: inference's blend of the stylised features with the composited ones against a double
-//    reference (and 2D features), training at full strength, the checkpoint and config round trips, errors;
+//    reference (and 2D features), training at full strength, the checkpoint round trip, errors;
 //  - the masked losses: an empty mask is an error, gather/scatter are adjoint;
 //  - bad inputs: a missing or too small style folder, an unreadable (WebP) style file skipped and named,
 //    a feature checkpoint where a style one is needed.
@@ -877,36 +877,6 @@ TEST_CASE("the strength blends each ray's stylised features with its composited 
                                                       style::SictMode::VolumeAdaptive, true, 5);
   paper.set_strength(1.0f);
   testing::expect_error([&] { paper.set_strength(0.5f); }, "only a model with the content skip");
-  // The recipe's strength: in the config, checked, and absent from configs written before it (full).
-  auto cfg = small_config(1);
-  cfg.content_skip = true;
-  cfg.strength = 0.5f;
-  CHECK(train::StyleTrainConfig::from_json(cfg.to_json()).strength == 0.5f);
-  auto old = cfg.to_json();
-  old.erase("strength");
-  CHECK(train::StyleTrainConfig::from_json(old).strength == 1.0f);
-  cfg.content_skip = false;
-  testing::expect_error([&] { cfg.validate(); }, "strength");
-  cfg.content_skip = true;
-  cfg.strength = -2.0f;
-  testing::expect_error([&] { cfg.validate(); }, "strength");
-}
-
-TEST_CASE("the fast recipe settles its strength by the scene: 0.2 on object scenes, 1 on forward-facing ones") {
-  CHECK(model::default_strength(false) == 0.2f);
-  CHECK(model::default_strength(true) == 1.0f);
-  CHECK(train::style_recipe(train::Recipe::Fast).strength == model::kStrengthByScene);
-  CHECK(train::style_recipe(train::Recipe::Paper).strength == 1.0f);
-  const auto styles = train::StyleSet::from_dir(style_dir(), 1, nullptr);
-  auto cfg = small_config(1);
-  cfg.content_skip = true;
-  cfg.strength = model::kStrengthByScene;
-  train::StyleTrainer t(testing::small_scene(), small_features(model::DecoderProfile::Fast), styles, cfg, nullptr);
-  REQUIRE_FALSE(t.model().features.geo.ndc);
-  CHECK(t.model().strength == 0.2f);  // settled, never saved as "by the scene"
-  const std::string path = (testing::small_work_dir() / "style_strength_by_scene.ckpt").string();
-  t.save(path, {{"name", testing::small_scene().name}});
-  CHECK(model::StyleModel::load(io::load_checkpoint(path, "style")).strength == 0.2f);
 }
 
 TEST_CASE("the lr decay follows the run's progress: a run's end steps at lr x lr_decay_ratio") {

@@ -8,7 +8,7 @@
 namespace stylerf::cli {
 
 extern const char* const kStrengthHelp;
-// The option's value; its default, kCheckpointStrength, keeps the checkpoint's.
+// The option's value; its default, kCheckpointStrength, keeps the checkpoint's (1 unless set).
 constexpr float kCheckpointStrength = -1.0f;
 boost::program_options::typed_value<float>* strength_value(float* v);
 // Sets m's strength unless v is kCheckpointStrength; an error naming --strength when it is out of [0, 1] or

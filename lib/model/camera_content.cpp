@@ -24,8 +24,6 @@ std::string supersample_name(int n) {
   return n == 1 ? "1" : std::to_string(n) + "x" + std::to_string(n);
 }
 
-float default_strength(bool ndc) { return ndc ? 1.0f : 0.2f; }
-
 int default_inference_supersample(int map_w, int map_h, bool ndc) {
   return ndc && std::max(map_w, map_h) >= kQuincunxMapSide ? kQuincunx : 3;
 }

@@ -44,15 +44,6 @@ std::string supersample_name(int n);
 int parse_supersample(const std::string& text);
 // A recipe's inference_supersample that the style trainer settles by the scene (default_inference_supersample).
 constexpr int kSupersampleByScene = 0;
-// A recipe's strength (StyleModel::strength) that the style trainer settles by the scene (default_strength).
-constexpr float kStrengthByScene = -1.0f;
-// 0.2 on object scenes, 1 on forward-facing (NDC) ones. Measured on one of each, one style checkpoint, 6
-// held-out styles x 2 views and the consistency table's 3 styles (docs/experiments.md, "The strength"):
-// lego 800x800 at 0.2 against 1: style / content / LPIPS-to-the-truth ratios to 2D AdaIN 0.434x / 1.079x /
-// 1.069x against 0.379x / 1.213x / 1.148x, all four consistency ratios 12-17% lower (long LPIPS 0.942x
-// against 1.078x); horns 1/8 at 0.2 worse on all seven (style 1.194x against 1.025x, long LPIPS 0.963x
-// against 0.840x).
-float default_strength(bool ndc);
 // The map side (blocks) from which forward-facing (NDC) scenes take the quincunx.
 constexpr int kQuincunxMapSide = 200;
 // The quincunx for forward-facing (NDC) scenes whose feature map has at least kQuincunxMapSide blocks on its
@@ -148,8 +139,8 @@ class StyleModel : public nn::Module {
   // relu3_1. Each ray's y = s (DST + skip) + (1 - s) Z B, Z B its composited features themselves (the content
   // skip's components through the field's basis), before the background and the decoder, whose relu4_1 is
   // still moved to the style's statistics: at 0 a frame is 2D AdaIN at relu4_1 of the scene's own features.
-  // Training is always at 1. Below 1 it needs the content skip (the components). A recipe's choice, saved in
-  // the checkpoint.
+  // Training is always at 1. Below 1 it needs the content skip (the components). Saved in the checkpoint; 1
+  // unless set (--strength): below 1 won on lego and lost on horns and the milk carton (docs/experiments.md).
   float strength = 1.0f;
   void set_strength(float s);  // an Error unless s is in [0, 1], and below 1 without the content skip
   // VggAdain only: the tail's pool at all four of its grid offsets, interleaved by AdaIN's decoder where it

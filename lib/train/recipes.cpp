@@ -67,10 +67,6 @@ StyleTrainConfig style_recipe(Recipe r) {
   // (docs/experiments.md, "The content skip"): style / content / LPIPS-to-the-truth ratios to 2D AdaIN
   // 0.538x / 1.573x / 1.468x without it, 0.397x / 1.250x / 1.205x with it; a step costs 5-10% more.
   c.content_skip = true;
-  // Inference's strength by the scene (model::default_strength): each ray's stylised features blended 1 : 4
-  // with its own on object scenes, where it kept the parts and the consistency (lego 800x800); the whole
-  // stylisation on forward-facing ones, where the blend lost on every score (horns 1/8).
-  c.strength = model::kStrengthByScene;
   return c;
 }
 

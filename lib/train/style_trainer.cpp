@@ -33,7 +33,7 @@ using nlohmann::json;
 #define STYLE_TRAIN_FIELDS                                                                                   \
   dst_bias, iters, patch, style_size, style_crop, lr_stylizer, lr_decoder, beta1, beta2, lr_decay_ratio, \
       warm_start, warm_share, decoder_warm, running_init_patches, inference_supersample, decoder_phases, seed, styles_per_step, \
-      content_skip, strength
+      content_skip
 
 json StyleTrainConfig::to_json() const {
   json j{{"sict", style::sict_mode_name(sict)},
@@ -49,7 +49,7 @@ StyleTrainConfig StyleTrainConfig::from_json(const json& j) {
   StyleTrainConfig c;
   // Absent from checkpoints written before these options existed: their value then.
   json defaults = {{"decoder_warm", 0}, {"inference_supersample", 1}, {"decoder_phases", false}, {"warm_share", 1.0},
-                  {"styles_per_step", 1}, {"content_skip", false}, {"strength", 1.0}};
+                  {"styles_per_step", 1}, {"content_skip", false}};
   defaults.update(j);
   c.sict = style::parse_sict_mode(j.at("sict").get<std::string>());
   c.weights.content = j.at("content_weight").get<float>();
@@ -90,10 +90,6 @@ void StyleTrainConfig::validate() const {
     throw SettingError("inference_supersample", "must be in 1.." + std::to_string(model::kMaxSupersample) +
                                                     ", model::kQuincunx or model::kSupersampleByScene, got " +
                                                     std::to_string(inference_supersample));
-  if (!(strength >= 0 && strength <= 1) && strength != model::kStrengthByScene)
-    throw SettingError("strength", "must be in [0, 1] or model::kStrengthByScene, got " + std::to_string(strength));
-  if (strength != 1 && !content_skip)
-    throw SettingError("strength", "below 1 blends in the composited features, which only the content skip renders");
   if (decoder_phases && !model::map_decoder_for(style_decoder).has_vgg_pool())
     throw SettingError("decoder_phases", std::string("needs a vgg-adain decoder (the phases are those of its VGG "
                                                      "pool), not ") + model::style_decoder_name(style_decoder));
@@ -166,9 +162,6 @@ StyleTrainer::StyleTrainer(const scene::Scene& scene, model::FeatureModel featur
         (scene.width() + s - 1) / s, (scene.height() + s - 1) / s, model_.features.geo.ndc);
   }
   model_.decoder_phases = cfg_.decoder_phases;
-  // The recipe's by-scene strength is settled here, never saved as such.
-  model_.set_strength(cfg_.strength == model::kStrengthByScene ? model::default_strength(model_.features.geo.ndc)
-                                                               : cfg_.strength);
   init(log);
   init_running_stats(log);
 }

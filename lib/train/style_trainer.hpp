@@ -78,9 +78,6 @@ struct StyleTrainConfig {
   // Saved with the model: the rays per block inference uses by default (kSupersampleByScene: settled here by
   // the scene, model::default_inference_supersample).
   int inference_supersample = 1;
-  // Saved with the model: the stylisation strength inference uses by default (model::StyleModel::strength;
-  // below 1 needs the content skip); kStrengthByScene: settled here by the scene, model::default_strength.
-  float strength = 1.0f;
   bool decoder_phases = false;    // VggAdain: the tail's pool at all four grid offsets (StyleModel::decoder_phases)
   uint64_t seed = 0;
   int finite_check_every = 50;

@@ -184,7 +184,7 @@ void bind_model(pyb::module_& m) {
                       }
                     },
                     "Stylisation strength in [0, 1]: each ray's stylised features blended with its own (the "
-                    "checkpoint's recipe's by default). Encode styles after setting it: a code carries the scene's "
+                    "checkpoint's by default, 1 unless set). Encode styles after setting it: a code carries the scene's "
                     "statistics at the strength it was encoded at.")
       .def_property_readonly("stride", [](const ModelState& s) { return s.model.stride(); },
                              "Pixels per feature-map cell along each side: the depth and opacity of render are at "

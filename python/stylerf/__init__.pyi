@@ -112,12 +112,12 @@ class StyleModel:
     @property
     def strength(self) -> float:
         """Stylisation strength in [0, 1]: each ray's stylised features blended with its own (the checkpoint's
-        recipe's by default). Encode styles after setting it: a code carries the scene's statistics at the
+        by default, 1 unless set). Encode styles after setting it: a code carries the scene's statistics at the
         strength it was encoded at."""
     @strength.setter
     def strength(self, value: float) -> None:
         """Stylisation strength in [0, 1]: each ray's stylised features blended with its own (the checkpoint's
-        recipe's by default)."""
+        by default, 1 unless set)."""
     @property
     def stride(self) -> int:
         """Pixels per feature-map cell along each side: the depth and opacity of render are at 1/stride of the
