@@ -12,9 +12,12 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <functional>
+#include <string>
 #include <memory>
 #include <vector>
 
+#include "lib/io/checkpoint.hpp"
 #include "lib/scene/masked_background.hpp"
 #include "lib/train/density_trainer.hpp"
 #include "tests/small_scene.hpp"
@@ -107,50 +110,87 @@ struct StepLoss {
   }
 };
 
+// The trainer's step on `sc` against central differences of StepLoss: the whole, and the blocks `which`
+// selects by name.
+void check_step_gradient(const scene::Scene& sc, bool deferred, bool backdrop,
+                         const std::function<bool(const std::string&)>& which) {
+  CAPTURE(deferred);
+  // relu (StyleRF's configs): opaque from the start. TensoRF's shifted softplus leaves the density ~0 for
+  // the first dozens of steps, and its gradient below float32's resolution of the loss.
+  const auto cfg = small_config(deferred, field::DensityActivation::Relu);
+  train::DensityTrainer t(sc, cfg);
+  // Every sample kept and none cut by early termination: both thresholds make the loss jump where a
+  // sample's weight or a ray's transmittance crosses them (measured: gaps of 0.13 .. 0.37 at steps
+  // 3e-4 .. 1e-4, from jumps of ~1e-7), and no gradient describes a jump.
+  t.model().geo.weight_threshold = 0.0f;
+  t.model().geo.ert_threshold = 0.0f;
+  for (int i = 0; i < kWarmSteps; ++i) t.step();
+  model::DensityModel& m = t.model();
+  const StepLoss loss(sc, cfg, kWarmSteps + 1);
+  CHECK((loss.backdrop_rays() > 0) == backdrop);
+
+  // The trainer's step: its reported loss, and the gradient it left (Adam has moved the weights since).
+  const testing::ParamPoint at(m.params());
+  const double before = loss(m);
+  const train::StepStats st = t.step(true);
+  const auto grad = at.grads();
+  at.restore();
+  CHECK(loss(m) == before);  // put back exactly
+  CHECK(st.mse + st.reg == doctest::Approx(before).epsilon(1e-5));  // the copy is the trainer's loss (wiring)
+
+  auto L = [&] { return loss(m); };
+  const testing::ParamFilter all = [](const nn::Param&) { return true; };
+  testing::check_directional("all parameters",
+                             testing::directional(at, grad, at.direction(all, 10), kDensityStep, at.spread(grad, all), L), kTol);
+  uint64_t seed = 20;
+  // The grids whole (and the background shell's map, where there is one); the MLP's tensors (head.basis,
+  // head.w1, ...) each alone.
+  for (const auto& [block, sel] : at.blocks([](const nn::Param& p) { return p.name.rfind("head.", 0) == 0; })) {
+    if (!which(block)) continue;
+    const double spread = at.spread(grad, sel);
+    CHECK_MESSAGE(spread > 0, block << " gets no gradient");
+    testing::check_directional(
+        block, testing::directional(at, grad, at.direction(sel, seed++), block == "density" ? kDensityStep : kAppearanceStep, spread, L),
+        kTol);
+  }
+}
+
 }  // namespace
 
 TEST_CASE("density stage: the step's gradient matches central differences, over all parameters and per block") {
   const scene::Scene& sc = testing::small_scene();
   REQUIRE(sc.effects.background);
-  for (const bool deferred : {true, false}) {
-    CAPTURE(deferred);
-    // relu (StyleRF's configs): opaque from the start. TensoRF's shifted softplus leaves the density ~0 for
-    // the first dozens of steps, and its gradient below float32's resolution of the loss.
-    const auto cfg = small_config(deferred, field::DensityActivation::Relu);
-    train::DensityTrainer t(sc, cfg);
-    // Every sample kept and none cut by early termination: both thresholds make the loss jump where a
-    // sample's weight or a ray's transmittance crosses them (measured: gaps of 0.13 .. 0.37 at steps
-    // 3e-4 .. 1e-4, from jumps of ~1e-7), and no gradient describes a jump.
-    t.model().geo.weight_threshold = 0.0f;
-    t.model().geo.ert_threshold = 0.0f;
-    for (int i = 0; i < kWarmSteps; ++i) t.step();
-    model::DensityModel& m = t.model();
-    const StepLoss loss(sc, cfg, kWarmSteps + 1);
-    REQUIRE(loss.backdrop_rays() > 0);
+  for (const bool deferred : {true, false}) check_step_gradient(sc, deferred, true, [](const std::string&) { return true; });
+}
 
-    // The trainer's step: its reported loss, and the gradient it left (Adam has moved the weights since).
-    const testing::ParamPoint at(m.params());
-    const double before = loss(m);
-    const train::StepStats st = t.step(true);
-    const auto grad = at.grads();
-    at.restore();
-    CHECK(loss(m) == before);  // put back exactly
-    CHECK(st.mse + st.reg == doctest::Approx(before).epsilon(1e-5));  // the copy is the trainer's loss (wiring)
+TEST_CASE("density stage with a background shell: the step's gradient, the shell's map included, matches central "
+          "differences") {
+  // The generated scene as a capture with real surroundings: rays leaving the box see the shell's map,
+  // which learns the white the images show there.
+  scene::Scene sc = testing::small_scene();
+  sc.effects.background = false;
+  sc.effects.background_shell = true;
+  sc.shell_radius = 4.0f;
+  // The shell's map as a block of its own; the other blocks are the case above's (here the MLP's share of
+  // the loss falls below float32's resolution: g.d ~1e-10).
+  for (const bool deferred : {true, false})
+    check_step_gradient(sc, deferred, false, [](const std::string& block) { return block == "background_shell"; });
+  train::DensityTrainer t(sc, small_config(true, field::DensityActivation::Relu));
+  REQUIRE(t.model().geo.shell.on());
+  bool has_map = false;
+  for (nn::Param* p : t.model().params()) has_map |= p->name == "background_shell";
+  CHECK(has_map);
 
-    auto L = [&] { return loss(m); };
-    const testing::ParamFilter all = [](const nn::Param&) { return true; };
-    testing::check_directional("all parameters",
-                               testing::directional(at, grad, at.direction(all, 10), kDensityStep, at.spread(grad, all), L), kTol);
-    uint64_t seed = 20;
-    // The grids whole; the MLP's tensors (head.basis, head.w1, ...) each alone.
-    for (const auto& [block, sel] : at.blocks([](const nn::Param& p) { return p.name.rfind("head.", 0) == 0; })) {
-      const double spread = at.spread(grad, sel);
-      CHECK_MESSAGE(spread > 0, block << " gets no gradient");
-      testing::check_directional(
-          block, testing::directional(at, grad, at.direction(sel, seed++), block == "density" ? kDensityStep : kAppearanceStep, spread, L),
-          kTol);
-    }
-  }
+  // A checkpoint keeps the shell and its map: the same rays render bit-identically after loading.
+  for (int i = 0; i < 5; ++i) t.step();
+  const testing::TempDir dir("density_stage_gradient", "shell");
+  t.save(dir.str("shell.ckpt"), nlohmann::json{{"dir", "x"}});
+  const model::DensityModel loaded = model::load_model(io::load_checkpoint(dir.str("shell.ckpt"), "density"));
+  CHECK(loaded.geo.shell.radius == 4.0f);
+  CHECK(loaded.shell_map.value.to_host() == t.model().shell_map.value.to_host());
+  const StepLoss rays(sc, small_config(true, field::DensityActivation::Relu), 3);
+  CHECK(loaded.render(rays.o, rays.d, false, 0, nullptr).value.to_host() ==
+        t.model().render(rays.o, rays.d, false, 0, nullptr).value.to_host());
 }
 
 TEST_CASE("density stage: a few dozen steps lower the loss") {

@@ -225,7 +225,7 @@ void print_density_setup(train::DensityTrainer& trainer, const stylerf::scene::S
             << ", view dependence " << (cfg.model.view_dependent ? "on" : "off") << ", shading "
             << (cfg.model.deferred_shading ? "deferred" : "per sample") << ", early termination "
             << (ert > 0 ? "below " + std::to_string(ert) : std::string("off")) << ", background "
-            << (scene.effects.background ? "on" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
+            << (scene.effects.background ? "colour" : trainer.model().geo.shell.on() ? "shell" : "off") << ", NDC " << (scene.effects.ndc ? "on" : "off") << "\n"
             << "  " << cfg.schedule.describe() << "\n"
             << "  batch " << cfg.batch
             << (cfg.batch_slices > 1 ? " in " + std::to_string(cfg.batch_slices) + " slices" : std::string())

@@ -368,6 +368,14 @@ class CameraContentRender {
     out_.content.kept_acc = Tensor::from_host(sums_.mean(sums_.kept_acc, 1), {n_}, "camera kept opacity");
     out_.content.acc = Tensor::from_host(sums_.mean(sums_.acc, 1), {n_}, "camera opacity");
     out_.content.depth = Tensor::from_host(sums_.mean(sums_.depth, 1), {n_}, "camera depth");
+    if (geo_.shell.on()) {
+      // The shell is smooth over a block (a texel spans many), so each block reads it at its centre ray.
+      int w = w_, h = h_;
+      const scene::Rays rays = block_rays(scene_, cam_, model_.stride(), w, h);
+      out_.content.background = model_.features.field.shell_term(
+          geo_, Tensor::from_host(rays.origins, {n_, 3}, "block origins"),
+          Tensor::from_host(rays.directions, {n_, 3}, "block directions"), out_.content.acc);
+    }
     if (geo_.has_background && model_.stride() > 1)
       out_.pixel_acc = model_.pixel_opacity(scene_, cam_, w_, h_, sums_.acc_lo, sums_.acc_hi, std::max(chunk_, 8192));
     return std::move(out_);
@@ -504,7 +512,8 @@ std::vector<float> StyleModel::stylize_camera_regions(const CameraContent& cc, c
   const Tensor y_out = stylised_rows(Tensor::from_host(c_out, {n, E}, "content outside"),
                                      Tensor::from_host(k_out, {n}, "opacity outside"), outside);
   nn::axpby(1.0f, y_out, 1.0f, y);
-  return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr, nullptr), cam_w, cam_h);
+  return crop_rgb(decode_rows(std::move(y), cc.content.acc, cc.height, cc.width, nullptr, nullptr, cc.content.background),
+                  cam_w, cam_h);
 }
 
 void StyleModel::over_background(std::vector<float>& rgb, const CameraContent& cc, int cam_w, int cam_h) const {

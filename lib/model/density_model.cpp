@@ -79,6 +79,11 @@ DensityModel DensityModel::create(const scene::Scene& scene, const DensityModelC
   g.ert_threshold = Geometry::default_ert_threshold(g.ndc);
   g.has_background = scene.effects.background;
   g.background = scene.effects.background_rgb;
+  if (scene.effects.background_shell && !g.ndc && !g.has_background) {
+    g.shell = BackgroundShell{scene.shell_radius, kShellMapHeight, kShellMapWidth};
+    // Grey at first: the surroundings' colour is learnt like the grids' (group 0).
+    m.shell_map.value = Tensor::full({g.shell.texels(), 3}, 0.5f, "background shell colours");
+  }
   g.act = cfg.act;
   g.step_ratio = cfg.step_ratio;
   g.distance_scale = cfg.distance_scale;
@@ -162,6 +167,7 @@ nn::Param& DensityModel::density_param() {
 void DensityModel::collect_params(std::vector<nn::Param*>& out) {
   out.push_back(&density_param());
   rgb.collect_params(out);
+  if (shell_map.value.defined()) out.push_back(&shell_map);
 }
 
 RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool train, uint32_t seed,
@@ -170,26 +176,36 @@ RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool t
   opt.jitter = train;
   opt.seed = seed;
   opt.ray_base = ray_base;
+  RayResult r;
   if (!rgb.deferred()) {
     opt.background = geo.background_tensor();
-    return render_rays(geo, rgb, origins, dirs, opt, ctx);
+    r = render_rays(geo, rgb, origins, dirs, opt, ctx);
+  } else {
+    // Deferred: the pipeline composites appearance features; the head shades them once per ray, and the
+    // background goes behind the shaded colour (so not through the pipeline, whose values are features).
+    r = render_rays(geo, rgb, origins, dirs, opt, ctx);
+    r.value = rgb.shade(r.value, r.kept_acc, cfg.view_dependent ? dirs : Tensor(), ctx ? &ctx->shading : nullptr);
+    if (geo.has_background) render::background_forward(r.value, r.acc, geo.background_tensor());
   }
-  // Deferred: the pipeline composites appearance features; the head shades them once per ray, and the
-  // background goes behind the shaded colour (so not through the pipeline, whose values are features).
-  RayResult r = render_rays(geo, rgb, origins, dirs, opt, ctx);
-  r.value = rgb.shade(r.value, r.kept_acc, cfg.view_dependent ? dirs : Tensor(), ctx ? &ctx->shading : nullptr);
-  if (geo.has_background) render::background_forward(r.value, r.acc, geo.background_tensor());
+  if (geo.shell.on() && r.value.numel() > 0) {
+    render::ShellTaps taps = geo.shell_taps(origins, dirs);
+    render::background_shell_forward(r.value, r.acc, shell_map.value, taps);
+    if (ctx) ctx->shell = {std::move(taps), r.acc};
+  }
   return r;
 }
 
 void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc_term) {
   Tensor& ddensity = density_param().grad_buffer();
+  Tensor dacc;  // the backgrounds' gradient w.r.t. the opacity over all samples, plus the caller's
+  if (dacc_term.defined()) dacc = dacc_term.clone();
+  if (geo.shell.on() && drgb.numel() > 0)
+    render::background_shell_backward(drgb, ctx.shell.acc, shell_map.value, ctx.shell.taps, &dacc, dacc.defined(),
+                                      &shell_map.grad_buffer());
   if (!rgb.deferred()) {
-    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity, dacc_term);
+    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity, dacc);
     return;
   }
-  Tensor dacc;  // the background's gradient w.r.t. the opacity over all samples, plus the caller's
-  if (dacc_term.defined()) dacc = dacc_term.clone();
   if (geo.has_background) render::background_backward(drgb, geo.background_tensor(), dacc, dacc.defined());
   Tensor dkept_acc;
   const Tensor dF = rgb.shade_backward(*ctx.shading, drgb, dkept_acc);
@@ -220,6 +236,7 @@ void save_model(io::Checkpoint& ck, DensityModel& m) {
   j["ndc"] = g.ndc;
   j["has_background"] = g.has_background;
   j["background"] = g.background;
+  if (g.shell.on()) j["shell"] = g.shell.to_json();
   j["mask_res"] = g.mask.voxels.defined() ? g.mask.res : std::array<int, 3>{0, 0, 0};
   ck.meta["model"] = j;
   m.save(ck, "model.");
@@ -253,6 +270,10 @@ DensityModel load_model(const io::Checkpoint& ck) {
     m.rgb = RgbHead(field::VMGrid::create(res, m.cfg.app_rank, 0.0f, 0),
                     field::AppearanceHead::create(head_config(m.cfg), 0), m.cfg.deferred_shading);
     m.rgb.load(ck, "model.");
+    if (j.contains("shell")) {
+      g.shell = BackgroundShell::from_json(j.at("shell"), "checkpoint " + ck.path);
+      m.shell_map.value = ck.device("model." + m.shell_map.name, {g.shell.texels(), 3});
+    }
     if (mask_res[0] > 0) g.mask = unpack_mask(ck.get("model.mask"), mask_res, ck.path);
   } catch (const json::exception& e) {
     throw Error("checkpoint " + ck.path + ": bad model metadata (" + e.what() + ")");

@@ -46,6 +46,9 @@ class DensityModel : public nn::Module {
   DensityModelConfig cfg;
   Geometry geo;
   RgbHead rgb;
+  // Captures with real surroundings (geo.shell on): the colour of the background shell's map, [texels, 3]
+  // (group 0, with the grids); undefined otherwise.
+  nn::Param shell_map{"background_shell", 0, Tensor()};
 
   static DensityModel create(const scene::Scene& scene, const DensityModelConfig& cfg, std::array<int, 3> res,
                              uint64_t seed);

@@ -44,6 +44,7 @@ FeatureField FeatureField::create(const Geometry& g, const FeatureFieldConfig& c
   for (auto& x : b) x = u(rng);
   f.basis.value = Tensor::from_host(b, {F, cfg.channels}, "feature basis");
   if (g.has_background) f.background.value = Tensor::zeros({cfg.channels}, "feature background");
+  if (g.shell.on()) f.shell.value = Tensor::zeros({g.shell.texels(), cfg.channels}, "feature shell");
   return f;
 }
 
@@ -53,7 +54,12 @@ RayResult FeatureField::render(const Geometry& g, const Tensor& origins, const T
   Tensor feat({r.value.dim(0), cfg.channels}, "rendered features");
   if (feat.numel() > 0) host::matmul(r.value, Trans::No, basis.value, Trans::No, feat);
   if (background.value.defined() && feat.numel() > 0) render::background_forward(feat, r.acc, background.value);
-  if (ctx) ctx->composited = r.value, ctx->rays_acc = r.acc;
+  render::ShellTaps taps;
+  if (shell.value.defined() && feat.numel() > 0) {
+    taps = g.shell_taps(origins, dirs);
+    render::background_shell_forward(feat, r.acc, shell.value, taps);
+  }
+  if (ctx) ctx->composited = r.value, ctx->rays_acc = r.acc, ctx->shell_taps = std::move(taps);
   r.value = feat;
   return r;
 }
@@ -77,6 +83,9 @@ void FeatureField::render_backward(const Geometry& g, const Context& ctx, const 
       Tensor dbg = background.grad_buffer().reshape({1, cfg.channels});
       host::matmul(transparency, Trans::No, dfeat, Trans::No, dbg, 1.0f, 1.0f);
     }
+    if (shell.value.defined() && dfeat.numel() > 0)
+      render::background_shell_backward(dfeat, ctx.rays_acc, shell.value, ctx.shell_taps, nullptr, false,
+                                        &shell.grad_buffer());
   }
   render_rays_backward(g, head, ctx.rays, dcomp, dkept_acc, nullptr);
 }
@@ -107,13 +116,23 @@ RayResult FeatureField::render_per_point(const Geometry& g, const Tensor& origin
   PerPointHead h(head, basis.value);
   RayResult r = render_rays(g, h, origins, dirs, opt, nullptr);
   if (background.value.defined() && r.value.numel() > 0) render::background_forward(r.value, r.acc, background.value);
+  if (shell.value.defined() && r.value.numel() > 0)
+    render::background_shell_forward(r.value, r.acc, shell.value, g.shell_taps(origins, dirs));
   return r;
+}
+
+Tensor FeatureField::shell_term(const Geometry& g, const Tensor& origins, const Tensor& dirs, const Tensor& acc) const {
+  if (!shell.value.defined()) return Tensor();
+  Tensor out = Tensor::zeros({acc.numel(), cfg.channels}, "shell term");
+  if (acc.numel() > 0) render::background_shell_forward(out, acc, shell.value, g.shell_taps(origins, dirs));
+  return out;
 }
 
 void FeatureField::collect_params(std::vector<nn::Param*>& out) {
   head.collect_params(out);
   out.push_back(&basis);
   if (background.value.defined()) out.push_back(&background);
+  if (shell.value.defined()) out.push_back(&shell);
 }
 
 }  // namespace stylerf::model

@@ -8,7 +8,7 @@
 // per point, such as stage 3's SICT, which must use that order).
 //
 // Parameters: "feature_grid" (group 0), "feature_basis" [F, C] and, with a background,
-// "feature_background" [C] (group 1).
+// "feature_background" [C], or with a background shell "feature_shell" [texels, C] (group 1).
 #pragma once
 #include <array>
 #include <cstdint>
@@ -53,6 +53,9 @@ class FeatureField : public nn::Module {
   // background colour is far from 0, and without it empty pixels would carry an error no parameter can
   // lower. Undefined (no parameter) for scenes without a background.
   nn::Param background{"feature_background", 1, Tensor()};
+  // Captures with real surroundings (g.shell on): the features of the background shell's map,
+  // [texels, C], composited behind each ray as (1 - acc) * map(exit point) (lib/render/background_shell.hpp).
+  nn::Param shell{"feature_shell", 1, Tensor()};
 
   // Grid at the geometry's resolution; basis U(+-1/sqrt(F)) (PyTorch Linear's default), seeded; a zero
   // background feature when the geometry has a background.
@@ -63,6 +66,7 @@ class FeatureField : public nn::Module {
     RayContext rays;
     Tensor composited;  // [R, F] grid components composited over the kept samples
     Tensor rays_acc;    // [R] opacity over all samples (the background's weight is 1 - this)
+    render::ShellTaps shell_taps;
   };
   // Features [R, C] (no background: empty space renders as 0), composited first, basis per ray.
   RayResult render(const Geometry& g, const Tensor& origins, const Tensor& dirs, const RayOptions& opt,
@@ -71,6 +75,10 @@ class FeatureField : public nn::Module {
   void render_backward(const Geometry& g, const Context& ctx, const Tensor& dfeat, const Tensor& dkept_acc);
   // The same features with the basis applied to every kept sample before compositing (inference only).
   RayResult render_per_point(const Geometry& g, const Tensor& origins, const Tensor& dirs, const RayOptions& opt) const;
+
+  // With a background shell: what empty space adds to each ray, (1 - acc) x the shell's features at the
+  // ray's exit point, [R, C] (acc [R]: the rays' opacity). Undefined without a shell.
+  Tensor shell_term(const Geometry& g, const Tensor& origins, const Tensor& dirs, const Tensor& acc) const;
 
   void collect_params(std::vector<nn::Param*>& out) override;
 };

@@ -156,6 +156,7 @@ FeatureModel FeatureModel::load(const io::Checkpoint& ck) {
     m.field.head = FeatureGridHead(field::VMGrid::create(res, m.field.cfg.rank, 0.0f, 0));
     m.field.basis.value = Tensor::zeros({m.field.head.channels(), m.field.cfg.channels}, "feature basis");
     if (m.geo.has_background) m.field.background.value = Tensor::zeros({m.field.cfg.channels}, "feature background");
+    if (m.geo.shell.on()) m.field.shell.value = Tensor::zeros({m.geo.shell.texels(), m.field.cfg.channels}, "feature shell");
     const nn::ConvStackSpec spec = m.profile == DecoderProfile::Fast ? nn::fast_decoder_spec("decoder.", kGroupDecoder)
                                                                      : nn::plain_decoder_spec("decoder.", kGroupDecoder);
     if (j.at("decoder").get<std::string>() != spec.describe())

@@ -54,6 +54,24 @@ render::MarchConfig Geometry::march_config(bool jitter, uint32_t seed, uint32_t 
   return mc;
 }
 
+json BackgroundShell::to_json() const { return json{{"radius", radius}, {"height", height}, {"width", width}}; }
+
+BackgroundShell BackgroundShell::from_json(const json& j, const std::string& where) {
+  BackgroundShell b;
+  b.radius = j.at("radius").get<float>();
+  b.height = j.at("height").get<int>();
+  b.width = j.at("width").get<int>();
+  if (!(b.radius > 0) || !std::isfinite(b.radius) || b.height < 1 || b.width < 1)
+    throw Error(where + ": bad background shell (radius " + std::to_string(b.radius) + ", map " + std::to_string(b.width) +
+                "x" + std::to_string(b.height) + ")");
+  return b;
+}
+
+render::ShellTaps Geometry::shell_taps(const Tensor& origins, const Tensor& dirs) const {
+  if (!shell.on()) throw Error("shell_taps: this geometry has no background shell");
+  return render::background_shell_taps(origins, dirs, shell.radius, shell.height, shell.width);
+}
+
 Tensor Geometry::background_tensor() const {
   if (!has_background) return Tensor();
   return Tensor::from_host({background[0], background[1], background[2]}, {3}, "background colour");
@@ -123,6 +141,7 @@ void Geometry::save(io::Checkpoint& ck, const std::string& prefix) const {
   j["ndc"] = ndc;
   j["has_background"] = has_background;
   j["background"] = background;
+  if (shell.on()) j["shell"] = shell.to_json();
   j["step_ratio"] = step_ratio;
   j["distance_scale"] = distance_scale;
   j["weight_threshold"] = weight_threshold;
@@ -149,6 +168,7 @@ Geometry Geometry::load(const io::Checkpoint& ck, const std::string& prefix) {
     g.ert_threshold = Geometry::default_ert_threshold(g.ndc);
     g.has_background = j.at("has_background").get<bool>();
     g.background = j.at("background").get<std::array<float, 3>>();
+    if (j.contains("shell")) g.shell = BackgroundShell::from_json(j.at("shell"), "checkpoint " + ck.path);
     g.step_ratio = j.at("step_ratio").get<float>();
     g.distance_scale = j.at("distance_scale").get<float>();
     g.weight_threshold = j.at("weight_threshold").get<float>();

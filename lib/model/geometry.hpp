@@ -13,6 +13,7 @@
 #include "host/tensor.hpp"
 #include "lib/field/alpha_mask.hpp"
 #include "lib/field/vm_grid.hpp"
+#include "lib/render/background_shell.hpp"
 #include "lib/render/ray_march.hpp"
 
 namespace stylerf::io {
@@ -24,12 +25,28 @@ namespace stylerf::model {
 
 using host::Tensor;
 
+// Captures with real surroundings: the sphere their background is painted on and its map's size in texels
+// (lib/render/background_shell.hpp). Each stage's model holds its own map (stage 1 colours, stage 2
+// features); the geometry says where it is. Radius 0: no shell.
+struct BackgroundShell {
+  float radius = 0;
+  int height = 0, width = 0;
+  bool on() const { return radius > 0; }
+  int64_t texels() const { return int64_t(height) * width; }
+  nlohmann::json to_json() const;
+  static BackgroundShell from_json(const nlohmann::json& j, const std::string& where);
+};
+// The map's size: 1.4 degrees a texel, a few times coarser than the object's pixels, which the
+// surroundings can afford (they are out of focus, and only the style stage looks at them as a whole).
+inline constexpr int kShellMapHeight = 128, kShellMapWidth = 256;
+
 struct Geometry {
   std::array<float, 3> box_lo{}, box_hi{};
   float near = 0, far = 1;
   bool ndc = false;
   bool has_background = false;
   std::array<float, 3> background{1, 1, 1};
+  BackgroundShell shell;
   field::VMGrid density;
   field::DensityActivation act = field::DensityActivation::Softplus;
   field::AlphaMask mask;         // mask.voxels undefined: no mask
@@ -59,6 +76,8 @@ struct Geometry {
   render::MarchConfig march_config(bool jitter, uint32_t seed, uint32_t ray_base = 0) const;
   const field::AlphaMask* active_mask() const { return (use_mask && mask.voxels.defined()) ? &mask : nullptr; }
   Tensor background_tensor() const;  // [3], undefined when the scene has no background
+  // The shell's taps of rays [R, 3] (origins and directions in the ray space); only with a shell.
+  render::ShellTaps shell_taps(const Tensor& origins, const Tensor& dirs) const;
   std::string describe() const;      // grid, step, samples per ray, box, mask occupancy
 
   // Saved as "<prefix>density" + "<prefix>mask" tensors and meta[<prefix>geometry].

@@ -52,6 +52,11 @@ struct RayContext {
   // What a model shading the composited values per ray keeps for its backward (a deferred head,
   // lib/render/deferred.hpp); the pipeline itself leaves it empty.
   std::unique_ptr<SampleHead::Context> shading;
+  // A background shell composited by the model after the pipeline: its taps and the opacity it used.
+  struct Shell {
+    render::ShellTaps taps;
+    Tensor acc;
+  } shell;
 };
 
 // origins, dirs [R,3] in the ray space.

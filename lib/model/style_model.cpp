@@ -147,7 +147,9 @@ StyleModel::Content StyleModel::render_content(const Tensor& origins, const Tens
   opt.seed = jitter_seed;
   const RayResult r = render_rays(features.geo, *head, origins, dirs, opt, ctx ? &ctx->rays : nullptr);
   if (ctx) ctx->head = std::move(head);
-  return content_of(r);
+  Content content = content_of(r);
+  content.background = features.field.shell_term(features.geo, origins, dirs, content.acc);
+  return content;
 }
 
 Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode& code, int h, int w,
@@ -156,15 +158,16 @@ Tensor StyleModel::decode_styled(const Content& content, const style::StyleCode&
     throw Error("style model: a " + std::to_string(w) + "x" + std::to_string(h) + " map needs " +
                 std::to_string(int64_t(h) * w) + " rays, got " + std::to_string(content.c.dim(0)));
   return decode_rows(ctx ? transform(content.c, content.kept_acc, code, ctx) : stylised_rows(content.c, content.kept_acc, code),
-                     content.acc, h, w, &code, ctx);
+                     content.acc, h, w, &code, ctx, content.background);
 }
 
 Tensor StyleModel::decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code,
-                               Context* ctx) const {
+                               Context* ctx, const Tensor& background) const {
   // Empty space keeps stage 2's (unstyled) background feature, which the decoder learned to draw as the
   // background colour; the masked losses never look there.
   if (features.field.background.value.defined())
     render::background_forward(y, acc, features.field.background.value);
+  if (background.defined()) nn::axpby(1.0f, background, 1.0f, y);
   const Tensor map = nn::rows_to_image(y, h, w);
   if (ctx) {
     ctx->h = h;
@@ -186,6 +189,7 @@ Tensor StyleModel::decode_map_backward(const DecoderCtx& ctx, const Tensor& drgb
 Tensor StyleModel::relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const {
   Tensor y = stylised_rows(content.c, content.kept_acc, code);
   if (features.field.background.value.defined()) render::background_forward(y, content.acc, features.field.background.value);
+  if (content.background.defined()) nn::axpby(1.0f, content.background, 1.0f, y);
   return map_decoder->relu4(*this, nn::rows_to_image(y, h, w));
 }
 

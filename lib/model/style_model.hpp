@@ -183,6 +183,9 @@ class StyleModel : public nn::Module {
   struct Content {
     Tensor c, kept_acc, acc;
     Tensor depth;  // [R] sum w t over all samples (not divided by acc)
+    // Scenes with a background shell: what empty space adds to each row, (1 - acc) x stage 2's shell
+    // features (unstyled, as the background feature of scenes with a colour); undefined otherwise.
+    Tensor background;
     int64_t samples = 0, kept = 0;
   };
   struct Context {
@@ -220,7 +223,9 @@ class StyleModel : public nn::Module {
   // [1, 512, h', w'] (inference; VggAdain kinds only): what SceneStyleStats pools.
   Tensor relu4_of(const Content& content, const style::StyleCode& code, int h, int w) const;
   // The same from DST's output rows y [h w, 256] (consumed) and the full opacity acc [h w].
-  Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx) const;
+  // background: the rows' shell term (Content::background), added where the geometry has a shell.
+  Tensor decode_rows(Tensor y, const Tensor& acc, int h, int w, const style::StyleCode* code, Context* ctx,
+                     const Tensor& background = Tensor()) const;
   // drgb [1, 3, H, W]: accumulates into the decoder, DST and SICT; returns the code's gradients (dT, dmean,
   // dstd) for the style branch (Dst::style_code_backward).
   style::Dst::ApplyGrads backward(Context& ctx, const Tensor& drgb);

@@ -163,6 +163,26 @@ double centre_on_focus(std::vector<CaptureView>& views, const std::vector<Vec3>&
   return sc;
 }
 
+// Where an object capture's surroundings are, for the background shell: the median distance from the
+// centre of the farthest content each camera sees (its far bound along its axis), so a room's walls and
+// table edge, not the object. At least 1.25x the farthest camera and the box's corner, so that every
+// camera and the whole box are inside the sphere and each ray leaves it once. Without depth bounds: 3x
+// the farthest camera.
+double surroundings_radius(const std::vector<CaptureView>& views, const DepthBounds& b, double sc, double half,
+                           double max_dist) {
+  const double inside = 1.25 * std::max(max_dist, half * std::sqrt(3.0));
+  if (!b.known) return std::max(3.0 * max_dist, inside);
+  std::vector<double> reach;
+  for (const CaptureView& v : views) {
+    if (!(v.far > 0)) continue;
+    const Vec3 far_point = add(v.pose.axis(3), scale(v.pose.axis(2), -v.far * sc));
+    reach.push_back(norm(far_point));
+  }
+  if (reach.empty()) return std::max(3.0 * max_dist, inside);
+  std::sort(reach.begin(), reach.end());
+  return std::max(reach[reach.size() / 2], inside);
+}
+
 void normalise_object_centric(std::vector<CaptureView>& views, const std::vector<Vec3>& view_dirs, const DepthBounds& b,
                               Scene& s, const std::string& what) {
   const int n = int(views.size());
@@ -194,6 +214,7 @@ void normalise_object_centric(std::vector<CaptureView>& views, const std::vector
     s.depth_far = float(max_dist + half * std::sqrt(3.0));
   }
   for (int k = 0; k < 3; ++k) s.aabb[0][k] = float(-half), s.aabb[1][k] = float(half);
+  s.shell_radius = float(surroundings_radius(views, b, sc, half, max_dist));
   s.near = float(std::max(0.05, std::min(s.depth_near * 0.9, 1.0 - half * std::sqrt(3.0))));
   s.far = float(max_dist + half * std::sqrt(3.0));
   if (s.effects.ndc) {

@@ -59,7 +59,16 @@ void detect_plain_background(Scene& s) {
   char text[200];
   std::snprintf(text, sizeof text, "%.0f%% of the training views' border pixels are (%.3g, %.3g, %.3g)", 100.0 * b.share,
                 b.rgb[0], b.rgb[1], b.rgb[2]);
-  if (b.share < kUniformBorderShare) return;
+  if (b.share < kUniformBorderShare) {
+    if (!(s.shell_radius > 0) || s.effects.ndc) return;
+    s.effects.background_shell = true;
+    char radius[64];
+    std::snprintf(radius, sizeof radius, "%.3g", s.shell_radius);
+    s.notes.push_back(std::string("background shell on: only ") + text +
+                      " (real surroundings; rays leaving the box see a map on a sphere of radius " + radius +
+                      ", the median reach of the far bounds)");
+    return;
+  }
   s.effects.background = true;
   s.effects.background_rgb = b.rgb;
   s.effects.background_reason = "plain backdrop";

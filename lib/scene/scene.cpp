@@ -106,6 +106,10 @@ std::string Scene::describe() const {
       << ", " << effects.background_rgb[2] << ") (" << effects.background_reason << ")";
     any = true;
   }
+  if (effects.background_shell) {
+    s << (any ? "," : "") << " background shell (radius " << shell_radius << ")";
+    any = true;
+  }
   if (effects.view_dependence) {
     s << (any ? "," : "") << " view-dependent colour";
     any = true;

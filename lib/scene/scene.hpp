@@ -40,6 +40,10 @@ struct SceneEffects {
   bool background = false;       // rays leaving the content see background_rgb (see background_reason)
   std::array<float, 3> background_rgb{1, 1, 1};
   std::string background_reason = "images have alpha";  // or a plain backdrop read off the borders
+  // Object captures with real surroundings (a room around the object): rays leaving the box see a map on a
+  // sphere of radius shell_radius about the centre (lib/render/background_shell.hpp). Off with a background
+  // colour, and for forward-facing captures, whose NDC rays reach the far plane inside the box.
+  bool background_shell = false;
   bool view_dependence = false;  // appearance may depend on the view direction (only when asked for)
 };
 
@@ -57,6 +61,7 @@ struct Scene {
   float near = 0, far = 1;  // ray-parameter range (NDC: 0..1)
   float ndc_near = 1;       // world-space plane z = -ndc_near that NDC rays start on (NDC scenes only)
   float depth_near = 0, depth_far = 0;  // world-space depth bounds of the content (spiral path focus)
+  float shell_radius = 0;  // object captures: the sphere the surroundings are painted on (0: not measured)
   float aabb[2][3] = {{-1.5f, -1.5f, -1.5f}, {1.5f, 1.5f, 1.5f}};  // in the ray space (NDC box when ndc)
   SceneEffects effects;
   std::vector<std::string> notes;  // decisions taken while loading (printed by describe())

@@ -308,7 +308,11 @@ StyleStepStats StyleTrainer::warm_step(std::mt19937_64& draw, const StyleTargets
     }
   }
   const Tensor content41 = content_target(p);
-  const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx)
+  const Tensor background =
+      rendered ? model_.features.field.shell_term(model_.features.geo, Tensor::from_host(p.rays.origins, {R, 3}),
+                                                  Tensor::from_host(p.rays.directions, {R, 3}), acc_t)
+               : Tensor();
+  const Tensor rgb = rendered ? model_.decode_rows(y, acc_t, h, w, &code, &mctx, background)
                               : model_.decode_map(nn::rows_to_image(y, h, w), &code, &mctx.decoder);
   const nn::VggFeatures out = vgg_.forward(rgb, 4, true);
   nn::VggFeatures grads;

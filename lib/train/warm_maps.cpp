@@ -64,6 +64,16 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
     }
     const auto f = fm.features.to_host();  // [1, C, Hf, Wf]
     const int64_t n = int64_t(Hf) * Wf;
+    // With a background shell, its term at each map pixel's ray ([n, C]), taken off as the colour's is.
+    std::vector<float> shell;
+    if (features.geo.shell.on()) {
+      int w = 0, h = 0;
+      const scene::Rays rays = model::block_rays(scene, cam, features.stride(), w, h);
+      shell = features.field
+                  .shell_term(features.geo, Tensor::from_host(rays.origins, {n, 3}), Tensor::from_host(rays.directions, {n, 3}),
+                              Tensor::from_host(std::vector<float>(fm.acc.begin(), fm.acc.end()), {n}))
+                  .to_host();
+    }
     for (int64_t p = 0; p < n; ++p) {
       const float a = fm.acc[size_t(p)];
       out.acc[size_t(v * n + p)] = a;
@@ -73,7 +83,8 @@ RenderedWarmMaps render_warm_maps(const model::FeatureModel& features, const sce
         continue;
       }
       // value = sum w f + (1 - acc) bg  ->  mean feature = (value - (1 - acc) bg) / acc
-      for (int64_t c = 0; c < C; ++c) dst[c] = (f[size_t(c * n + p)] - (1.0f - a) * bg[size_t(c)]) / a;
+      for (int64_t c = 0; c < C; ++c)
+        dst[c] = (f[size_t(c * n + p)] - (1.0f - a) * bg[size_t(c)] - (shell.empty() ? 0.0f : shell[size_t(p * C + c)])) / a;
     }
     features::put_view(out.maps, v, features::encode_view(view_map, out.maps.maps.dtype()));
     if (log) {
