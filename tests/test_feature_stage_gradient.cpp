@@ -225,6 +225,53 @@ TEST_CASE("feature stage: each step's gradient matches central differences, over
   }
 }
 
+TEST_CASE("feature stage with a background shell: the steps' gradients, the shell's features included, match "
+          "central differences") {
+  // The small geometry as a capture with real surroundings: no background feature, a shell instead, whose
+  // features the stage learns as it learns the background feature.
+  scene::Scene sc = testing::small_scene();
+  sc.effects.background = false;
+  model::Geometry g = testing::small_geometry();
+  g.has_background = false;
+  g.shell = model::BackgroundShell{4.0f, 8, 16};
+  const auto cfg = small_config();
+  train::FeatureTrainer t(sc, g, cfg, nullptr);
+  model::FeatureModel& m = t.model();
+  REQUIRE(!m.field.background.value.defined());
+  REQUIRE(m.field.shell.value.defined());
+  StageLosses losses(cfg, m.stride());
+  const testing::ParamPoint at(m.params());
+  for (const bool patch_step : {false, true}) {
+    CAPTURE(patch_step);
+    const train::FeatureStepStats st = t.step();
+    REQUIRE(st.patch == patch_step);
+    const auto grad = at.grads();
+    at.restore();
+    if (patch_step)
+      CHECK(st.pixel_mse + st.content == doctest::Approx(losses.patch(m)).epsilon(1e-5));
+    else
+      CHECK(st.feature_mse == doctest::Approx(losses.ray(m)).epsilon(1e-5));
+    const testing::ParamFilter shell = [](const nn::Param& p) { return p.name == "feature_shell"; };
+    const double spread = at.spread(grad, shell);
+    CHECK_MESSAGE(spread > 0, "the shell's features get no gradient");
+    if (!patch_step) {
+      auto L = [&] { return losses.ray(m) + losses.tv(m); };
+      testing::check_directional("feature_shell", testing::directional(at, grad, at.direction(shell, 40), kRayStep, spread, L), kTol);
+      continue;
+    }
+    // Through the decoder's input gradient G, as the case above checks the field's blocks.
+    const std::vector<float> G = losses.patch_feature_gradient(m);
+    auto chain = [&] {
+      const auto f = losses.patch_features(m).to_host();
+      double s = 0;
+      for (size_t j = 0; j < f.size(); ++j) s += double(G[j]) * f[j];
+      return s + losses.tv(m);
+    };
+    testing::check_directional("feature_shell, chain",
+                               testing::directional(at, grad, at.direction(shell, 41), kChainStep, spread, chain), kTol);
+  }
+}
+
 TEST_CASE("feature stage: a few dozen steps lower the ray and the patch losses") {
   // Rates 5x the recipe's, so that 30 steps show the descent beyond the batches' and patches' spread
   // (measured: view 0's feature MSE 15.3 -> 14.4, ray batches 11.8 -> 10.9, patches 3.0 -> 2.3).

@@ -1186,3 +1186,73 @@ TEST_CASE("generated demo styles: deterministic, and differ in colour and in tex
       CHECK(dm + dg > 0.05);
     }
 }
+
+TEST_CASE("with a background shell, each ray's content carries stage 2's shell term; a camera's blocks and the warm maps agree") {
+  // The small geometry as a capture with real surroundings, its shell's features random (not learnt).
+  model::Geometry g = testing::small_geometry();
+  g.has_background = false;
+  g.shell = model::BackgroundShell{4.0f, 8, 16};
+  model::FeatureFieldConfig fc;
+  fc.rank = {8, 8, 8};
+  model::FeatureModel f = model::FeatureModel::create(g, fc, model::DecoderProfile::Fast, 3);
+  REQUIRE(f.field.shell.value.defined());
+  f.field.shell.value = Tensor::from_host(testing::random_normal(size_t(g.shell.texels()) * 256, 12), {g.shell.texels(), 256});
+  model::StyleModel sm = model::StyleModel::create(f, style::SictMode::VolumeAdaptive, true, 5,
+                                                   model::StyleDecoderKind::Stage2, true);
+  const auto& sc = testing::small_scene();
+  const scene::Camera& cam = sc.test[0].camera;
+  int w = 0, h = 0;
+  const auto rays = model::block_rays(sc, cam, 4, w, h);
+  const int64_t R = int64_t(w) * h;
+  const Tensor o = Tensor::from_host(rays.origins, {R, 3}), d = Tensor::from_host(rays.directions, {R, 3});
+
+  // The content's term is what stage 2 composites behind the ray: its render less the same render without
+  // the shell.
+  const auto content = sm.render_content(o, d, false, 0, nullptr);
+  REQUIRE(content.background.defined());
+  const auto with = f.field.render(f.geo, o, d, model::RayOptions{}, nullptr).value.to_host();
+  model::FeatureField bare = f.field;
+  bare.shell.value = Tensor();
+  const auto without = bare.render(f.geo, o, d, model::RayOptions{}, nullptr).value.to_host();
+  const auto term = content.background.to_host();
+  std::vector<double> want(with.size());
+  for (size_t i = 0; i < with.size(); ++i) want[i] = double(with[i]) - without[i];
+  testing::check_close(term, want, 1e-4, 1e-4, "shell term");
+  const auto acc = content.acc.to_host();
+  int empty = 0;
+  for (float a : acc) empty += a < 0.5f;
+  REQUIRE(empty > 0);  // the camera sees past the object
+
+  // A camera's blocks (one ray each) carry the same term; the stylised frame is finite.
+  const model::StyleModel::CameraContent cc = sm.render_camera_content(sc, cam, 4096, nullptr, 1);
+  REQUIRE(cc.content.background.defined());
+  testing::check_close(cc.content.background.to_host(), testing::to_double(term), 1e-5, 1e-5, "camera shell term");
+  const style::StyleCode code =
+      sm.dst.style_code(Tensor::from_host(testing::random_uniform(64 * 256, 8, 0.0f, 3.0f), {64, 256}), nullptr);
+  CHECK(testing::all_finite(sm.stylize_camera(cc, code, cam.width, cam.height)));
+
+  // The rendered warm-start maps hold the mean feature without the shell's term.
+  const train::RenderedWarmMaps maps = train::render_warm_maps(f, sc, nullptr);
+  const auto fm = f.render_feature_map(sc, sc.train[0].camera);
+  const auto value = fm.features.to_host();  // [C, h, w]
+  const auto mean = features::maps_to_host(maps.maps);
+  int wv = 0, hv = 0;
+  const auto vr = model::block_rays(sc, sc.train[0].camera, 4, wv, hv);
+  const int64_t n = int64_t(wv) * hv;
+  const auto shell0 = f.field
+                          .shell_term(f.geo, Tensor::from_host(vr.origins, {n, 3}), Tensor::from_host(vr.directions, {n, 3}),
+                                      Tensor::from_host(std::vector<float>(fm.acc.begin(), fm.acc.end()), {n}))
+                          .to_host();
+  int opaque = 0;
+  for (int64_t p = 0; p < n; ++p) {
+    const float a = fm.acc[size_t(p)];
+    if (!(a > train::kWarmMapMinOpacity)) continue;
+    ++opaque;
+    for (int c = 0; c < 256; ++c) {
+      const double got = double(mean[size_t(p * 256 + c)]) * a + shell0[size_t(p * 256 + c)];
+      const double want_v = value[size_t(c * n + p)];
+      REQUIRE(std::fabs(got - want_v) <= 1e-3 * (1.0 + std::fabs(want_v)) + std::ldexp(1.0, -11) * std::fabs(got));
+    }
+  }
+  CHECK(opaque > 0);
+}
