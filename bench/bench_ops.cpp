@@ -19,6 +19,7 @@ int bench_ops(const BenchOptions& opt) {
   if (on("layout")) bench_ops_layout(opt);
   if (on("style")) bench_ops_style(opt);
   if (on("eval")) bench_ops_eval(opt);
+  if (on("shell")) bench_ops_shell(opt);
   return 0;
 }
 

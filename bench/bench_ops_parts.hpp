@@ -9,5 +9,6 @@ void bench_ops_norm(const BenchOptions& opt);     // bench/bench_ops_norm.cpp: s
 void bench_ops_layout(const BenchOptions& opt);   // bench/bench_ops_layout.cpp: rows <-> image, nn::linear
 void bench_ops_style(const BenchOptions& opt);    // bench/bench_ops_style.cpp: SICT and DST kernels
 void bench_ops_eval(const BenchOptions& opt);     // bench/bench_ops_eval.cpp: LPIPS distance map, LPIPS per pair
+void bench_ops_shell(const BenchOptions& opt);    // bench/bench_ops_shell.cpp: the background shell's kernels
 
 }  // namespace stylerf::bench

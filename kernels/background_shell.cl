@@ -40,10 +40,11 @@ kernel void background_shell_taps(global const float* origins, global const floa
   w[4 * r + 3] = fy * fx;
 }
 
-// out[r, c] += (1 - acc[r]) * sum_k w[r, k] map[idx[r, k], c]  (in place).
+// out[r, c] += (1 - acc[r]) * sum_k w[r, k] map[idx[r, k], c]  (in place). The channel is the fastest
+// index of the launch, so neighbouring work-items read neighbouring floats of a texel row.
 kernel void background_shell_forward(global float* out, global const float* acc, global const float* map,
                                      global const int* idx, global const float* w, int R, int C) {
-  const int r = get_global_id(0), c = get_global_id(1);
+  const int c = get_global_id(0), r = get_global_id(1);
   if (r >= R || c >= C) return;
   float bg = 0.0f;
   for (int k = 0; k < 4; ++k) bg = fma(w[4 * r + k], map[(long)idx[4 * r + k] * C + c], bg);
@@ -71,7 +72,7 @@ kernel void background_shell_dacc(global const float* dout, global const float* 
 kernel void background_shell_dmap(global const float* dout, global const float* acc, global const int* texel,
                                   global const int* offset, global const int* entry_ray,
                                   global const float* entry_w, int T, int C, global float* dmap) {
-  const int t = get_global_id(0), c = get_global_id(1);
+  const int c = get_global_id(0), t = get_global_id(1);
   if (t >= T || c >= C) return;
   float s = 0.0f;
   for (int e = offset[t]; e < offset[t + 1]; ++e) {

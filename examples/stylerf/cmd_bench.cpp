@@ -54,7 +54,7 @@ int run_bench(int argc, char** argv) {
       "minutes", po::value(&minutes), "density: training minutes per scene (default 30; with --quick 4)")(
       "knob-minutes", po::value(&knob_minutes), "density: training minutes per knob row (default 5; with --quick 1)")(
       "parts", po::value(&parts), "density: comma list of lego, fern, knobs; ops: of spatial, norm, layout, "
-                                  "style, eval (default all)")(
+                                  "style, eval, shell (default all)")(
       "ckpt", po::value(&opt.ckpt), "patch: density or feature checkpoint whose geometry to render")(
       "stage", po::value(&opt.stage)->default_value(2), "patch: training stage (2 features, 3 style)")(
       "profile", po::value(&opt.profile)->default_value("fast"), "patch: decoder profile, fast | paper")(
@@ -111,11 +111,11 @@ int run_bench(int argc, char** argv) {
   opt.knob_budget_s = knob_minutes * 60.0;
   for (const std::string& p : comma_list(parts)) {
     const bool ops = which == "ops";
-    const bool known = ops ? (p == "spatial" || p == "norm" || p == "layout" || p == "style" || p == "eval")
+    const bool known = ops ? (p == "spatial" || p == "norm" || p == "layout" || p == "style" || p == "eval" || p == "shell")
                            : (p == "lego" || p == "fern" || p == "knobs");
     if (!known)
       throw std::runtime_error("--parts: unknown part '" + p + "' for bench " + which +
-                               (ops ? " (spatial, norm, layout, style, eval)" : " (lego, fern, knobs)"));
+                               (ops ? " (spatial, norm, layout, style, eval, shell)" : " (lego, fern, knobs)"));
     opt.parts.push_back(p);
   }
   if (!decoder.empty()) {

@@ -46,7 +46,7 @@ void background_shell_forward(Tensor& value, const Tensor& acc, const Tensor& ma
   const int C = check_map(map, taps, R, op);
   host::expect_shape(value, {R, C}, DType::F32, op, "value");
   if (R > 0)
-    launch_with_local("background_shell", "background_shell_forward", "", {size_t(R), size_t(C)}, host::Range(0),
+    launch_with_local("background_shell", "background_shell_forward", "", {size_t(C), size_t(R)}, host::Range(0),
                       value, acc, map, taps.idx, taps.w, int(R), C);
 }
 
@@ -111,7 +111,7 @@ void background_shell_backward(const Tensor& dvalue, const Tensor& acc, const Te
     host::expect_shape(*dmap, map.shape(), DType::F32, op, "dmap");
     const TexelLists l = group_by_texel(taps, map.dim(0));
     if (l.count > 0)
-      launch_with_local("background_shell", "background_shell_dmap", "", {size_t(l.count), size_t(C)},
+      launch_with_local("background_shell", "background_shell_dmap", "", {size_t(C), size_t(l.count)},
                         host::Range(0), dvalue, acc, l.texel, l.offset, l.entry_ray, l.entry_w, l.count, C, *dmap);
   }
 }
