@@ -26,7 +26,7 @@ import results_plots as plots  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COMMAND = "python3 scripts/make_results.py"
-SCENE_ORDER = ["lego", "fern", "horns", "milk_carton", "demo"]
+SCENE_ORDER = ["lego", "fern", "horns", "milk_carton", "bird_figurine", "demo"]
 SCENE_NAME = {"lego": "lego", "fern": "fern", "horns": "horns", "milk_carton": "milk_carton",
               "bird_figurine": "bird_figurine", "demo": "the demo scene"}
 MACHINE_SHORT = {"cpu2": "2-core CPU", "cpu2-xeon": "2-core Xeon", "cpu2-epyc": "2-core EPYC", "h100": "H100",
