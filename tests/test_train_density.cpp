@@ -50,7 +50,7 @@ const scene::Scene& small_scene() {
 
 // The final grid by scene kind and recipe: a camera of 504 px (above the small-image rule) on a scene that
 // only differs in its format string and NDC flag.
-TEST_CASE("final grid: 400^3 for NDC scenes in the fast recipe; TensoRF's 640^3 for objects and the paper") {
+TEST_CASE("final grid in the fast recipe: 400^3 for NDC scenes, 300^3 for objects; TensoRF's 640^3 in the paper's") {
   scene::Scene s = small_scene();
   for (auto& v : s.train) {
     v.camera.width = 504;
@@ -64,7 +64,7 @@ TEST_CASE("final grid: 400^3 for NDC scenes in the fast recipe; TensoRF's 640^3 
   CHECK(side("llff-forward", false) == train::kFastLlffFinalSide);
   CHECK(side("colmap-forward", false) == train::kFastLlffFinalSide);
   CHECK(side("llff-forward", true) == 640);
-  CHECK(side("llff-object", false) == 640);
+  CHECK(side("llff-object", false) == train::kFastObjectFinalSide);
   CHECK(side("llff-object", true) == 640);
   CHECK(side("blender", false) == 300);
   CHECK(side("blender", true) == 300);

@@ -92,7 +92,7 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "ndc", po::value(&a.ndc)->default_value("auto"), "NDC rays: auto (forward-facing LLFF), on, off")(
       "view-dependence", po::bool_switch(&a.view_dep), "view-dependent colour (off unless asked for)")(
       "density-activation", po::value(&a.act), "relu | softplus (default: TensoRF's config for the format)")(
-      "final-voxels", po::value(&a.final_voxels), "final grid voxels (default: Blender 300^3; forward-facing captures 400^3, or TensoRF's 640^3 with --recipe paper; object captures 640^3)")(
+      "final-voxels", po::value(&a.final_voxels), "final grid voxels (default: Blender 300^3; forward-facing captures 400^3, object captures 300^3, or TensoRF's 640^3 for both with --recipe paper)")(
       "init-voxels", po::value(&a.init_voxels), "initial grid voxels (default 128^3)")(
       "upsample-at", po::value(&a.upsample_at), "upsampling iterations (default 2000,3000,4000,5500)")(
       "mask-at", po::value(&a.mask_at), "alpha-mask update iterations (default 2000,4000; LLFF 2500)")(
@@ -100,7 +100,8 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "shading", po::value(&a.shading), "deferred (default: one MLP per ray on its mean feature) | per-sample "
                                         "(TensoRF: one MLP per kept sample)")(
       "recipe", po::value(&a.recipe)->default_value("fast"),
-      "fast: deferred shading and a 400^3 final grid for forward-facing captures (measured better at equal time) | paper: per-sample "
+      "fast: deferred shading and a final grid of 400^3 for forward-facing captures, 300^3 for objects (each "
+      "measured as good or better at equal time) | paper: per-sample "
       "shading and 640^3, TensoRF's (stage 1 of the paper); --shading and --final-voxels override")(
       "ert", po::value(&a.ert),
       "early ray termination: stop a ray once its transmittance is below this (0: off; default 1e-4, and off "

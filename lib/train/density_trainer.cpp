@@ -94,8 +94,11 @@ DensityTrainConfig default_density_config(const scene::Scene& scene, bool tensor
     // fern 1008x756 (10-minute density, then 10-minute features, alone; docs/results.md): 400^3 took 1556
     // steps to 640^3's 1190, held-out 22.25 vs 22.01 dB, decoded 18.64 vs 17.36 dB, a stylised frame 15.9
     // vs 23.8 s (~0.6x the samples a ray: an NDC ray takes |res| / step of them), peak RSS 5.0 vs 6.3 GB.
-    // The paper recipe keeps 640^3, and so do scenes without NDC rays (object captures: not measured).
-    const int64_t side = (tensorf_grid || !scene.effects.ndc) ? 640 : kFastLlffFinalSide;
+    // Object captures (no NDC rays, a box about the object) take Blender's 300^3. Measured on bird_figurine
+    // 544x960 (9.5-minute density, alone): 300^3 / 400^3 / 640^3 held out 26.22 / 26.25 / 26.17 dB with
+    // 291 / 378 / 614 samples a ray, peak RSS 5.0 / 5.7 / 7.1 GB, evaluation 41 / 55 / 102 s for 5 views;
+    // the later stages' per-sample buffers and frames scale with the samples. The paper recipe keeps 640^3.
+    const int64_t side = tensorf_grid ? 640 : scene.effects.ndc ? kFastLlffFinalSide : kFastObjectFinalSide;
     c.schedule.voxels_final = side * side * side;
     c.schedule.mask_at = {2500};
     c.l1_initial = c.l1_rest = 0.0f;
