@@ -147,7 +147,32 @@ struct StageLosses {
     m.zero_grad();
     return G.to_host();
   }
+
+  // The patch loss linearised at the decoder's input, sum_j G_j f_j, plus TV: with G fixed, its gradient
+  // over the field's parameters is the patch step's.
+  double chain(model::FeatureModel& m, const std::vector<float>& G) const {
+    const auto f = patch_features(m).to_host();
+    double s = 0;
+    for (size_t j = 0; j < f.size(); ++j) s += double(G[j]) * f[j];
+    return s + tv(m);
+  }
 };
+
+// One trainer step (ray or patch, as expected): the gradient it left, with the weights put back (Adam has
+// moved them), and its reported loss checked against this file's copy (wiring).
+std::vector<std::vector<float>> step_gradient(train::FeatureTrainer& t, StageLosses& losses, const testing::ParamPoint& at,
+                                              bool patch_step) {
+  const train::FeatureStepStats st = t.step();
+  REQUIRE(st.patch == patch_step);
+  auto grad = at.grads();
+  at.restore();
+  model::FeatureModel& m = t.model();
+  if (patch_step)
+    CHECK(st.pixel_mse + st.content == doctest::Approx(losses.patch(m)).epsilon(1e-5));
+  else
+    CHECK(st.feature_mse == doctest::Approx(losses.ray(m)).epsilon(1e-5));
+  return grad;
+}
 
 }  // namespace
 
@@ -160,16 +185,7 @@ TEST_CASE("feature stage: each step's gradient matches central differences, over
   const testing::ParamPoint at(m.params());
   for (const bool patch_step : {false, true}) {
     CAPTURE(patch_step);
-    // The trainer's step: its reported loss, and the gradient it left (Adam has moved the weights since).
-    const train::FeatureStepStats st = t.step();
-    REQUIRE(st.patch == patch_step);
-    const auto grad = at.grads();
-    at.restore();
-    // The copy is the trainer's loss (wiring).
-    if (patch_step)
-      CHECK(st.pixel_mse + st.content == doctest::Approx(losses.patch(m)).epsilon(1e-5));
-    else
-      CHECK(st.feature_mse == doctest::Approx(losses.ray(m)).epsilon(1e-5));
+    const auto grad = step_gradient(t, losses, at, patch_step);
     auto L = [&] { return (patch_step ? losses.patch(m) : losses.ray(m)) + losses.tv(m); };
 
     const double step = patch_step ? kPatchStep : kRayStep;
@@ -193,12 +209,7 @@ TEST_CASE("feature stage: each step's gradient matches central differences, over
 
     // The field's blocks through the decoder's input gradient G (patch step), the TV term added as it is.
     const std::vector<float> G = losses.patch_feature_gradient(m);
-    auto chain = [&] {
-      const auto f = losses.patch_features(m).to_host();
-      double s = 0;
-      for (size_t j = 0; j < f.size(); ++j) s += double(G[j]) * f[j];
-      return s + losses.tv(m);
-    };
+    auto chain = [&] { return losses.chain(m, G); };
     for (const auto& [block, sel] : at.blocks()) {
       if (block.rfind("decoder.", 0) == 0) continue;
       testing::check_directional(block + ", chain",
@@ -243,14 +254,7 @@ TEST_CASE("feature stage with a background shell: the steps' gradients, the shel
   const testing::ParamPoint at(m.params());
   for (const bool patch_step : {false, true}) {
     CAPTURE(patch_step);
-    const train::FeatureStepStats st = t.step();
-    REQUIRE(st.patch == patch_step);
-    const auto grad = at.grads();
-    at.restore();
-    if (patch_step)
-      CHECK(st.pixel_mse + st.content == doctest::Approx(losses.patch(m)).epsilon(1e-5));
-    else
-      CHECK(st.feature_mse == doctest::Approx(losses.ray(m)).epsilon(1e-5));
+    const auto grad = step_gradient(t, losses, at, patch_step);
     const testing::ParamFilter shell = [](const nn::Param& p) { return p.name == "feature_shell"; };
     const double spread = at.spread(grad, shell);
     CHECK_MESSAGE(spread > 0, "the shell's features get no gradient");
@@ -261,12 +265,7 @@ TEST_CASE("feature stage with a background shell: the steps' gradients, the shel
     }
     // Through the decoder's input gradient G, as the case above checks the field's blocks.
     const std::vector<float> G = losses.patch_feature_gradient(m);
-    auto chain = [&] {
-      const auto f = losses.patch_features(m).to_host();
-      double s = 0;
-      for (size_t j = 0; j < f.size(); ++j) s += double(G[j]) * f[j];
-      return s + losses.tv(m);
-    };
+    auto chain = [&] { return losses.chain(m, G); };
     testing::check_directional("feature_shell, chain",
                                testing::directional(at, grad, at.direction(shell, 41), kChainStep, spread, chain), kTol);
   }
