@@ -10,6 +10,7 @@
 #include <CL/cl.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -73,12 +74,16 @@ class Runtime {
   // limits when the request exceeds them or the driver refuses it.
   cl_mem allocate(size_t bytes, const std::string& what);
   // Returns a buffer from allocate() for reuse. Freed buffers are kept (up to a cap: default_pool_cap_bytes,
-  // or STYLERF_POOL_MIB) and handed out again for requests of
-  // the same rounded size or up to a quarter smaller: a fresh buffer costs first-touch page faults on a
-  // CPU device and an allocation on a GPU, and training loops allocate about the same shapes every step.
+  // or STYLERF_POOL_MIB) and handed out again for requests of the same rounded size or up to half of it:
+  // a fresh buffer costs first-touch page faults on a CPU device and an allocation on a GPU, and training
+  // loops allocate about the same shapes every step. A pooled buffer that no request has taken for
+  // kPoolIdleAllocations allocations is released, so sizes a loop has moved past do not hold memory, and
+  // a fresh buffer of 1 MiB or more releases the pooled ones of half its size up to its own, which it
+  // will serve from then on.
   // The in-order queue makes reuse safe: commands using the old owner finish before those of the new one.
   // A buffer over a quarter of the cap is released, not pooled: a one-off such as the stage-2 target maps.
   void release(cl_mem mem, size_t bytes);
+  static constexpr uint64_t kPoolIdleAllocations = 2048;
   size_t pool_cap_bytes() const { return pool_cap_bytes_; }
   void trim_buffer_pool();  // frees every cached buffer
   size_t pooled_bytes() const { return pooled_bytes_; }
@@ -115,7 +120,16 @@ class Runtime {
   cl_command_queue queue_ = nullptr;
   std::map<std::string, cl_program> programs_;  // key: program + '\n' + options
   std::map<std::string, cl_kernel> kernels_;    // key: program + '\n' + options + '\n' + name
-  std::map<size_t, std::vector<cl_mem>> pool_;  // key: rounded size in bytes
+  struct PooledBuffer {
+    cl_mem mem;
+    uint64_t released_at;  // allocate() calls made before it was pooled
+  };
+  void release_idle_buffers();
+  void release_superseded_buffers(size_t cls);
+  static constexpr uint64_t kPoolSweepEvery = 256;          // allocate() calls between sweeps
+  static constexpr size_t kPoolSupersedeFrom = size_t(1) << 20;  // see release_superseded_buffers
+  std::map<size_t, std::vector<PooledBuffer>> pool_;  // key: rounded size in bytes
+  uint64_t allocations_ = 0;
   size_t pooled_bytes_ = 0, pool_cap_bytes_ = 0;
   size_t live_bytes_ = 0, peak_live_bytes_ = 0;
   bool profiling_ = false;

@@ -190,7 +190,7 @@ TEST_CASE("a buffer over a quarter of the pool's cap is released, not pooled") {
   rt.trim_buffer_pool();
 }
 
-TEST_CASE("the pool hands a slightly larger buffer to a smaller request, and files it back by its own size") {
+TEST_CASE("the pool hands a buffer up to twice as large to a smaller request, and files it back by its own size") {
   auto& rt = Runtime::instance();
   rt.trim_buffer_pool();
   // Classes above 64 KiB step by 1/16 of the power of two: 4 MiB and 3.5 MiB lie in neighbouring classes.
@@ -202,7 +202,7 @@ TEST_CASE("the pool hands a slightly larger buffer to a smaller request, and fil
   }
   CHECK(rt.pooled_bytes() == size_t(4) << 20);
   {
-    Tensor b({smaller}, "pool test");  // within a quarter: reuses the 4 MiB buffer
+    Tensor b({smaller}, "pool test");  // a smaller request reuses the 4 MiB buffer
     CHECK(b.mem() == first);
     CHECK(rt.pooled_bytes() == 0);
     b.fill(1.0f);
@@ -215,9 +215,47 @@ TEST_CASE("the pool hands a slightly larger buffer to a smaller request, and fil
     CHECK(c.mem() == first);
   }
   {
-    Tensor d({big / 2}, "pool test");  // half the size: past a quarter, so a new buffer
-    CHECK(d.mem() != first);
+    Tensor d({big / 2}, "pool test");  // half the size: still the 4 MiB buffer
+    CHECK(d.mem() == first);
+  }
+  {
+    Tensor e({big / 4}, "pool test");  // a quarter: past twice its size, so a new buffer
+    CHECK(e.mem() != first);
   }
   rt.trim_buffer_pool();
   CHECK(rt.pooled_bytes() == 0);
+}
+
+TEST_CASE("a fresh larger buffer releases the pooled ones it will serve from then on") {
+  auto& rt = Runtime::instance();
+  rt.trim_buffer_pool();
+  const int64_t mib = int64_t(1) << 18;  // floats
+  { Tensor small({2 * mib}, "pool test"); }  // 2 MiB, pooled
+  { Tensor tiny({16}, "pool test"); }        // a small class: never superseded
+  const size_t tiny_bytes = rt.pooled_bytes() - (size_t(2) << 20);
+  {
+    Tensor larger({3 * mib}, "pool test");  // 3 MiB: the 2 MiB buffer cannot serve it, so a fresh one
+    CHECK(rt.pooled_bytes() == tiny_bytes);  // ... and the 2 MiB one goes
+  }
+  {
+    Tensor again({2 * mib}, "pool test");  // served by the 3 MiB buffer
+    CHECK(rt.pooled_bytes() == tiny_bytes);
+  }
+  { Tensor much_larger({5 * mib}, "pool test"); }  // 5 MiB: the pooled 3 MiB buffer is over half of it, so it goes
+  CHECK(rt.pooled_bytes() == tiny_bytes + (size_t(5) << 20));
+  rt.trim_buffer_pool();
+}
+
+TEST_CASE("a pooled buffer that no request takes for a while is released") {
+  auto& rt = Runtime::instance();
+  rt.trim_buffer_pool();
+  { Tensor idle({int64_t(1) << 20}, "pool test"); }  // 4 MiB, pooled, then never asked for again
+  CHECK(rt.pooled_bytes() == size_t(4) << 20);
+  // Small tensors of another class keep allocating (one pooled buffer, handed out again and again).
+  for (uint64_t i = 0; i < Runtime::kPoolIdleAllocations / 2; ++i) { Tensor t({16}, "step temporary"); }
+  CHECK(rt.pooled_bytes() > size_t(4) << 20);  // half the idle time: still pooled
+  for (uint64_t i = 0; i < Runtime::kPoolIdleAllocations; ++i) { Tensor t({16}, "step temporary"); }
+  CHECK(rt.pooled_bytes() < size_t(4) << 20);  // released; the small one stays
+  CHECK(rt.pooled_bytes() > 0);
+  rt.trim_buffer_pool();
 }
