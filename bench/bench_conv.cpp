@@ -16,11 +16,11 @@
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "bench/bench.hpp"
+#include "bench/random_fill.hpp"
 #include "bench/timing.hpp"
 #include "host/files.hpp"
 #include "host/runtime.hpp"
@@ -52,14 +52,6 @@ std::vector<Layer> layers(int s) {
   v.push_back({"vgg.conv3_1", 128, 256, s / 4, 3, Padding::Reflect});
   for (int i = 2; i <= 4; ++i) v.push_back({"vgg.conv3_" + std::to_string(i), 256, 256, s / 4, 3, Padding::Reflect});
   v.push_back({"vgg.conv4_1", 256, 512, s / 8, 3, Padding::Reflect});
-  return v;
-}
-
-std::vector<float> random_normal(size_t n, unsigned seed, float stddev = 1.0f) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> d(0.0f, stddev);
-  std::vector<float> v(n);
-  for (auto& x : v) x = d(rng);
   return v;
 }
 
@@ -141,14 +133,14 @@ nlohmann::json accuracy_vs_time(int size, int repeats) {
               "dW err", "fwd 1e4", "dX 1e4", "dW 1e4");
   const int C = 256, s = 24;
   const RefConv ref{C, C, s, s};
-  const auto w = random_normal(size_t(C) * C * 9, 21, 0.03f);
-  const auto dy = random_normal(size_t(C) * s * s, 22);
+  const auto w = normal_floats(size_t(C) * C * 9, 21, 0.03f);
+  const auto dy = normal_floats(size_t(C) * s * s, 22);
   struct Inputs {
     std::vector<float> x;
     std::vector<double> y, dx, dw;
   } unit, big;
-  unit.x = random_normal(size_t(C) * s * s, 23);
-  big.x = random_normal(size_t(C) * s * s, 24, 1e4f);
+  unit.x = normal_floats(size_t(C) * s * s, 23);
+  big.x = normal_floats(size_t(C) * s * s, 24, 1e4f);
   for (float& v : big.x) v += 1e4f;
   for (Inputs* in : {&unit, &big}) {
     in->y = ref.forward(in->x, w);
@@ -156,8 +148,8 @@ nlohmann::json accuracy_vs_time(int size, int repeats) {
   }
   const Tensor wt = Tensor::from_host(w, {C, C, 3, 3}), dyt = Tensor::from_host(dy, {1, C, s, s});
   const int64_t hw = int64_t(size) * size;
-  const Tensor xs = Tensor::from_host(random_normal(size_t(C * hw), 25), {1, C, size, size});
-  const Tensor dys = Tensor::from_host(random_normal(size_t(C * hw), 26), {1, C, size, size});
+  const Tensor xs = Tensor::from_host(normal_floats(size_t(C * hw), 25), {1, C, size, size});
+  const Tensor dys = Tensor::from_host(normal_floats(size_t(C * hw), 26), {1, C, size, size});
   nlohmann::json out = nlohmann::json::array();
   double base_ms = 0;
   for (nn::ConvAlgo a : {nn::ConvAlgo::Im2col, nn::ConvAlgo::Winograd2, nn::ConvAlgo::Winograd4}) {
@@ -209,11 +201,11 @@ int bench_conv(const BenchOptions& opt) {
   }
   for (const Layer& L : todo) {
     const int64_t hw = int64_t(L.size) * L.size;
-    Tensor x = Tensor::from_host(random_normal(size_t(L.cin * hw), 1), {1, L.cin, L.size, L.size});
-    Tensor w = Tensor::from_host(random_normal(size_t(L.cout) * L.cin * L.k * L.k, 2, 0.05f),
+    Tensor x = Tensor::from_host(normal_floats(size_t(L.cin * hw), 1), {1, L.cin, L.size, L.size});
+    Tensor w = Tensor::from_host(normal_floats(size_t(L.cout) * L.cin * L.k * L.k, 2, 0.05f),
                                  {L.cout, L.cin, L.k, L.k});
     Tensor b = Tensor::zeros({L.cout});
-    Tensor dy = Tensor::from_host(random_normal(size_t(L.cout * hw), 3), {1, L.cout, L.size, L.size});
+    Tensor dy = Tensor::from_host(normal_floats(size_t(L.cout * hw), 3), {1, L.cout, L.size, L.size});
     const double flop = 2.0 * L.cout * L.cin * L.k * L.k * double(hw);
     PassTime fwd = time_pass(repeats, [&] { nn::conv2d_forward(x, w, b, L.pad); });
     PassTime dx = time_pass(repeats, [&] { nn::conv2d_backward(x, w, dy, L.pad, true, false); });

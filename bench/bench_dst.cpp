@@ -17,12 +17,12 @@
 
 #include "bench/bench.hpp"
 #include "bench/bench_setup.hpp"
+#include "bench/random_fill.hpp"
 #include "host/error.hpp"
 #include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "lib/io/checkpoint.hpp"
 #include "lib/model/style_model.hpp"
-#include <random>
 
 namespace stylerf::bench {
 
@@ -66,10 +66,7 @@ int bench_dst(const BenchOptions& opt) {
   const model::StyleModel sm = style_model_for(opt, st);
   // A style's code from relu3_1-like rows (the 64 x 64 positions of a 256 x 256 style image); the DST
   // stage's cost does not depend on their values.
-  std::vector<float> rows(size_t(4096) * 256);
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<float> u(0.0f, 3.0f);
-  for (float& v : rows) v = u(rng);
+  const std::vector<float> rows = uniform_floats(size_t(4096) * 256, 1, 0.0f, 3.0f);
   const style::StyleCode code = sm.dst.style_code(Tensor::from_host(rows, {4096, 256}, "style rows"), nullptr);
   int w = 0, h = 0;
   const scene::Rays rays = model::block_rays(st.scene, st.cam, 1, w, h);

@@ -16,6 +16,7 @@
 #include <random>
 #include <vector>
 
+#include "bench/random_fill.hpp"
 #include "host/files.hpp"
 #include "host/runtime.hpp"
 #include "host/tensor.hpp"
@@ -47,14 +48,6 @@ double best_ms(int repeats, const std::function<void()>& f) {
     best = std::min(best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   return best;
-}
-
-std::vector<float> normal(size_t n, uint64_t seed, float sd) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<float> d(0.0f, sd);
-  std::vector<float> v(n);
-  for (auto& x : v) x = d(rng);
-  return v;
 }
 
 // Camera-like rays: origins on a sphere of radius 4 around the box, aimed at random points in [-1,1]^3.
@@ -234,7 +227,7 @@ int bench_field(const BenchOptions& opt) {
 
   // ---- compositing ------------------------------------------------------------------------------------
   {
-    Tensor sigma = Tensor::from_host(normal(size_t(N), 4, 2.0f), {N});
+    Tensor sigma = Tensor::from_host(normal_floats(size_t(N), 4, 2.0f), {N});
     Tensor rgb = Tensor::full({N, 3}, 0.5f);
     Tensor bg = Tensor::full({3}, 1.0f);
     render::Weights wt;

@@ -7,11 +7,11 @@
 // --quick: a quarter of the rays, one repetition.
 #include <algorithm>
 #include <cstdio>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "bench/bench_ops_parts.hpp"
+#include "bench/random_fill.hpp"
 #include "bench/timing.hpp"
 #include "lib/render/background_shell.hpp"
 
@@ -26,21 +26,13 @@ void row(const std::string& op, const std::string& shape, double bytes, const Ti
   std::fflush(stdout);
 }
 
-std::vector<float> uniform(size_t n, uint32_t seed, float lo, float hi) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(lo, hi);
-  std::vector<float> v(n);
-  for (float& x : v) x = u(rng);
-  return v;
-}
-
 void case_of(const char* what, int64_t R, int C, int reps) {
   const int H = 128, W = 256;
   // Rays from inside the unit sphere in all directions; a shell of radius 3, as a capture's.
-  const Tensor o = Tensor::from_host(uniform(size_t(R) * 3, 1, -0.5f, 0.5f), {R, 3});
-  const Tensor d = Tensor::from_host(uniform(size_t(R) * 3, 2, -1.0f, 1.0f), {R, 3});
-  const Tensor acc = Tensor::from_host(uniform(size_t(R), 3, 0.0f, 1.0f), {R});
-  const Tensor map = Tensor::from_host(uniform(size_t(H) * W * C, 4, -1.0f, 1.0f), {H * W, C});
+  const Tensor o = Tensor::from_host(uniform_floats(size_t(R) * 3, 1, -0.5f, 0.5f), {R, 3});
+  const Tensor d = Tensor::from_host(uniform_floats(size_t(R) * 3, 2, -1.0f, 1.0f), {R, 3});
+  const Tensor acc = Tensor::from_host(uniform_floats(size_t(R), 3, 0.0f, 1.0f), {R});
+  const Tensor map = Tensor::from_host(uniform_floats(size_t(H) * W * C, 4, -1.0f, 1.0f), {H * W, C});
   Tensor out = Tensor::zeros({R, C}), dout = Tensor::full({R, C}, 1.0f), dacc = Tensor::zeros({R}),
          dmap = Tensor::zeros({H * W, C});
   render::ShellTaps taps = render::background_shell_taps(o, d, 3.0f, H, W);
