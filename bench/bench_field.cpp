@@ -26,6 +26,7 @@
 #include "lib/render/composite.hpp"
 #include "lib/render/composite_values.hpp"
 #include "lib/render/deferred.hpp"
+#include "lib/render/distortion.hpp"
 #include "lib/render/weights.hpp"
 #include "lib/render/ray_march.hpp"
 
@@ -236,6 +237,10 @@ int bench_field(const BenchOptions& opt) {
     Tensor dw = Tensor::full({N}, 1e-3f), da = Tensor::full({R}, 1.0f);
     ms = timed("weights bwd (dw -> dsigma)", false, [&] { render::weights_backward(s, sigma, dw, da, Tensor()); });
     add("weights bwd (dw -> dsigma)", ms, double(N), "Msmp/s", N * 2 * (4.0 + 4 + 4 + 4) + N * 4.0);
+    // The density stage's distortion term: two passes over w and t, dw written.
+    ms = timed("distortion fwd+bwd (w -> dw)", false,
+               [&] { render::distortion_forward_backward(s, wt.w, 0.5f, 0.005f, 1e-3f); });
+    add("distortion fwd+bwd (w -> dw)", ms, double(N), "Msmp/s", N * (2 * (4.0 + 4) + 4) + R * 12.0);
     render::Kept k;
     ms = timed("keep_by_weight", false, [&] { k = render::keep_by_weight(s, wt.w, 1e-4f); });
     add("keep_by_weight", ms, double(N), "Msmp/s", N * 4.0 * 2 + k.count * 4.0);

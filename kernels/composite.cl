@@ -229,3 +229,32 @@ kernel void opacity_scale_backward(global const float* c, global const float* a,
   }
   da[r] += s;
 }
+
+// The distortion loss of a ray's weights (Mip-NeRF 360, Barron et al. 2022), each sample an interval of
+// length d centred at u_i = t_i * inv_len (samples in increasing t along the ray):
+//   L_r = sum_i sum_j w_i w_j |u_i - u_j| + (d / 3) sum_i w_i^2,   dL/dw_i = 2 s_i + (2 d / 3) w_i,
+// s_i = sum_j w_j |u_i - u_j| = u_i W_<i - M_<i + M_>i - u_i W_>i (W, M: the sums of w and w u before / after
+// i). Two passes: the totals, then the running prefix. Both scaled by `scale`.
+kernel void distortion_forward_backward(global const float* weights, global const float* tvals,
+                                        global const int* offsets, global const int* counts, int R, float inv_len,
+                                        float d, float scale, global float* loss, global float* dw) {
+  const int r = get_global_id(0);
+  if (r >= R) return;
+  const int off = offsets[r], cnt = counts[r];
+  float W = 0.0f, M = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    W += weights[k];
+    M = fma(weights[k], tvals[k] * inv_len, M);
+  }
+  float Wb = 0.0f, Mb = 0.0f, L = 0.0f;
+  for (int k = off; k < off + cnt; ++k) {
+    const float w = weights[k], u = tvals[k] * inv_len;
+    const float Wa = W - Wb - w, Ma = M - Mb - w * u;
+    const float s = u * Wb - Mb + Ma - u * Wa;
+    L += w * s + (d / 3.0f) * w * w;
+    dw[k] = scale * (2.0f * s + (2.0f * d / 3.0f) * w);
+    Wb += w;
+    Mb = fma(w, u, Mb);
+  }
+  loss[r] = scale * L;
+}

@@ -1,7 +1,9 @@
 // Ray marching and compositing (kernels/render.cl via lib/render/): sample lists against a CPU reference,
 // compositing forward against a double reference and backward against its finite differences, and the
 // hard cases: sigma = 0 everywhere, sigma = 1e6 at the first sample, delta = 0, huge sigma, a ray that
-// misses the box, an empty ray list, NDC-like rays starting at the near plane (near = 0).
+// misses the box, an empty ray list, NDC-like rays starting at the near plane (near = 0). The distortion
+// term on the weights likewise: a double reference written as the double sum, central differences, and
+// rays without samples, with one sample, with all their weight in one sample or none.
 #include <doctest/doctest.h>
 
 #include <cfloat>
@@ -15,6 +17,7 @@
 #include "lib/field/alpha_mask.hpp"
 #include "lib/render/composite.hpp"
 #include "lib/render/composite_values.hpp"
+#include "lib/render/distortion.hpp"
 #include "lib/render/weights.hpp"
 #include "lib/render/ray_march.hpp"
 #include "lib/render/scan.hpp"
@@ -680,4 +683,77 @@ TEST_CASE("weighted sum over kept samples: no kept samples, a ray of zero weight
                         "weights");
   testing::expect_error([&] { render::composite_values_forward(l2, Tensor::zeros({4}), Tensor::zeros({5, 8})); },
                         "values have shape");
+}
+
+namespace {
+// The distortion loss as its definition's double sum (no prefix sums): sum_ij w_i w_j |u_i - u_j| + d/3 sum w_i^2.
+std::vector<double> ref_distortion(const std::vector<int>& counts, const std::vector<double>& w,
+                                   const std::vector<float>& t, double inv_len, double d, double scale) {
+  std::vector<double> loss;
+  size_t o = 0;
+  for (int n : counts) {
+    double L = 0;
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) L += w[o + i] * w[o + j] * std::fabs((double(t[o + i]) - t[o + j]) * inv_len);
+      L += d / 3.0 * w[o + i] * w[o + i];
+    }
+    loss.push_back(scale * L);
+    o += size_t(n);
+  }
+  return loss;
+}
+}  // namespace
+
+TEST_CASE("distortion term: forward against its double sum, backward against central differences, hard rays") {
+  // Rays: no samples, one sample, a spread fog, a crisp surface, all weight at the first sample, zero weight.
+  const std::vector<int> counts = {0, 1, 40, 12, 5, 7};
+  int S = 0;
+  for (int n : counts) S += n;
+  std::vector<float> t, w;
+  const auto noise = testing::random_uniform(size_t(S), 41, 0.0f, 1.0f);
+  size_t k = 0;
+  for (size_t r = 0; r < counts.size(); ++r) {
+    float tt = 0.5f + 0.1f * float(r);
+    for (int i = 0; i < counts[r]; ++i, ++k) {
+      tt += 0.02f + 0.01f * noise[k];  // increasing along the ray, uneven gaps (skipped space)
+      t.push_back(tt);
+      float wi = 0.0f;
+      if (r == 1) wi = 0.7f;
+      if (r == 2) wi = 0.02f + 0.01f * noise[k];         // a fog: about 1 in all, spread along the ray
+      if (r == 3) wi = (i == 6 ? 0.8f : (i == 5 || i == 7 ? 0.08f : 0.001f));  // a surface
+      if (r == 4) wi = (i == 0 ? 1.0f : 0.0f);
+      w.push_back(wi);
+    }
+  }
+  const Samples s = make_samples(counts, t, std::vector<float>(t.size(), 0.1f));
+  const double inv_len = 1.0 / 1.7, d = 0.01 / 1.7, scale = 0.25;
+  const render::Distortion got =
+      render::distortion_forward_backward(s, Tensor::from_host(w, {s.count}), float(inv_len), float(d), float(scale));
+  const std::vector<double> want = ref_distortion(counts, testing::to_double(w), t, inv_len, d, scale);
+  check_close(got.loss.to_host(), want, 1e-5, 1e-7, "distortion per ray");
+  const auto loss = got.loss.to_host();
+  CHECK(loss[0] == 0.0f);                                       // no samples
+  CHECK(loss[1] == doctest::Approx(scale * d / 3 * 0.49));      // one sample: its own interval only
+  CHECK(loss[2] > 20 * loss[3]);                                // a fog costs more than a surface
+  CHECK(loss[5] == 0.0f);                                       // no weight
+  // dL/dw_i by central differences of the reference, entry by entry (the loss is quadratic in w).
+  const auto dw = got.dw.to_host();
+  std::vector<double> num(w.size());
+  const double h = 1e-3;
+  for (size_t i = 0; i < w.size(); ++i) {
+    std::vector<double> wp = testing::to_double(w), wm = wp;
+    wp[i] += h;
+    wm[i] -= h;
+    const auto lp = ref_distortion(counts, wp, t, inv_len, d, scale), lm = ref_distortion(counts, wm, t, inv_len, d, scale);
+    double sp = 0, sm = 0;
+    for (size_t r = 0; r < lp.size(); ++r) sp += lp[r], sm += lm[r];
+    num[i] = (sp - sm) / (2 * h);
+  }
+  check_close(dw, num, 1e-4, 1e-6, "distortion dw");
+  // Bad scales are refused by name; an empty ray list gives empty outputs.
+  testing::expect_error([&] { render::distortion_forward_backward(s, Tensor::from_host(w, {s.count}), 0.0f, 0.01f, 1.0f); },
+                        "distortion: bad scales");
+  const Samples e = make_samples({}, {}, {});
+  const render::Distortion none = render::distortion_forward_backward(e, Tensor({0}), 1.0f, 0.01f, 1.0f);
+  CHECK(none.loss.numel() == 0);
 }

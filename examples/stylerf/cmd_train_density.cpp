@@ -66,7 +66,7 @@ struct DensityArgs {
                     app_rank, shading, recipe;
   int downsample = 0, iters = 0, batch = 4096, batch_slices = 1, log_every = 100, ckpt_every = 1000, eval_views = 0;
   uint64_t seed = 0;
-  float lr_grid = -1, lr_net = -1, ert = 1e-4f, backdrop_weight = -1;
+  float lr_grid = -1, lr_net = -1, ert = 1e-4f, backdrop_weight = -1, distortion_weight = -1;
   double minutes = 0;
   bool view_dep = false, resume = false, force = false, no_mask = false, timing = false;
   int64_t vfinal = 0, vinit = 0;  // parsed --final-voxels / --init-voxels (0: the default)
@@ -112,6 +112,10 @@ int parse_density_args(int argc, char** argv, DensityArgs& a) {
       "backdrop-weight", po::value(&a.backdrop_weight),
       "weight of the mean opacity of rays on backdrop pixels (scenes with a background: alpha, or a plain "
       "backdrop), which keeps a fog of the backdrop's colour out of the box (default 0.1; 0: off)")(
+      "distortion-weight", po::value(&a.distortion_weight),
+      "weight of the mean over a batch's rays of how far apart their weight lies along them (Mip-NeRF 360's "
+      "distortion loss; distances over the box's diagonal): gathers a fog into surfaces (default: 0.01 for captures "
+      "with a background shell, else 0: off)")(
       "lr-net", po::value(&a.lr_net), "basis + MLP learning rate (default 1e-3, TensoRF)")(
       "seed", po::value(&a.seed)->default_value(0), "random seed (init, rays, jitter)")(
       "resume", po::bool_switch(&a.resume), "continue from the checkpoint at -o (its iteration and optimiser state)")(
@@ -156,11 +160,13 @@ void check_density_args(DensityArgs& a) {
     if (a.has("lr-grid")) probe.lr_grid = a.lr_grid;
     if (a.has("lr-net")) probe.lr_net = a.lr_net;
     if (a.has("backdrop-weight")) probe.backdrop_weight = a.backdrop_weight;
+    if (a.has("distortion-weight")) probe.distortion_weight = a.distortion_weight;
     probe.validate();
   }
   if (a.resume)
     for (const char* o : {"final-voxels", "init-voxels", "upsample-at", "mask-at", "density-rank", "app-rank",
-                          "lr-grid", "lr-net", "density-activation", "shading", "backdrop-weight"})
+                          "lr-grid", "lr-net", "density-activation", "shading", "backdrop-weight",
+                          "distortion-weight"})
       if (a.has(o))
         throw Error("--resume continues the checkpoint's own model and schedule; drop the model and schedule options");
   a.vfinal = a.final_voxels.empty() ? 0 : parse_voxels(a.final_voxels, "--final-voxels");
@@ -214,6 +220,7 @@ std::unique_ptr<train::DensityTrainer> new_density_trainer(const DensityArgs& a,
   if (a.has("lr-grid")) cfg.lr_grid = a.lr_grid;
   if (a.has("lr-net")) cfg.lr_net = a.lr_net;
   if (a.has("backdrop-weight")) cfg.backdrop_weight = a.backdrop_weight;
+  if (a.has("distortion-weight")) cfg.distortion_weight = a.distortion_weight;
   if (!a.shading.empty()) cfg.model.deferred_shading = a.shading == "deferred";
   return std::make_unique<train::DensityTrainer>(scene, cfg);
 }
@@ -236,6 +243,7 @@ void print_density_setup(train::DensityTrainer& trainer, const stylerf::scene::S
             << ", Adam lr grid " << cfg.lr_grid << " / network " << cfg.lr_net
             << " betas (" << cfg.beta1 << ", " << cfg.beta2 << "), L1 " << cfg.l1_initial << " -> " << cfg.l1_rest
             << ", TV density " << cfg.tv_density << " app " << cfg.tv_app;
+  if (cfg.distortion_weight > 0) std::cout << ", distortion x" << cfg.distortion_weight;
   if (trainer.backdrop_share() > 0)
     std::cout << ", backdrop opacity x" << cfg.backdrop_weight << " on " << std::setprecision(1) << std::fixed
               << 100.0 * trainer.backdrop_share() << "% of the training pixels" << std::defaultfloat

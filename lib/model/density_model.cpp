@@ -195,7 +195,8 @@ RayResult DensityModel::render(const Tensor& origins, const Tensor& dirs, bool t
   return r;
 }
 
-void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc_term) {
+void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc_term,
+                                   const Tensor& dweights) {
   Tensor& ddensity = density_param().grad_buffer();
   Tensor dacc;  // the backgrounds' gradient w.r.t. the opacity over all samples, plus the caller's
   if (dacc_term.defined()) dacc = dacc_term.clone();
@@ -203,13 +204,13 @@ void DensityModel::render_backward(const RayContext& ctx, const Tensor& drgb, co
     render::background_shell_backward(drgb, ctx.shell.acc, shell_map.value, ctx.shell.taps, &dacc, dacc.defined(),
                                       &shell_map.grad_buffer());
   if (!rgb.deferred()) {
-    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity, dacc);
+    render_rays_backward(geo, rgb, ctx, drgb, Tensor(), &ddensity, dacc, dweights);
     return;
   }
   if (geo.has_background) render::background_backward(drgb, geo.background_tensor(), dacc, dacc.defined());
   Tensor dkept_acc;
   const Tensor dF = rgb.shade_backward(*ctx.shading, drgb, dkept_acc);
-  render_rays_backward(geo, rgb, ctx, dF, dkept_acc, &ddensity, dacc);
+  render_rays_backward(geo, rgb, ctx, dF, dkept_acc, &ddensity, dacc, dweights);
 }
 
 ViewValues DensityModel::render_camera(const scene::Scene& scene, const scene::Camera& cam, int chunk) const {

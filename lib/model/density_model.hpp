@@ -76,7 +76,9 @@ class DensityModel : public nn::Module {
                    uint32_t ray_base = 0) const;
   // drgb [R,3] -> gradients accumulated into every parameter. dacc [R] (optional): a gradient w.r.t. each
   // ray's opacity over all samples, from a term on the opacity itself (the density stage's backdrop term).
-  void render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc = Tensor());
+  // dweights [S] (optional): a gradient w.r.t. every sample's weight (the density stage's distortion term).
+  void render_backward(const RayContext& ctx, const Tensor& drgb, const Tensor& dacc = Tensor(),
+                       const Tensor& dweights = Tensor());
   // Chunked rendering of a whole camera: the chunk loop of render_camera around render().
   ViewValues render_camera(const scene::Scene& scene, const scene::Camera& cam, int chunk = 8192) const;
 

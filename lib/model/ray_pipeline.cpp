@@ -88,7 +88,8 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
 }
 
 void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
-                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc_after) {
+                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc_after,
+                          const Tensor& dweights) {
   const render::Samples& s = ctx.samples;
   if (s.count == 0) return;
   Tensor dw_full;  // [S]: gradient w.r.t. every sample's weight
@@ -99,6 +100,13 @@ void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext&
     if (ddensity) dw_full = render::scatter_rows(cg.dw, ctx.kept.index, s.count);
   }
   if (!ddensity) return;
+  if (dweights.defined()) {
+    host::expect_shape(dweights, {s.count}, host::DType::F32, "render_rays_backward", "dweights");
+    if (dw_full.defined())
+      nn::axpby(1.0f, dweights, 1.0f, dw_full);
+    else
+      dw_full = dweights;
+  }
   Tensor dacc;  // the background term's gradient w.r.t. the opacity of all samples
   if (ctx.background.defined() && dvalue.defined()) render::background_backward(dvalue, ctx.background, dacc, false);
   if (dacc_after.defined()) {

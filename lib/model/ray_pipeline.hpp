@@ -66,8 +66,11 @@ RayResult render_rays(const Geometry& g, const SampleHead& head, const Tensor& o
 // dvalue [R, C], dkept_acc [R] (either may be undefined). The head's gradients are accumulated; when
 // ddensity is given, the density grid's gradient is added to it. dacc [R] (optional): a gradient w.r.t. the
 // opacity over all samples from terms composited after the pipeline (a background added by the caller).
+// dweights [S] (optional): a gradient w.r.t. every sample's weight from a term on the weights themselves
+// (the density stage's distortion term).
 void render_rays_backward(const Geometry& g, SampleHead& head, const RayContext& ctx, const Tensor& dvalue,
-                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc = Tensor());
+                          const Tensor& dkept_acc, Tensor* ddensity, const Tensor& dacc = Tensor(),
+                          const Tensor& dweights = Tensor());
 
 // Rays in groups of `group` consecutive rays (the sub-rays of one footprint, e.g. a feature-map block),
 // each group rendered as one ray the way multisample anti-aliasing splits coverage from shading: the

@@ -36,6 +36,8 @@ using model::DensityModelConfig;
 using host::Tensor;
 
 inline constexpr float kDefaultBackdropWeight = 0.1f;
+// The distortion term's weight for captures with a background shell (default_density_config).
+inline constexpr float kShellDistortionWeight = 0.01f;
 
 struct DensityTrainConfig {
   DensityModelConfig model;
@@ -49,6 +51,10 @@ struct DensityTrainConfig {
   // the scene's backdrop (scene::backdrop_pixels; scenes with a background only). Without it a fog of the
   // backdrop's colour costs nothing, and the stylised stages paint it (docs/results.md, "backdrop").
   float backdrop_weight = kDefaultBackdropWeight;
+  // Weight of the distortion term (render/distortion.hpp): the mean over a batch's rays of how far apart
+  // their weight lies along them, distances in units of the box's diagonal. 0: off; default_density_config
+  // turns it on for captures with a background shell.
+  float distortion_weight = 0.0f;
   bool reset_optimizer_on_upsample = true;
   uint64_t seed = 0;
   // Slices of a step's batch, each rendered and differentiated on its own and their gradients summed; over
@@ -81,6 +87,7 @@ struct StepStats {
   double reg = -1;           // regulariser value (computed only when asked for; -1 otherwise)
   int backdrop_rays = 0;     // rays of the batch on backdrop pixels, and their mean opacity
   double backdrop_acc = 0;
+  double distortion = 0;     // the distortion term of the batch (weighted; 0 when off)
   int64_t samples = 0, kept = 0;
   double seconds = 0;        // wall time of the step (events included)
   std::vector<std::string> events;  // "alpha mask ...", "upsampled to ..."
