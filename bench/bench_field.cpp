@@ -242,7 +242,7 @@ int bench_field(const BenchOptions& opt) {
                [&] { render::distortion_forward_backward(s, wt.w, 0.5f, 0.005f, 1e-3f); });
     add("distortion fwd+bwd (w -> dw)", ms, double(N), "Msmp/s", N * (2 * (4.0 + 4) + 4) + R * 12.0);
     render::Kept k;
-    ms = timed("keep_by_weight", false, [&] { k = render::keep_by_weight(s, wt.w, 1e-4f); });
+    ms = timed("keep_by_weight", true, [&] { k = render::keep_by_weight(s, wt.w, 1e-4f); });
     add("keep_by_weight", ms, double(N), "Msmp/s", N * 4.0 * 2 + k.count * 4.0);
     render::KeptLayout layout;
     layout.count = k.count;
