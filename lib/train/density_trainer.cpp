@@ -259,12 +259,10 @@ void DensityTrainer::slice_terms(const scene::Rays& batch, int64_t lo, int64_t n
   // diagonal), its gradient w.r.t. every sample's weight.
   Tensor dweights;
   if (cfg_.distortion_weight > 0 && cache.samples.count > 0) {
-    const auto& g = model_.geo;
-    float diag2 = 0.0f;
-    for (int a = 0; a < 3; ++a) diag2 += (g.box_hi[size_t(a)] - g.box_lo[size_t(a)]) * (g.box_hi[size_t(a)] - g.box_lo[size_t(a)]);
-    const float diag = std::sqrt(diag2);
+    const auto side = model_.geo.box_size();
+    const float diag = std::sqrt(side[0] * side[0] + side[1] * side[1] + side[2] * side[2]);
     const render::Distortion dist = render::distortion_forward_backward(
-        cache.samples, cache.weights.w, 1.0f / diag, g.step / diag, cfg_.distortion_weight / float(R));
+        cache.samples, cache.weights.w, 1.0f / diag, model_.geo.step / diag, cfg_.distortion_weight / float(R));
     sums[5] += double(nn::sum(dist.loss).to_host()[0]);
     dweights = dist.dw;
   }
