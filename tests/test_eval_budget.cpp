@@ -11,7 +11,7 @@ using namespace stylerf::eval;
 TEST_CASE("eval budget: predicted seconds follow the frames each step renders") {
   const FrameCost c{2.0, 0.5};
   EvalCounts n;
-  n.eval_views = 1, n.holdout = 2, n.video_frames = 10, n.shown = 1, n.table_frames = 8;
+  n.eval_views = 1, n.holdout = 2, n.video_frames = 10, n.shown = 1, n.table_styles = 1, n.table_frames = 8;
   // eval-style 1 x (2 + 2 x 4 x 0.5) = 6; videos 10 x (2 + 0.5) = 25; mix 2 + 25 x 0.5 = 14.5;
   // table: pairs 7 + 1 = 8; RGB frames unmeasured, so a style2d each: 8 x 0.5 + 8 x 2 x 0.5 + 8 x 2 +
   // 1 x (2 x 8 x 0.5 + 2 x 8 x 2 x 0.5) = 4 + 8 + 16 + 24 = 52; start-up 4 x 8 = 32.
@@ -46,10 +46,11 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
     CHECK(eval_seconds(c, scored) - eval_seconds(c, n) == doctest::Approx(2.0 * scored.structure_pair));
   }
   const double base = eval_seconds(c, n);
-  for (int which = 0; which < 6; ++which) {
+  for (int which = 0; which < 7; ++which) {
     CAPTURE(which);
     EvalCounts m = n;
-    int* counts[] = {&m.eval_views, &m.holdout, &m.video_frames, &m.shown, &m.table_frames, &m.scene_stats_views};
+    int* counts[] = {&m.eval_views,   &m.holdout,           &m.video_frames,     &m.shown,
+                     &m.table_styles, &m.table_frames, &m.scene_stats_views};
     *counts[which] += 1;
     CHECK(eval_seconds(c, m) > base);
   }
@@ -58,7 +59,7 @@ TEST_CASE("eval budget: predicted seconds follow the frames each step renders") 
   CHECK(eval_seconds({2.0, 0.5, 1, 9.0}, n) > base);  // dearer RGB views
 }
 
-TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then frames to 8, then the scores") {
+TEST_CASE("eval budget: fit_eval cuts video frames to 24, then video styles, then frames to 8, then the scores") {
   const FrameCost c{10.0, 1.0};  // content-bound, like fern at 1008x756
   const EvalCounts wanted;       // 5 views x 12 styles, 3 videos of 60 frames, 16 table frames
   const double full = eval_seconds(c, wanted);
@@ -77,8 +78,9 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   one.shown = 1;
   const EvalCounts b = fit_eval(c, wanted, eval_seconds(c, one));  // styles go next, at 24 frames
   CHECK(b.shown == 1);
+  CHECK(b.table_styles == wanted.table_styles);  // the table keeps its styles when the videos lose theirs
   CHECK(b.video_frames == 24);
-  CHECK(describe_cuts(wanted, b) == "video frames 60 -> 24, styles shown 3 -> 1");
+  CHECK(describe_cuts(wanted, b) == "video frames 60 -> 24, video styles 3 -> 1");
 
   // Past the videos, the scores shrink: held-out styles first, then views, then the table's frames.
   EvalCounts scores = one;
@@ -88,7 +90,15 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   CHECK(e.holdout == wanted.holdout - 1);
   CHECK(e.eval_views == wanted.eval_views);
   CHECK(e.table_frames == wanted.table_frames);
-  CHECK(describe_cuts(wanted, e) == "video frames 60 -> 8, styles shown 3 -> 1, held-out styles scored 12 -> 11");
+  CHECK(e.table_styles == wanted.table_styles);
+  CHECK(describe_cuts(wanted, e) == "video frames 60 -> 8, video styles 3 -> 1, held-out styles scored 12 -> 11");
+
+  // The table's styles go last, after its frames.
+  EvalCounts least = scores;
+  least.holdout = 4, least.eval_views = 2, least.table_frames = 8;
+  const EvalCounts t = fit_eval(c, wanted, eval_seconds(c, least) - 1.0);
+  CHECK(t.table_frames == 8);
+  CHECK(t.table_styles == wanted.table_styles - 1);
 
   const EvalCounts d = fit_eval(c, wanted, 1.0);  // nothing fits: the least of every cut, never below
   CHECK(d.shown == 1);
@@ -96,6 +106,7 @@ TEST_CASE("eval budget: fit_eval cuts video frames to 24, then styles, then fram
   CHECK(d.holdout == 4);
   CHECK(d.eval_views == 2);
   CHECK(d.table_frames == 8);  // one long-range pair (t - 7) remains
+  CHECK(d.table_styles == 1);
   CHECK(eval_seconds(c, d) > 1.0);  // still over: the caller reports it
 
   EvalCounts few = wanted;
@@ -109,7 +120,7 @@ namespace {
 // runs rendered at one ray a block, with the table's LPIPS through VGG-16.
 EvalCounts fern_run_counts() {
   EvalCounts n;
-  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_frames = 16, n.scene_stats_views = 6;
+  n.eval_views = 3, n.holdout = 12, n.video_frames = 8, n.shown = 1, n.table_styles = 1, n.table_frames = 16, n.scene_stats_views = 6;
   n.stats_one_ray = true, n.lpips_pair = lpips_pair_units(LpipsNet::Vgg);
   return n;
 }
@@ -143,7 +154,7 @@ TEST_CASE("eval budget: fern at 504x378 predicted within 20% of what two evaluat
   // Second: content 3.91 s, density_test 9.71 s a view; 3 styles, 25 video frames; eval-style 175, videos
   // 188, mix 83, the table 569.
   EvalCounts n = fern_run_counts();
-  n.shown = 3, n.video_frames = 25;
+  n.shown = 3, n.table_styles = 3, n.video_frames = 25;
   CHECK(eval_seconds({3.91, 1.13, 9, 9.71, 504.0 * 378.0}, n) == doctest::Approx(175 + 188 + 83 + 569).epsilon(0.20));
 }
 

@@ -410,7 +410,7 @@ eval::EvalCounts wanted_evaluation(const RunOptions& o, const fs::path& out, siz
   const int rendered = views_rendered((out / "features_test/metrics.json").string(), o.eval_views);
   counts.eval_views = o.eval_views == 0 ? rendered : std::min(o.eval_views, rendered);
   counts.holdout = o.holdout, counts.video_frames = o.frames;
-  counts.shown = int(shown), counts.table_frames = o.table_frames;
+  counts.shown = int(shown), counts.table_styles = int(shown), counts.table_frames = o.table_frames;
   counts.lpips_pair = eval::lpips_pair_units(eval::kDefaultLpipsNet);  // eval table's trunk, as run leaves it
   counts.structure_pair = eval::lpips_pair_units(eval::kDefaultLpipsNet);  // eval style's, the same
   // The recipe's decoder: vgg-adain-relu4 renders training views for the scene's relu4_1 statistics in
@@ -474,17 +474,19 @@ void refit_after_style(const RunOptions& o, double spent_s, StylePlan& sp) {
     sp.json["late_cuts"] = cuts;
   }
   sp.counts.video_frames = fitted.video_frames, sp.counts.shown = fitted.shown;
-  sp.counts.table_frames = fitted.table_frames;
+  sp.counts.table_frames = fitted.table_frames, sp.counts.table_styles = fitted.table_styles;
 }
 
-// The zero-shot videos of the shown styles, the mix sheet of the four corners and the consistency table.
+// The zero-shot videos of the first `counts.shown` styles, the mix sheet of the four corners and the
+// consistency table of the first `counts.table_styles`.
 void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, const fs::path& out,
                                  const Checkpoints& ck, const std::string& upstream,
-                                 const std::vector<std::string>& shown_now, const std::vector<std::string>& corners,
+                                 const std::vector<std::string>& shown, const std::vector<std::string>& corners,
                                  const eval::EvalCounts& counts) {
+  const auto first = [&](int n) { return std::vector<std::string>(shown.begin(), shown.begin() + n); };
   std::vector<std::string> vid = args(o, "stylize", "--ckpt", ck.style, "--views", "path", "--frames",
                                       std::to_string(counts.video_frames), "--no-losses", "-o", (out / "videos").string());
-  for (const auto& st : shown_now) vid.insert(vid.end(), {"--style", st});
+  for (const auto& st : first(counts.shown)) vid.insert(vid.end(), {"--style", st});
   steps.run("videos", vid, (out / "videos/metrics.json").string(), upstream);
   steps.run("mix",
                       args(o, "stylize", "--ckpt", ck.style, "--views", "test", "--mix-grid",
@@ -494,7 +496,7 @@ void render_videos_mix_and_table(PipelineSteps& steps, const RunOptions& o, cons
   std::vector<std::string> table = args(o, "eval", "table", "--scene-ckpts", ck.density + "," + ck.style, "--scored-frames",
                                         std::to_string(counts.table_frames), "-o", (out / "consistency").string(),
                                         "--styles");
-  for (const auto& st : shown_now) table.push_back(st);
+  for (const auto& st : first(counts.table_styles)) table.push_back(st);
   steps.run("consistency", table, (out / "consistency/table.json").string(), upstream);
 }
 
@@ -537,8 +539,8 @@ int run_pipeline(int argc, char** argv) {
                 (out / "style_eval.json").string(), upstream)
           .seconds;
   if (sp.by_minutes) refit_after_style(o, spent + s.seconds + eval_style_s, sp);
+  render_videos_mix_and_table(steps, o, out, ck, upstream, shown, picked.corners, sp.counts);
   const std::vector<std::string> shown_now(shown.begin(), shown.begin() + sp.counts.shown);
-  render_videos_mix_and_table(steps, o, out, ck, upstream, shown_now, picked.corners, sp.counts);
 
   RunReportInput in;
   in.out = o.out;

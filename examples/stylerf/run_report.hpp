@@ -17,7 +17,7 @@ struct RunReportInput {
   nlohmann::json build;                   // build_record(): stylerf's version and commit
   double minutes = 0;                     // the training budget asked for
   nlohmann::json steps;                   // PipelineSteps::record(): seconds per step
-  std::vector<std::string> shown_styles;  // the videos' and the consistency table's styles
+  std::vector<std::string> shown_styles;  // the videos' styles (the table names its own)
   std::vector<std::string> corners;       // the mix sheet's four styles
   nlohmann::json plan;                    // under --minutes: the measured frame, the predicted evaluation
                                           // and what was cut to fit (null otherwise)

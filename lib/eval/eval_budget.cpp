@@ -39,12 +39,13 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
   const int pairs = (n.table_frames - 1) + std::max(0, n.table_frames - 7);
   const double lp = n.lpips_pair;
   const double table = n.table_frames * rgb + pairs * lp * u + n.table_frames * k +
-                       n.shown * (2.0 * n.table_frames * u + 2.0 * pairs * lp * u);
+                       n.table_styles * (2.0 * n.table_frames * u + 2.0 * pairs * lp * u);
   // Scene statistics: each of the 4 steps renders its views' content at the frames' rays a block (a content
   // each); per style (eval-style's held-out ones, the videos', the mix sheet's 25 cells, the table's) DST and
   // the tail on each view, counted as half a unit (no decoder, no losses).
   const double stats_k = n.stats_one_ray ? k / std::max(1, c.rays_per_block) : k;
-  const double stats = n.scene_stats_views * (4.0 * stats_k + (n.holdout + 2.0 * n.shown + kMixCells) * 0.5 * u);
+  const double stats =
+      n.scene_stats_views * (4.0 * stats_k + (n.holdout + n.shown + n.table_styles + kMixCells) * 0.5 * u);
   return style_eval + videos + mix + table + stats + 4 * kStartupPerStep;
 }
 
@@ -61,6 +62,7 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
   while (!fits() && n.holdout > std::min(4, wanted.holdout)) --n.holdout;
   while (!fits() && n.eval_views > std::min(2, wanted.eval_views)) --n.eval_views;
   while (!fits() && n.table_frames > std::min(8, wanted.table_frames)) --n.table_frames;
+  while (!fits() && n.table_styles > 1) --n.table_styles;
   return n;
 }
 
@@ -78,10 +80,11 @@ std::string describe_cuts(const EvalCounts& wanted, const EvalCounts& got) {
   auto cut = [&](const char* what, int from, int to) {
     if (to < from) s += std::string(s.empty() ? "" : ", ") + what + " " + std::to_string(from) + " -> " + std::to_string(to);
   };
-  cut("styles shown", wanted.shown, got.shown);
+  cut("video styles", wanted.shown, got.shown);
   cut("held-out styles scored", wanted.holdout, got.holdout);
   cut("views scored", wanted.eval_views, got.eval_views);
   cut("table frames", wanted.table_frames, got.table_frames);
+  cut("table styles", wanted.table_styles, got.table_styles);
   return s;
 }
 

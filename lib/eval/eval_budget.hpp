@@ -44,7 +44,8 @@ struct EvalCounts {
   int eval_views = 5;     // eval-style's test views
   int holdout = 12;       // held-out styles eval-style scores on each
   int video_frames = 60;  // frames of each video
-  int shown = 3;          // styles with a video and a consistency row
+  int shown = 3;          // styles with a video
+  int table_styles = 3;   // styles with a consistency row (the table scores each against per-frame AdaIN)
   int table_frames = 16;  // frames the consistency table scores
   // Training views whose content each step renders once more for the scene's relu4_1 statistics (the
   // vgg-adain-relu4 decoder: model::SceneStyleStats), and under each of its styles runs DST and VGG's
@@ -75,8 +76,11 @@ double lpips_pair_units(LpipsNet net);
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
-// then fewer shown styles (down to 1), then fewer video frames (down to 8), then fewer held-out styles
-// scored (down to 4), views scored (down to 2) and table frames (down to 8: its long range needs t - 7).
+// then fewer video styles (down to 1), then fewer video frames (down to 8), then fewer held-out styles
+// scored (down to 4), views scored (down to 2), table frames (down to 8: its long range needs t - 7) and
+// last the table's styles (down to 1). The table's styles go last because its consistency ratios are
+// averaged over them: tied to the videos' styles, a 544x960 run's table scored one style where 3 were
+// asked for. A table style costs about what two held-out styles scored on 5 views do.
 // At 800x800 the scores alone (12 styles x 5 views, 16 table frames) are ~20 minutes on a 2-core CPU.
 // The result may still not fit: the caller says so.
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds);
