@@ -52,17 +52,21 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
 double lpips_pair_units(LpipsNet net) { return net == LpipsNet::Vgg ? 2.0 : 2.0 * kAlexOverVgg; }
 
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds) {
+  // Each stage lowers one count down to its floor (never below what was wanted), in this order, until the
+  // evaluation fits: the videos first, then the scores by halves before their least useful sizes.
+  struct Stage {
+    int EvalCounts::*count;
+    int floor;
+  };
+  static constexpr Stage kStages[] = {
+      {&EvalCounts::video_frames, 24}, {&EvalCounts::shown, 1},        {&EvalCounts::video_frames, 8},
+      {&EvalCounts::holdout, 6},       {&EvalCounts::table_frames, 12}, {&EvalCounts::eval_views, 3},
+      {&EvalCounts::holdout, 4},       {&EvalCounts::eval_views, 2},    {&EvalCounts::table_frames, 8},
+      {&EvalCounts::table_styles, 1},
+  };
   EvalCounts n = wanted;
-  auto fits = [&] { return eval_seconds(c, n) <= seconds; };
-  while (!fits() && n.video_frames > std::min(24, wanted.video_frames)) --n.video_frames;
-  while (!fits() && n.shown > 1) --n.shown;
-  while (!fits() && n.video_frames > std::min(8, wanted.video_frames)) --n.video_frames;
-  // Then the scores themselves, to their smallest useful size: 4 held-out styles, 2 views, the table's 8
-  // frames (one long-range pair).
-  while (!fits() && n.holdout > std::min(4, wanted.holdout)) --n.holdout;
-  while (!fits() && n.eval_views > std::min(2, wanted.eval_views)) --n.eval_views;
-  while (!fits() && n.table_frames > std::min(8, wanted.table_frames)) --n.table_frames;
-  while (!fits() && n.table_styles > 1) --n.table_styles;
+  for (const Stage& st : kStages)
+    while (eval_seconds(c, n) > seconds && n.*st.count > std::min(st.floor, wanted.*st.count)) --(n.*st.count);
   return n;
 }
 

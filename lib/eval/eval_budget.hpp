@@ -76,11 +76,13 @@ double lpips_pair_units(LpipsNet net);
 double eval_seconds(const FrameCost& c, const EvalCounts& n);
 
 // The counts to evaluate with in `seconds`: `wanted` when it fits, else fewer video frames (down to 24),
-// then fewer video styles (down to 1), then fewer video frames (down to 8), then fewer held-out styles
-// scored (down to 4), views scored (down to 2), table frames (down to 8: its long range needs t - 7) and
-// last the table's styles (down to 1). The table's styles go last because its consistency ratios are
-// averaged over them: tied to the videos' styles, a 544x960 run's table scored one style where 3 were
-// asked for. A table style costs about what two held-out styles scored on 5 views do.
+// then fewer video styles (down to 1), then fewer video frames (down to 8); then the scores, first to about
+// half: held-out styles scored to 6, table frames to 12, views scored to 3; then to their least useful
+// sizes: held-out styles to 4, views to 2, table frames to 8 (its long range needs t - 7); and last the
+// table's styles, to 1. The table's styles go last because its consistency ratios are averaged over them:
+// tied to the videos' styles, a 544x960 run's table scored one style where 3 were asked for. A table style
+// costs about what two held-out styles scored on 5 views do; there a plan now scores 6 held-out styles on 4
+// views and a table of 3 styles x 12 frames, where it scored 7 on 5 and a table of 1 style x 16.
 // At 800x800 the scores alone (12 styles x 5 views, 16 table frames) are ~20 minutes on a 2-core CPU.
 // The result may still not fit: the caller says so.
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds);
