@@ -453,6 +453,66 @@ TEST_CASE("depth 0, infinite depths and the NDC far end are never warped; a NaN 
   testing::expect_error([&] { eval::path_warps(few, RaySpace{true, 1.0f}, {}); }, "long range of 7");
 }
 
+TEST_CASE("a background shell is the surface of the pixels the box leaves to it") {
+  const RaySpace world{false, 1.0f};
+  const double R = 3.0;
+  // The exit of a camera's ray through (px, py) from the sphere |X| = R, solved here on its own.
+  const auto exit_point = [&](const scene::Camera& cam, double px, double py) {
+    const auto P = eval::world_point(cam, px, py, 1.0, world);
+    const std::array<double, 3> o{cam.c2w[0][3], cam.c2w[1][3], cam.c2w[2][3]};
+    std::array<double, 3> d{P[0] - o[0], P[1] - o[1], P[2] - o[2]};
+    double a = 0, b = 0, c = -R * R;
+    for (int k = 0; k < 3; ++k) a += d[k] * d[k], b += o[k] * d[k], c += o[k] * o[k];
+    const double t = (-b + std::sqrt(b * b - a * c)) / a;
+    return std::array<double, 3>{o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+  };
+  const auto frame = [&](int i) {
+    FrameGeometry f;
+    f.camera = orbit_camera(i, kSize, 1.0);  // inside the sphere, ~1 from the centre
+    f.depth.assign(size_t(kSize) * kSize, 0.0f);
+    f.opacity.assign(size_t(kSize) * kSize, 0.0f);
+    return f;
+  };
+  FrameGeometry f = frame(0);
+  const size_t held = size_t(kSize / 2) * kSize + kSize / 2, faint = 5;
+  f.opacity[held] = 0.8f, f.depth[held] = 0.7f;  // the box holds this pixel: its surface stays
+  f.opacity[faint] = 0.49f, f.depth[faint] = 0.9f;  // mostly the shell's colour: the shell is its surface
+  eval::add_shell_surface(f, float(R));
+  CHECK(f.opacity[held] == 0.8f);
+  CHECK(f.depth[held] == 0.7f);
+  for (int y = 0; y < kSize; ++y)
+    for (int x = 0; x < kSize; ++x) {
+      const size_t i = size_t(y) * kSize + x;
+      if (i == held) continue;
+      REQUIRE(f.opacity[i] == 1.0f);
+      const auto X = eval::world_point(f.camera, x + 0.5, y + 0.5, f.depth[i], world);
+      CHECK(std::sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]) == doctest::Approx(R).epsilon(1e-5));
+    }
+  // Two frames of nothing but the shell: every valid correspondence joins the two cameras' views of one
+  // point of the sphere.
+  FrameGeometry t = frame(4), s = frame(0);
+  eval::add_shell_surface(t, float(R));
+  eval::add_shell_surface(s, float(R));
+  const Correspondence c = eval::correspond(t, s, world, {});
+  CHECK(c.stats.valid_fraction() > 0.5);
+  double worst = 0;
+  for (int y = 0; y < kSize; ++y)
+    for (int x = 0; x < kSize; ++x) {
+      const size_t i = size_t(y) * kSize + x;
+      if (!c.valid[i]) continue;
+      const auto a = exit_point(t.camera, x + 0.5, y + 0.5), b = exit_point(s.camera, c.x[i], c.y[i]);
+      worst = std::max(worst, std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                        (a[2] - b[2]) * (a[2] - b[2])));
+    }
+  CHECK(worst < 1e-4 * R);
+  // A camera outside the sphere sees no exit ahead: the frame is left as it was; a radius must be > 0.
+  FrameGeometry outside = frame(0);
+  eval::add_shell_surface(outside, 0.5f);
+  CHECK(outside.opacity == frame(0).opacity);
+  CHECK(outside.depth == frame(0).depth);
+  testing::expect_error([&] { eval::add_shell_surface(outside, 0.0f); }, "radius must be > 0");
+}
+
 TEST_CASE("the geometry renderer: opacity and depth of a trained density grid without its appearance") {
   const auto& scene = testing::small_scene();
   const auto& geo = testing::small_geometry();
@@ -506,7 +566,7 @@ TEST_CASE("the RGB floor's render gives the table its geometry: one march, the s
   }
   CHECK(covered > 0);
   const eval::PathSetup a = eval::path_setup(m.geo, scene, p);
-  const eval::PathSetup b = eval::path_setup(from_rgb, m.geo.has_background, scene, p);
+  const eval::PathSetup b = eval::path_setup(from_rgb, m.geo, scene, p);
   REQUIRE(a.warps.short_range.warps.size() == b.warps.short_range.warps.size());
   REQUIRE(a.warps.long_range.warps.size() == b.warps.long_range.warps.size());
   for (size_t i = 0; i < a.warps.short_range.warps.size(); ++i) {
@@ -514,7 +574,19 @@ TEST_CASE("the RGB floor's render gives the table its geometry: one march, the s
     CHECK(a.warps.short_range.warps[i].x == b.warps.short_range.warps[i].x);
   }
   CHECK(a.warps.long_range.warps.back().valid == b.warps.long_range.warps.back().valid);
+  // With a background shell about every camera, the pixels the box leaves are warped by the shell: more
+  // of each frame is scored.
+  model::Geometry shelled = m.geo;
+  shelled.has_background = false;
+  shelled.shell.radius = 100.0f;
+  const eval::PathSetup w = eval::path_setup(from_rgb, shelled, scene, p);
+  int64_t plain_valid = 0, shell_valid = 0;
+  for (size_t i = 0; i < w.warps.long_range.warps.size(); ++i) {
+    plain_valid += a.warps.long_range.warps[i].stats.valid;
+    shell_valid += w.warps.long_range.warps[i].stats.valid;
+  }
+  CHECK(shell_valid > plain_valid);
   // Frames of another path are refused, naming the counts.
   from_rgb.pop_back();
-  testing::expect_error([&] { eval::path_setup(from_rgb, false, scene, p); }, "7 rendered frames for a path of 8");
+  testing::expect_error([&] { eval::path_setup(from_rgb, m.geo, scene, p); }, "7 rendered frames for a path of 8");
 }

@@ -398,7 +398,7 @@ SceneResult eval_scene(const TableArgs& a, const TableInputs& in, size_t gi, sty
   const auto rgb = eval::rgb_frames(density, scene, eval::path_cameras(scene, a.p.frames, a.p.path_frames, a.p.size),
                                     a.p.chunk, &geometry);
   const double rgb_s = seconds_since(t_rgb);
-  const PathSetup path = path_setup(std::move(geometry), density.geo.has_background, scene, a.p);
+  const PathSetup path = path_setup(std::move(geometry), density.geo, scene, a.p);
   std::cout << "  RGB and geometry: " << path.cams.size() << " frames of " << path.cams.front().width << "x"
             << path.cams.front().height << " rendered in " << fmt(rgb_s, 1) << " s, warps in " << fmt(path.seconds, 1)
             << " s" << std::endl;

@@ -31,8 +31,10 @@ struct PathSetup {
 PathSetup path_setup(const model::Geometry& g, const scene::Scene& scene, const PathOptions& p);
 // The same from the geometry of frames already rendered for path_cameras(scene, p...) (rgb_frames' own:
 // the RGB floor's render marches the same density, so the table need not march it twice: fern at 1008x756,
-// ~21 s a frame). has_background: the geometry's (Geometry::has_background).
-PathSetup path_setup(std::vector<FrameGeometry> frames, bool has_background, const scene::Scene& scene,
+// ~21 s a frame). `g` is the geometry they were rendered from: its background colour masks empty space, and
+// its background shell, where it has one, is the surface of the pixels the box leaves to it
+// (add_shell_surface).
+PathSetup path_setup(std::vector<FrameGeometry> frames, const model::Geometry& g, const scene::Scene& scene,
                      const PathOptions& p);
 
 // Masked LPIPS as the consistency metric's distance; null when lpips is null.

@@ -159,6 +159,25 @@ Correspondence correspond(const FrameGeometry& t, const FrameGeometry& s, const 
   return c;
 }
 
+void add_shell_surface(FrameGeometry& f, float radius, float min_opacity) {
+  check_frame(f, "shell");
+  if (!(radius > 0)) throw Error("add_shell_surface: the shell's radius must be > 0 (got " + std::to_string(radius) + ")");
+  const int W = f.camera.width, H = f.camera.height;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t i = size_t(y) * W + x;
+      if (f.opacity[i] >= min_opacity) continue;
+      Vec3 o, d;
+      pixel_ray(f.camera, x + 0.5, y + 0.5, o, d);  // world_point's unit ray
+      // |o + t d| = radius with |d| = 1: t^2 + 2 (o.d) t + (o.o - r^2) = 0; the larger root is the exit.
+      const double b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+      const double c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - double(radius) * radius;
+      if (!(c < 0)) continue;  // the camera is outside the sphere: the shell is at infinity there
+      f.depth[i] = float(-b + std::sqrt(b * b - c));
+      f.opacity[i] = 1.0f;
+    }
+}
+
 BilinearTaps bilinear_taps(double qx, double qy, int width, int height) {
   // Between pixel centres: position q - 0.5 in index units.
   const double fx = std::clamp(qx - 0.5, 0.0, double(width - 1));

@@ -66,6 +66,14 @@ struct Correspondence {
   WarpStats stats;
 };
 
+// Captures with a background shell (model::BackgroundShell: a sphere of `radius` about the world origin,
+// painted with the room): a pixel whose box opacity is below `min_opacity` shows mostly the shell, so the
+// shell is its surface. Its depth becomes where its ray leaves the sphere and its opacity 1; pixels the box
+// holds keep theirs. Without it the room, most of such a frame, had either no depth or that of the box's
+// faint remainder, and the metric scored the object and a patchwork of occlusions around it. World space
+// only (shell captures are never NDC); a camera outside the sphere (no exit ahead) leaves the frame as is.
+void add_shell_surface(FrameGeometry& f, float radius, float min_opacity = 0.5f);
+
 // World point of pixel position (px, py) of `cam` at ray-space depth t. `finite` (optional) is set to
 // false for points at infinity (NDC t at or beyond ndc_far), where the returned point is meaningless.
 std::array<double, 3> world_point(const scene::Camera& cam, double px, double py, double t, const RaySpace& space,
