@@ -52,11 +52,11 @@ double eval_seconds(const FrameCost& c, const EvalCounts& n) {
 double lpips_pair_units(LpipsNet net) { return net == LpipsNet::Vgg ? 2.0 : 2.0 * kAlexOverVgg; }
 
 EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds) {
-  // Each stage lowers one count down to its floor (never below what was wanted), in this order, until the
+  // Each stage lowers one count down to its least (never below what was wanted), in this order, until the
   // evaluation fits: the videos first, then the scores by halves before their least useful sizes.
   struct Stage {
     int EvalCounts::*count;
-    int floor;
+    int least;
   };
   static constexpr Stage kStages[] = {
       {&EvalCounts::video_frames, 24}, {&EvalCounts::shown, 1},        {&EvalCounts::video_frames, 8},
@@ -66,7 +66,7 @@ EvalCounts fit_eval(const FrameCost& c, const EvalCounts& wanted, double seconds
   };
   EvalCounts n = wanted;
   for (const Stage& st : kStages)
-    while (eval_seconds(c, n) > seconds && n.*st.count > std::min(st.floor, wanted.*st.count)) --(n.*st.count);
+    while (eval_seconds(c, n) > seconds && n.*st.count > std::min(st.least, wanted.*st.count)) --(n.*st.count);
   return n;
 }
 
